@@ -1,0 +1,59 @@
+//! Typed errors: every way an input or a request can be refused, each naming the offending item.
+
+use thiserror::Error;
+
+/// Everything that can go wrong in bidegree. Validation happens before any work, so an error
+/// never leaves partial results behind.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum Error {
+    /// The mesh has no faces (or no vertices).
+    #[error("empty mesh: {0}")]
+    EmptyMesh(String),
+    /// A face has fewer than three vertices.
+    #[error("face {face} has {size} vertices; faces need at least 3")]
+    FaceTooSmall { face: usize, size: usize },
+    /// A face uses the same vertex twice.
+    #[error("face {face} uses vertex {vertex} more than once")]
+    RepeatedVertex { face: usize, vertex: usize },
+    /// A face, crease or corner refers to a vertex that does not exist.
+    #[error("{what} refers to vertex {index}, but the mesh has {num_vertices} vertices")]
+    IndexOutOfRange { what: String, index: i64, num_vertices: usize },
+    /// A coordinate or attribute value is NaN or infinite.
+    #[error("vertex {vertex} has a non-finite coordinate")]
+    NonFinite { vertex: usize },
+    /// A face has (numerically) zero area.
+    #[error("face {face} is degenerate (zero area)")]
+    DegenerateFace { face: usize },
+    /// More than two faces share an edge.
+    #[error("edge ({a}, {b}) is shared by {faces} faces; the mesh must be a 2-manifold")]
+    NonManifoldEdge { a: usize, b: usize, faces: usize },
+    /// Two faces traverse a shared edge in the same direction.
+    #[error("faces {face_a} and {face_b} have opposite orientations across edge ({a}, {b})")]
+    InconsistentOrientation { a: usize, b: usize, face_a: usize, face_b: usize },
+    /// A crease names a vertex pair that is not an edge of the mesh.
+    #[error("crease {crease} ({a}, {b}) is not an edge of the mesh")]
+    CreaseNotAnEdge { crease: usize, a: usize, b: usize },
+    /// The degree is outside 1..=MAX_DEGREE.
+    #[error("degree {degree} is out of range 1..={max}")]
+    DegreeOutOfRange { degree: i64, max: u32 },
+    /// The number of levels is outside 0..=MAX_LEVELS.
+    #[error("levels {levels} is out of range 0..={max}")]
+    LevelOutOfRange { levels: i64, max: u32 },
+    /// The estimated memory of the request exceeds the budget.
+    #[error(
+        "the result would need about {required} bytes ({faces} faces), over the memory budget of {budget} bytes"
+    )]
+    MemoryBudget { required: u64, budget: u64, faces: u64 },
+    /// Arrays of the wrong length or shape, a bad option value, a sharpness below zero.
+    #[error("invalid input: {0}")]
+    InvalidInput(String),
+    /// A file could not be read or written, or is malformed (with its line number).
+    #[error("{0}")]
+    Io(String),
+    /// A bug: an internal invariant failed (a caught panic). Please report it.
+    #[error("internal error: {0}")]
+    Internal(String),
+}
+
+/// Result type of the crate.
+pub type Result<T> = std::result::Result<T, Error>;
