@@ -1,0 +1,591 @@
+"""USD export of a bidegree cage and its subdivided result (usd-core, ``pxr``).
+
+The stage written by :func:`export` looks like this::
+
+    /Bidegree              Xform, the default prim (kind = component)
+    /Bidegree/Cage         Mesh: the input cage, subdivisionScheme = catmullClark, with the cage's
+                           creases, corners and boundary rule, so that any USD renderer draws the
+                           Catmull-Clark surface of the same cage (for comparison)
+    /Bidegree/Result       Mesh: the bidegree surface, subdivisionScheme = none, vertex normals,
+                           primvars:st (when the cage has UVs), primvars:distance (optional),
+                           extent and the custom attributes bidegree:degree, bidegree:levels,
+                           bidegree:output, bidegree:boundary, bidegree:version
+    /Bidegree/<Name>       optional extra meshes (``extra_meshes``; ``bidegree.compare`` writes the
+                           OpenSubdiv surface as /Bidegree/OpenSubdiv)
+
+Conventions:
+
+- Points are written as ``point3f[]`` (float32), whatever the input precision.
+- Winding is counter-clockwise (``orientation = rightHanded``), as in OBJ and in bidegree.
+- Normals of the result are *area-weighted vertex normals* (``vertex`` interpolation): each face
+  contributes its vector area (Newell's formula, exact for planar faces) to each of its vertices
+  and the sums are normalised.  A vertex whose sum vanishes gets a zero normal.
+- UVs are face-varying ``primvars:st`` (``texCoord2f[]``), one value per face corner, on both the
+  cage and the result.  bidegree interpolates UVs linearly, so the cage also says
+  ``faceVaryingLinearInterpolation = all`` and a renderer subdividing it gets the same UV layout.
+- Crease and corner sharpness use the OpenSubdiv convention, shared with bidegree: a sharpness of
+  10 or more is infinitely sharp.  Infinite values (``inf``) are written as 10.0, finite values as
+  given.  Each crease is one ``creaseLengths`` entry of length 2.
+- Boundary mode ``edge-only`` is written as ``interpolateBoundary = edgeOnly`` and
+  ``edge-and-corner`` as ``edgeAndCorner``.
+
+Writing is atomic: the stage is built in memory, exported to a temporary file in the target
+directory (same extension, so the same file format) and moved over the target with
+:func:`os.replace`; a failure removes the temporary file and leaves any existing target untouched.
+The format follows the extension: ``.usda`` (text), ``.usdc`` (crate) or ``.usd`` (crate).
+All array data goes through ``Vt.*Array.FromNumpy``; there is no Python loop over points or faces.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from bidegree import BidegreeIOError, InvalidInputError
+
+__all__ = [
+    "BOUNDARY_TO_USD",
+    "SUPPORTED_EXTENSIONS",
+    "export",
+    "validate",
+    "vertex_normals",
+]
+
+#: bidegree boundary mode -> UsdGeom ``interpolateBoundary`` token
+BOUNDARY_TO_USD: dict[str, str] = {
+    "edge-only": "edgeOnly",
+    "edge-and-corner": "edgeAndCorner",
+}
+
+#: File extensions :func:`export` accepts.
+SUPPORTED_EXTENSIONS: tuple[str, ...] = (".usda", ".usdc", ".usd")
+
+#: Sharpness at or above which OpenSubdiv (and bidegree) treat a crease or corner as infinitely sharp.
+INFINITELY_SHARP = 10.0
+
+_UP_AXES = ("Y", "Z")
+
+
+def _pxr() -> Any:
+    """Import usd-core lazily so that ``import bidegree`` does not require it."""
+    try:
+        from pxr import Gf, Kind, Sdf, Usd, UsdGeom, Vt  # noqa: F401
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise BidegreeIOError(
+            "USD export needs usd-core: pip install usd-core"
+        ) from exc
+    import pxr
+
+    return pxr
+
+
+class _Topology:
+    """Validated polygon-mesh arrays (points, face sizes, face indices) of a cage or result."""
+
+    def __init__(
+        self, what: str, points: Any, face_sizes: Any, face_indices: Any
+    ) -> None:
+        pts = np.asarray(points)
+        if pts.ndim != 2 or pts.shape[1] != 3:
+            raise InvalidInputError(
+                f"{what}: points must have shape (N, 3), got {pts.shape}"
+            )
+        if not np.issubdtype(pts.dtype, np.number):
+            raise InvalidInputError(
+                f"{what}: points must be numeric, got dtype {pts.dtype}"
+            )
+        if pts.shape[0] == 0:
+            raise InvalidInputError(f"{what}: no points")
+        if not np.all(np.isfinite(pts)):
+            raise InvalidInputError(f"{what}: points contain NaN or infinite values")
+        sizes = np.asarray(face_sizes)
+        indices = np.asarray(face_indices)
+        if sizes.ndim != 1 or indices.ndim != 1:
+            raise InvalidInputError(
+                f"{what}: face_sizes and face_indices must be 1-D arrays"
+            )
+        if sizes.size == 0:
+            raise InvalidInputError(f"{what}: no faces")
+        if not (
+            np.issubdtype(sizes.dtype, np.integer)
+            and np.issubdtype(indices.dtype, np.integer)
+        ):
+            raise InvalidInputError(
+                f"{what}: face_sizes and face_indices must be integer arrays"
+            )
+        if sizes.min() < 3:
+            raise InvalidInputError(f"{what}: every face needs at least 3 vertices")
+        total = int(sizes.sum(dtype=np.int64))
+        if total != indices.size:
+            raise InvalidInputError(
+                f"{what}: face_sizes sum to {total} but face_indices has {indices.size} entries"
+            )
+        if indices.min() < 0 or indices.max() >= pts.shape[0]:
+            raise InvalidInputError(
+                f"{what}: face_indices out of range [0, {pts.shape[0]}): "
+                f"min {int(indices.min())}, max {int(indices.max())}"
+            )
+        if pts.shape[0] > np.iinfo(np.int32).max or total > np.iinfo(np.int32).max:
+            raise InvalidInputError(f"{what}: too large for 32-bit USD index arrays")
+        self.what = what
+        self.points = pts
+        self.face_sizes = sizes.astype(np.int32, copy=False)
+        self.face_indices = indices.astype(np.int32, copy=False)
+
+    @property
+    def num_points(self) -> int:
+        return int(self.points.shape[0])
+
+    @property
+    def num_corners(self) -> int:
+        return int(self.face_indices.size)
+
+
+def vertex_normals(
+    points: np.ndarray, face_sizes: np.ndarray, face_indices: np.ndarray
+) -> np.ndarray:
+    """Area-weighted vertex normals (float32, unit length or zero) of a polygon mesh.
+
+    Each face's vector area (Newell's formula around the face's first vertex) is added to each of
+    its vertices; the sums are normalised.  Vectorised with numpy; O(corners).
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    sizes = np.asarray(face_sizes, dtype=np.int64)
+    idx = np.asarray(face_indices, dtype=np.int64)
+    n = pts.shape[0]
+    starts = np.zeros(sizes.size, dtype=np.int64)
+    np.cumsum(sizes[:-1], out=starts[1:])
+    nxt = np.arange(1, idx.size + 1, dtype=np.int64)
+    nxt[starts + sizes - 1] = starts  # last corner of a face -> its first corner
+    next_idx = idx.take(nxt)
+    first = idx.take(starts)
+    # Column-wise (structure of arrays): 1-D takes are much faster than (N, 3) row gathers.
+    a, b = [], []
+    for k in range(3):
+        col = np.ascontiguousarray(pts[:, k])
+        origin = np.repeat(col.take(first), sizes)
+        a.append(col.take(idx) - origin)
+        b.append(col.take(next_idx) - origin)
+    cross = (
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    )
+    acc = np.empty((n, 3), dtype=np.float64)
+    for k in range(3):
+        face_area2 = np.add.reduceat(cross[k], starts)  # 2 * vector area of each face
+        acc[:, k] = np.bincount(idx, weights=np.repeat(face_area2, sizes), minlength=n)
+    length = np.linalg.norm(acc, axis=1)
+    ok = length > 0
+    acc[ok] /= length[ok, None]
+    acc[~ok] = 0.0
+    return acc.astype(np.float32)
+
+
+def _sharpness(values: np.ndarray) -> np.ndarray:
+    """Sharpness values for USD: finite values unchanged, +inf -> 10 (infinitely sharp)."""
+    out = np.asarray(values, dtype=np.float32).copy()
+    out[np.isposinf(out)] = INFINITELY_SHARP
+    return out
+
+
+def _pair(value: Any, what: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """Normalise an optional ``(indices, sharpness)`` pair; None or empty -> None."""
+    if value is None:
+        return None
+    try:
+        first, second = value
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(
+            f"cage {what} must be a pair (indices, sharpness)"
+        ) from exc
+    a = np.asarray(first)
+    s = np.asarray(second)
+    if a.size == 0 and s.size == 0:
+        return None
+    return a, s
+
+
+def _face_varying(value: Any, num_corners: int, what: str) -> np.ndarray | None:
+    if value is None:
+        return None
+    uv = np.asarray(value)
+    if uv.ndim != 2 or uv.shape[1] != 2:
+        raise InvalidInputError(
+            f"{what}: uvs must have shape (corners, 2), got {uv.shape}"
+        )
+    if uv.shape[0] != num_corners:
+        raise InvalidInputError(
+            f"{what}: {uv.shape[0]} uvs but the mesh has {num_corners} face corners "
+            "(uvs are face-varying: one per face corner)"
+        )
+    if not np.all(np.isfinite(uv)):
+        raise InvalidInputError(f"{what}: uvs contain NaN or infinite values")
+    return uv
+
+
+def _vec3f(pxr: Any, a: np.ndarray) -> Any:
+    return pxr.Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(a, dtype=np.float32))
+
+
+def _vec2f(pxr: Any, a: np.ndarray) -> Any:
+    return pxr.Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(a, dtype=np.float32))
+
+
+def _ints(pxr: Any, a: np.ndarray) -> Any:
+    return pxr.Vt.IntArray.FromNumpy(np.ascontiguousarray(a, dtype=np.int32))
+
+
+def _floats(pxr: Any, a: np.ndarray) -> Any:
+    return pxr.Vt.FloatArray.FromNumpy(np.ascontiguousarray(a, dtype=np.float32))
+
+
+def _extent(pxr: Any, points: np.ndarray) -> Any:
+    return _vec3f(pxr, np.stack([points.min(axis=0), points.max(axis=0)]))
+
+
+def _define_polymesh(
+    pxr: Any,
+    stage: Any,
+    path: str,
+    topo: _Topology,
+    *,
+    normals: bool,
+    uvs: np.ndarray | None = None,
+    distances: np.ndarray | None = None,
+) -> Any:
+    """Define a plain polygon mesh (subdivisionScheme = none) at ``path``."""
+    UsdGeom, Sdf = pxr.UsdGeom, pxr.Sdf
+    mesh = UsdGeom.Mesh.Define(stage, path)
+    mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    mesh.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
+    mesh.CreatePointsAttr(_vec3f(pxr, topo.points))
+    mesh.CreateFaceVertexCountsAttr(_ints(pxr, topo.face_sizes))
+    mesh.CreateFaceVertexIndicesAttr(_ints(pxr, topo.face_indices))
+    mesh.CreateExtentAttr(_extent(pxr, topo.points))
+    if normals:
+        mesh.CreateNormalsAttr(
+            _vec3f(pxr, vertex_normals(topo.points, topo.face_sizes, topo.face_indices))
+        )
+        mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+    primvars = UsdGeom.PrimvarsAPI(mesh.GetPrim())
+    if uvs is not None:
+        st = primvars.CreatePrimvar(
+            "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying
+        )
+        st.Set(_vec2f(pxr, uvs))
+    if distances is not None:
+        dist = primvars.CreatePrimvar(
+            "distance", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
+        )
+        dist.Set(_floats(pxr, distances))
+    return mesh
+
+
+def _check_distances(distances: Any, num_points: int, what: str) -> np.ndarray | None:
+    if distances is None:
+        return None
+    d = np.asarray(distances)
+    if d.ndim != 1 or d.shape[0] != num_points:
+        raise InvalidInputError(
+            f"{what}: distances must have shape ({num_points},) (one per vertex), got {d.shape}"
+        )
+    if not np.issubdtype(d.dtype, np.number) or not np.all(np.isfinite(d)):
+        raise InvalidInputError(f"{what}: distances must be finite numbers")
+    return d
+
+
+def _version() -> str:
+    import bidegree
+
+    version = getattr(bidegree, "__version__", None)
+    if version:
+        return str(version)
+    try:
+        from importlib.metadata import version as dist_version
+
+        return dist_version("bidegree")
+    except Exception:  # noqa: BLE001 - metadata missing in a source checkout
+        return "unknown"
+
+
+def _build_stage(
+    cage: Any,
+    result: Any,
+    *,
+    up_axis: str,
+    meters_per_unit: float,
+    distances: Any,
+    extra_meshes: Mapping[str, tuple[Any, Any]] | None,
+) -> Any:
+    pxr = _pxr()
+    Usd, UsdGeom, Sdf, Kind = pxr.Usd, pxr.UsdGeom, pxr.Sdf, pxr.Kind
+
+    # ---- validate everything before building anything
+    if up_axis not in _UP_AXES:
+        raise InvalidInputError(f"up_axis must be 'Y' or 'Z', got {up_axis!r}")
+    mpu = float(meters_per_unit)
+    if not (np.isfinite(mpu) and mpu > 0):
+        raise InvalidInputError(
+            f"meters_per_unit must be a positive number, got {meters_per_unit!r}"
+        )
+
+    cage_topo = _Topology("cage", cage.points, cage.face_sizes, cage.face_indices)
+    res_topo = _Topology(
+        "result", result.points, result.face_sizes, result.face_indices
+    )
+    cage_uvs = _face_varying(getattr(cage, "uvs", None), cage_topo.num_corners, "cage")
+    res_uvs = _face_varying(
+        getattr(result, "uvs", None), res_topo.num_corners, "result"
+    )
+    dist = _check_distances(distances, res_topo.num_points, "result")
+
+    boundary = str(
+        getattr(cage, "boundary", None) or getattr(result, "boundary", "edge-only")
+    )
+    if boundary not in BOUNDARY_TO_USD:
+        raise InvalidInputError(
+            f"unknown boundary mode {boundary!r}; expected one of {sorted(BOUNDARY_TO_USD)}"
+        )
+
+    creases = _pair(getattr(cage, "creases", None), "creases")
+    if creases is not None:
+        edges, sharp = creases
+        edges = (
+            edges.reshape(-1, 2) if edges.ndim == 1 and edges.size % 2 == 0 else edges
+        )
+        if edges.ndim != 2 or edges.shape[1] != 2 or sharp.shape != (edges.shape[0],):
+            raise InvalidInputError(
+                "cage creases must be ((K, 2) vertex pairs, (K,) sharpness), "
+                f"got {edges.shape} and {sharp.shape}"
+            )
+        if edges.size and (edges.min() < 0 or edges.max() >= cage_topo.num_points):
+            raise InvalidInputError("cage crease vertex index out of range")
+        creases = (edges, sharp)
+    corners = _pair(getattr(cage, "corners", None), "corners")
+    if corners is not None:
+        cverts, csharp = corners
+        if cverts.ndim != 1 or csharp.shape != cverts.shape:
+            raise InvalidInputError(
+                f"cage corners must be ((K,) vertices, (K,) sharpness), got {cverts.shape} and {csharp.shape}"
+            )
+        if cverts.size and (cverts.min() < 0 or cverts.max() >= cage_topo.num_points):
+            raise InvalidInputError("cage corner vertex index out of range")
+
+    extras: list[tuple[str, _Topology, np.ndarray | None]] = []
+    for name, (mesh_like, extra_dist) in (extra_meshes or {}).items():
+        if not Sdf.Path.IsValidIdentifier(name) or name in ("Cage", "Result"):
+            raise InvalidInputError(f"invalid extra mesh name {name!r}")
+        topo = _Topology(
+            name, mesh_like.points, mesh_like.face_sizes, mesh_like.face_indices
+        )
+        extras.append((name, topo, _check_distances(extra_dist, topo.num_points, name)))
+
+    # ---- build the stage in memory
+    stage = Usd.Stage.CreateInMemory("bidegree.usda")
+    UsdGeom.SetStageUpAxis(
+        stage, UsdGeom.Tokens.y if up_axis == "Y" else UsdGeom.Tokens.z
+    )
+    UsdGeom.SetStageMetersPerUnit(stage, mpu)
+    root = UsdGeom.Xform.Define(stage, "/Bidegree")
+    stage.SetDefaultPrim(root.GetPrim())
+    Usd.ModelAPI(root.GetPrim()).SetKind(Kind.Tokens.component)
+
+    # cage: Catmull-Clark subdivision surface of the same control mesh
+    cmesh = UsdGeom.Mesh.Define(stage, "/Bidegree/Cage")
+    cmesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.catmullClark)
+    cmesh.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
+    cmesh.CreateInterpolateBoundaryAttr(BOUNDARY_TO_USD[boundary])
+    cmesh.CreateFaceVaryingLinearInterpolationAttr(UsdGeom.Tokens.all)
+    cmesh.CreatePointsAttr(_vec3f(pxr, cage_topo.points))
+    cmesh.CreateFaceVertexCountsAttr(_ints(pxr, cage_topo.face_sizes))
+    cmesh.CreateFaceVertexIndicesAttr(_ints(pxr, cage_topo.face_indices))
+    # The Catmull-Clark limit surface lies in the convex hull of the control points.
+    cmesh.CreateExtentAttr(_extent(pxr, cage_topo.points))
+    if creases is not None:
+        edges, sharp = creases
+        cmesh.CreateCreaseIndicesAttr(_ints(pxr, edges.reshape(-1)))
+        cmesh.CreateCreaseLengthsAttr(
+            _ints(pxr, np.full(edges.shape[0], 2, dtype=np.int32))
+        )
+        cmesh.CreateCreaseSharpnessesAttr(_floats(pxr, _sharpness(sharp)))
+    if corners is not None:
+        cverts, csharp = corners
+        cmesh.CreateCornerIndicesAttr(_ints(pxr, cverts))
+        cmesh.CreateCornerSharpnessesAttr(_floats(pxr, _sharpness(csharp)))
+    if cage_uvs is not None:
+        st = UsdGeom.PrimvarsAPI(cmesh.GetPrim()).CreatePrimvar(
+            "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying
+        )
+        st.Set(_vec2f(pxr, cage_uvs))
+
+    # result: the bidegree surface as a plain polygon mesh
+    rmesh = _define_polymesh(
+        pxr,
+        stage,
+        "/Bidegree/Result",
+        res_topo,
+        normals=True,
+        uvs=res_uvs,
+        distances=dist,
+    )
+    prim = rmesh.GetPrim()
+    for name, type_name, value in (
+        ("bidegree:degree", Sdf.ValueTypeNames.Int, int(result.degree)),
+        ("bidegree:levels", Sdf.ValueTypeNames.Int, int(result.levels)),
+        ("bidegree:output", Sdf.ValueTypeNames.Token, str(result.output)),
+        ("bidegree:boundary", Sdf.ValueTypeNames.Token, boundary),
+        ("bidegree:version", Sdf.ValueTypeNames.String, _version()),
+    ):
+        prim.CreateAttribute(name, type_name, custom=True).Set(value)
+
+    for name, topo, extra_dist in extras:
+        _define_polymesh(
+            pxr, stage, f"/Bidegree/{name}", topo, normals=True, distances=extra_dist
+        )
+    return stage
+
+
+def _file_mode(target: str) -> int:
+    """Mode for the new file: the existing target's mode, else 0o666 minus the umask."""
+    try:
+        return os.stat(target).st_mode & 0o7777
+    except OSError:
+        umask = os.umask(0)
+        os.umask(umask)
+        return 0o666 & ~umask
+
+
+def export(
+    path: str | os.PathLike[str],
+    cage: Any,
+    result: Any,
+    *,
+    up_axis: str = "Y",
+    meters_per_unit: float = 1.0,
+    distances: Any = None,
+    extra_meshes: Mapping[str, tuple[Any, Any]] | None = None,
+) -> None:
+    """Write ``cage`` and its subdivided ``result`` to a USD file (see the module docstring).
+
+    Args:
+        path: target file; ``.usda`` writes text, ``.usdc`` or ``.usd`` writes crate.  The
+            directory must exist.
+        cage: a :class:`bidegree.Mesh` (points, face_sizes, face_indices, creases, corners, uvs,
+            boundary).
+        result: a :class:`bidegree.Result` (points, face_sizes, face_indices, uvs, degree,
+            levels, output, boundary).
+        up_axis: ``"Y"`` or ``"Z"`` (stage ``upAxis``).
+        meters_per_unit: stage ``metersPerUnit`` (> 0).
+        distances: optional per-result-vertex values, written as ``primvars:distance``
+            (``vertex`` interpolation) on ``/Bidegree/Result``.
+        extra_meshes: optional ``{name: (mesh, distances_or_None)}``; each mesh (anything with
+            points, face_sizes, face_indices) is written as a plain polygon mesh
+            ``/Bidegree/<name>``.
+
+    Raises:
+        bidegree.InvalidInputError: mismatched or malformed arrays, bad options, unsupported
+            extension.
+        bidegree.BidegreeIOError: missing directory, unwritable path, USD write failure.  No
+            partial file is left behind in either case.
+    """
+    target = os.path.abspath(os.fspath(path))
+    directory, filename = os.path.split(target)
+    stem, ext = os.path.splitext(filename)
+    if ext.lower() not in SUPPORTED_EXTENSIONS:
+        raise InvalidInputError(
+            f"{path}: unsupported USD extension {ext!r}; use one of {', '.join(SUPPORTED_EXTENSIONS)}"
+        )
+    if not os.path.isdir(directory):
+        raise BidegreeIOError(f"{path}: directory {directory} does not exist")
+    if os.path.isdir(target):
+        raise BidegreeIOError(f"{path}: is a directory")
+
+    stage = _build_stage(
+        cage,
+        result,
+        up_axis=up_axis,
+        meters_per_unit=meters_per_unit,
+        distances=distances,
+        extra_meshes=extra_meshes,
+    )
+
+    try:
+        fd, tmp = tempfile.mkstemp(
+            prefix=f".{stem}.", suffix=f".tmp{ext}", dir=directory
+        )
+    except OSError as exc:
+        raise BidegreeIOError(
+            f"{path}: cannot write to {directory}: {exc.strerror or exc}"
+        ) from exc
+    os.close(fd)
+    try:
+        try:
+            ok = stage.GetRootLayer().Export(tmp)
+        except Exception as exc:  # pxr raises Tf.ErrorException
+            raise BidegreeIOError(f"{path}: USD export failed: {exc}") from exc
+        if not ok:
+            raise BidegreeIOError(f"{path}: USD export failed")
+        try:
+            os.chmod(tmp, _file_mode(target))
+            os.replace(tmp, target)
+        except OSError as exc:
+            raise BidegreeIOError(
+                f"{path}: cannot write: {exc.strerror or exc}"
+            ) from exc
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+
+    # A layer for this path that is already open in this process would otherwise keep serving
+    # the old content to Usd.Stage.Open / Sdf.Layer.FindOrOpen.
+    pxr = _pxr()
+    layer = pxr.Sdf.Layer.Find(target)
+    if layer is not None:
+        layer.Reload(force=True)
+
+
+def validate(path: str | os.PathLike[str]) -> list[str]:
+    """Validate a USD file with usd-core's validators; return the error messages (empty = valid).
+
+    Uses ``UsdValidation`` (every registered validator, as ``usdchecker`` does) and, on usd-core
+    releases that still ship it, ``UsdUtils.ComplianceChecker``.  Warnings are not returned.
+    """
+    pxr = _pxr()
+    errors: list[str] = []
+    stage = pxr.Usd.Stage.Open(os.fspath(path))
+    try:
+        from pxr import UsdValidation
+    except ImportError:  # pragma: no cover - older usd-core
+        UsdValidation = None
+    if UsdValidation is not None:
+        registry = UsdValidation.ValidationRegistry()
+        context = UsdValidation.ValidationContext(registry.GetOrLoadAllValidators())
+        for err in context.Validate(stage):
+            if err.GetType() == UsdValidation.ValidationErrorType.Error:
+                errors.append(f"{err.GetName()}: {err.GetMessage()}")
+    checker_cls = (
+        getattr(pxr.UsdUtils, "ComplianceChecker", None)
+        if hasattr(pxr, "UsdUtils")
+        else None
+    )
+    if checker_cls is None:
+        try:
+            from pxr import UsdUtils
+
+            checker_cls = getattr(UsdUtils, "ComplianceChecker", None)
+        except ImportError:  # pragma: no cover
+            checker_cls = None
+    if checker_cls is not None:  # pragma: no cover - removed from recent usd-core
+        checker = checker_cls()
+        checker.CheckCompliance(os.fspath(path))
+        errors.extend(checker.GetErrors())
+        errors.extend(checker.GetFailedChecks())
+    return errors
