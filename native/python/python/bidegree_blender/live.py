@@ -1,0 +1,318 @@
+"""Live-update logic: plan cache, change detection and result writing.
+
+This module is the GUI-free heart of the add-on's live result.  A
+:class:`LiveCache` keeps, per key (normally the source object's
+``session_uid``), the :class:`bidegree.Plan` built for the object's current
+topology plus fingerprints of what the last update consumed:
+
+* topology fingerprint (face sizes + corner vertices + crease data) and the
+  subdivision settings -> a change rebuilds the plan;
+* positions hash -> a change re-evaluates through the cached plan
+  (``Plan.evaluate``) and only rewrites vertex positions;
+* face data hash (UVs, material indices, flat/smooth, material list) -> a
+  change rewrites the result mesh but keeps the plan;
+* nothing changed -> no work at all.
+
+The counters in :class:`LiveStats` let tests assert which path ran.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import time
+import warnings
+from collections.abc import Hashable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import bidegree
+import numpy as np
+
+from . import mesh_io
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    import bpy
+
+#: What an update did.
+BUILT = "built"  # a new plan was built and the result mesh fully written
+REUSED = "reused"  # the cached plan evaluated new positions (positions only written)
+REWRITTEN = "rewritten"  # cached plan, but face data (UVs, materials, ...) changed: full write
+UNCHANGED = "unchanged"  # nothing changed, no work done
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Subdivision settings of one object (everything a plan depends on besides the cage)."""
+
+    degree: int = 4
+    levels: int = 2
+    output: str = "primal"
+    boundary: str = "edge-only"
+    use_creases: bool = True
+    memory_budget: int | None = None
+
+
+@dataclass
+class LiveStats:
+    """Counters of what :meth:`LiveCache.update` did (for tests and the status line)."""
+
+    plan_builds: int = 0
+    plan_reuses: int = 0
+    rewrites: int = 0
+    skips: int = 0
+    errors: int = 0
+
+
+@dataclass
+class UpdateReport:
+    """Outcome of one :meth:`LiveCache.update` call."""
+
+    action: str
+    seconds: float
+    cage_faces: int
+    result_faces: int
+    result_vertices: int
+    warnings: list[str] = field(default_factory=list)
+
+
+@dataclass
+class _Entry:
+    plan: Any
+    topology: tuple[str, Settings]
+    positions: str
+    face_data: str
+    mesh_name: str
+    mesh_vertices: int
+    result_faces: int
+
+
+def face_data_fingerprint(cage: mesh_io.CageArrays, materials: list[Any] | None) -> str:
+    """Hash of the per-face / per-corner data carried over to the result (not positions)."""
+    h = hashlib.blake2b(digest_size=16)
+    for name in sorted(cage.uv_maps):
+        h.update(name.encode())
+        h.update(np.ascontiguousarray(cage.uv_maps[name]).tobytes())
+    h.update(repr(cage.active_uv).encode())
+    for arr in (cage.material_index, cage.sharp_face):
+        h.update(b"-" if arr is None else np.ascontiguousarray(arr).tobytes())
+    h.update(repr([getattr(m, "name", None) for m in (materials or [])]).encode())
+    return h.hexdigest()
+
+
+def check_geometry(cage: mesh_io.CageArrays) -> None:
+    """Reject non-finite positions and zero-area faces before they reach the core.
+
+    Raises:
+        bidegree.NonFiniteError: a position is NaN or infinite.
+        bidegree.DegenerateFaceError: a face has (numerically) zero area.
+    """
+    pts = cage.points.astype(np.float64)
+    bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
+    if len(bad):
+        raise bidegree.NonFiniteError(f"vertex {int(bad[0])} has a non-finite position")
+    if cage.num_faces == 0:
+        return
+    sizes = cage.face_sizes.astype(np.int64)
+    starts = np.zeros(len(sizes), dtype=np.int64)
+    np.cumsum(sizes[:-1], out=starts[1:])
+    # Fan triangulation (v0, vi, vi+1) of every face; area = sum of |cross| / 2.
+    ntri = sizes - 2
+    face_of_tri = np.repeat(np.arange(len(sizes)), ntri)
+    local = np.arange(int(ntri.sum())) - np.repeat(np.cumsum(ntri) - ntri, ntri)
+    v0 = cage.corner_verts[starts[face_of_tri]]
+    v1 = cage.corner_verts[starts[face_of_tri] + local + 1]
+    v2 = cage.corner_verts[starts[face_of_tri] + local + 2]
+    cross = np.cross(pts[v1] - pts[v0], pts[v2] - pts[v0])
+    area = np.zeros(len(sizes))
+    np.add.at(area, face_of_tri, np.linalg.norm(cross, axis=1))
+    extent = float(np.ptp(pts, axis=0).max()) if len(pts) else 0.0
+    tol = max(extent, 1e-30) ** 2 * 1e-12
+    degenerate = np.flatnonzero(area <= tol)
+    if len(degenerate):
+        raise bidegree.DegenerateFaceError(
+            f"face {int(degenerate[0])} has zero area ({len(degenerate)} degenerate face(s)); "
+            "merge or dissolve them (Mesh > Clean Up > Degenerate Dissolve)"
+        )
+
+
+def build_plan(cage: mesh_io.CageArrays, settings: Settings) -> tuple[Any, list[str]]:
+    """Build the :class:`bidegree.Plan` for ``cage`` and collect its warnings as text."""
+    bmesh = mesh_io.to_bidegree_mesh(
+        cage, boundary=settings.boundary, use_creases=settings.use_creases
+    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        plan = bidegree.Plan(
+            bmesh,
+            degree=settings.degree,
+            levels=settings.levels,
+            output=settings.output,
+            memory_budget=settings.memory_budget,
+        )
+    return plan, [str(w.message) for w in caught]
+
+
+def evaluate_uvs(plan: Any, cage: mesh_io.CageArrays) -> dict[str, np.ndarray]:
+    """Linearly interpolate every UV map of ``cage`` through ``plan`` in a single pass."""
+    if not cage.uv_maps:
+        return {}
+    names = list(cage.uv_maps)
+    stacked = np.concatenate([cage.uv_maps[n] for n in names], axis=1)
+    out = np.asarray(plan.evaluate_face_varying(stacked))
+    return {n: out[:, 2 * i : 2 * i + 2] for i, n in enumerate(names)}
+
+
+def write_full(
+    mesh: bpy.types.Mesh,
+    plan: Any,
+    points: np.ndarray,
+    cage: mesh_io.CageArrays,
+    materials: list[Any] | None,
+) -> None:
+    """Write the full result (topology, positions, UVs, per-face data) into ``mesh``."""
+    mesh_io.write_mesh(
+        mesh,
+        points=points,
+        face_sizes=plan.face_sizes,
+        corner_verts=plan.face_indices,
+        edges=plan.edges,
+        corner_edges=plan.corner_edges,
+        face_origin=plan.face_origin,
+        cage=cage,
+        uv_maps=evaluate_uvs(plan, cage),
+        active_uv=cage.active_uv,
+        materials=materials,
+    )
+
+
+class LiveCache:
+    """Per-object cache of subdivision plans for live updates."""
+
+    def __init__(self) -> None:
+        self._entries: dict[Hashable, _Entry] = {}
+        self.stats = LiveStats()
+
+    def __contains__(self, key: Hashable) -> bool:
+        return key in self._entries
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    def plan(self, key: Hashable) -> Any | None:
+        """The cached plan for ``key`` (or ``None``)."""
+        entry = self._entries.get(key)
+        return entry.plan if entry is not None else None
+
+    def discard(self, key: Hashable) -> None:
+        """Forget ``key`` (object removed or bidegree disabled)."""
+        self._entries.pop(key, None)
+
+    def clear(self) -> None:
+        """Forget every cached plan."""
+        self._entries.clear()
+
+    def invalidate(self, key: Hashable) -> None:
+        """Force the next update of ``key`` to rewrite the result (keeps the plan)."""
+        entry = self._entries.get(key)
+        if entry is not None:
+            entry.positions = ""
+            entry.face_data = ""
+
+    def update(
+        self,
+        key: Hashable,
+        cage: mesh_io.CageArrays,
+        settings: Settings,
+        mesh: bpy.types.Mesh,
+        *,
+        materials: list[Any] | None = None,
+    ) -> UpdateReport:
+        """Bring ``mesh`` up to date with ``cage`` doing as little work as possible.
+
+        On any error nothing is written: ``mesh`` keeps its previous contents and
+        the exception (a :class:`bidegree.BidegreeError`) propagates.
+        """
+        t0 = time.perf_counter()
+        try:
+            return self._update(key, cage, settings, mesh, materials, t0)
+        except Exception:
+            self.stats.errors += 1
+            raise
+
+    def _update(
+        self,
+        key: Hashable,
+        cage: mesh_io.CageArrays,
+        settings: Settings,
+        mesh: bpy.types.Mesh,
+        materials: list[Any] | None,
+        t0: float,
+    ) -> UpdateReport:
+        topology = (cage.topology_fingerprint(use_creases=settings.use_creases), settings)
+        positions = cage.positions_hash()
+        face_data = face_data_fingerprint(cage, materials)
+        entry = self._entries.get(key)
+        same_mesh = (
+            entry is not None
+            and entry.mesh_name == mesh.name_full
+            and entry.mesh_vertices == len(mesh.vertices)
+        )
+        notes: list[str] = []
+
+        if entry is not None and entry.topology == topology and same_mesh:
+            if entry.positions == positions and entry.face_data == face_data:
+                self.stats.skips += 1
+                return self._report(UNCHANGED, t0, cage, entry)
+            check_geometry(cage)
+            points = entry.plan.evaluate(cage.points)
+            self.stats.plan_reuses += 1
+            if entry.face_data == face_data:
+                mesh_io.write_positions(mesh, points)
+                action = REUSED
+            else:
+                write_full(mesh, entry.plan, points, cage, materials)
+                self.stats.rewrites += 1
+                action = REWRITTEN
+        elif entry is not None and entry.topology == topology:
+            # Same plan, but the result mesh was replaced or emptied behind our back.
+            check_geometry(cage)
+            points = entry.plan.evaluate(cage.points)
+            self.stats.plan_reuses += 1
+            write_full(mesh, entry.plan, points, cage, materials)
+            self.stats.rewrites += 1
+            action = REWRITTEN
+        else:
+            check_geometry(cage)
+            plan, notes = build_plan(cage, settings)
+            points = plan.evaluate(cage.points)
+            write_full(mesh, plan, points, cage, materials)
+            self.stats.plan_builds += 1
+            entry = _Entry(
+                plan=plan,
+                topology=topology,
+                positions="",
+                face_data="",
+                mesh_name="",
+                mesh_vertices=0,
+                result_faces=int(plan.num_output_faces),
+            )
+            self._entries[key] = entry
+            action = BUILT
+
+        entry.positions = positions
+        entry.face_data = face_data
+        entry.mesh_name = mesh.name_full
+        entry.mesh_vertices = len(mesh.vertices)
+        report = self._report(action, t0, cage, entry)
+        report.warnings = notes
+        return report
+
+    @staticmethod
+    def _report(action: str, t0: float, cage: mesh_io.CageArrays, entry: _Entry) -> UpdateReport:
+        return UpdateReport(
+            action=action,
+            seconds=time.perf_counter() - t0,
+            cage_faces=cage.num_faces,
+            result_faces=entry.result_faces,
+            result_vertices=entry.mesh_vertices,
+        )
