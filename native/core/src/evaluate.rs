@@ -1,0 +1,324 @@
+//! Evaluation: running points or any per-vertex attribute through a [`Plan`]. Each step of
+//! degree n is a replication followed by n centroid averages alternating dual -> primal and
+//! primal -> dual (DESIGN.md §1), with the 1-D scheme run in lockstep on curve edges (§2).
+//! Every pass is a parallel gather in a fixed order, so the output is bitwise the same whatever
+//! the number of threads.
+
+use std::borrow::Cow;
+use std::fmt::Debug;
+use std::ops::{Add, Mul};
+
+use rayon::prelude::*;
+
+use crate::error::Result;
+use crate::mesh::check_values;
+use crate::plan::{CurveVertex, Plan, Step};
+use crate::topology::{Level, CHUNK};
+
+/// Floating-point types that points and attributes can be given in: `f32` and `f64`.
+pub trait Scalar:
+    Copy + Send + Sync + Default + PartialOrd + Debug + Add<Output = Self> + Mul<Output = Self> + 'static
+{
+    /// Converts from f64 (weights are computed in f64).
+    fn from_f64(x: f64) -> Self;
+    /// Converts to f64.
+    fn to_f64(self) -> f64;
+    /// True unless NaN or infinite.
+    fn is_finite(self) -> bool;
+}
+
+impl Scalar for f32 {
+    #[inline]
+    fn from_f64(x: f64) -> Self {
+        x as f32
+    }
+    #[inline]
+    fn to_f64(self) -> f64 {
+        self as f64
+    }
+    #[inline]
+    fn is_finite(self) -> bool {
+        f32::is_finite(self)
+    }
+}
+
+impl Scalar for f64 {
+    #[inline]
+    fn from_f64(x: f64) -> Self {
+        x
+    }
+    #[inline]
+    fn to_f64(self) -> f64 {
+        self
+    }
+    #[inline]
+    fn is_finite(self) -> bool {
+        f64::is_finite(self)
+    }
+}
+
+/// A value carried by the scheme: `N` channels of one scalar type.
+type Value<T, const N: usize> = [T; N];
+
+#[inline(always)]
+fn add<T: Scalar, const N: usize>(a: [T; N], b: [T; N]) -> [T; N] {
+    std::array::from_fn(|k| a[k] + b[k])
+}
+
+#[inline(always)]
+fn scale<T: Scalar, const N: usize>(a: [T; N], s: T) -> [T; N] {
+    std::array::from_fn(|k| a[k] * s)
+}
+
+/// Precomputed `1/k` for centroid averages, so that a centroid is a sum and one multiply.
+#[inline(always)]
+fn reciprocal<T: Scalar>(k: usize) -> T {
+    match k {
+        2 => T::from_f64(0.5),
+        4 => T::from_f64(0.25),
+        _ => T::from_f64(1.0 / k as f64),
+    }
+}
+
+/// Where the 2-D data of a step comes from and what kind it is.
+enum Data<'a, T: Scalar, const N: usize> {
+    /// One value per vertex of the current level.
+    Primal(Cow<'a, [Value<T, N>]>),
+    /// One value per face of the current level.
+    Dual(Vec<Value<T, N>>),
+}
+
+/// 1-D data on the curve network: per curve vertex (primal) or per curve edge (dual) of the
+/// previous step, or the cage points themselves before the first step.
+enum CurveData<T: Scalar, const N: usize> {
+    Cage,
+    Primal(Vec<Value<T, N>>),
+    Dual(Vec<Value<T, N>>),
+}
+
+/// The state of one evaluation while it runs through the levels.
+struct Run<'a, T: Scalar, const N: usize> {
+    /// The cage points (compacted numbering): corners keep these.
+    cage: &'a [Value<T, N>],
+    data: Data<'a, T, N>,
+    curve: CurveData<T, N>,
+}
+
+impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
+    /// Replication of step `j`: each child face (a corner of the coarse level) takes the value of
+    /// the corner's vertex (primal) or face (dual); each curve half-edge the value of its parent.
+    fn replicate(&mut self, coarse: &Level, step: &Step) -> Vec<Value<T, N>> {
+        let faces = match &self.data {
+            Data::Primal(v) => gather(coarse.num_corners(), |c| v[coarse.corner_verts[c] as usize]),
+            Data::Dual(f) => gather(coarse.num_corners(), |c| f[coarse.face_of(c)]),
+        };
+        let curve = match &self.curve {
+            CurveData::Cage => step.curve_edges.iter().map(|e| self.cage[e.source as usize]).collect(),
+            CurveData::Primal(v) | CurveData::Dual(v) => step.curve_edges.iter().map(|e| v[e.source as usize]).collect(),
+        };
+        self.curve = CurveData::Dual(curve);
+        faces
+    }
+
+    /// Dual -> primal average on `fine`: each vertex takes the centroid of its faces; curve
+    /// vertices and corners take (a blend towards) their 1-D values.
+    fn to_primal(&mut self, fine: &Level, step: &Step, faces: &[Value<T, N>]) {
+        let CurveData::Dual(edge_values) = &self.curve else { unreachable!("1-D data out of step") };
+        let curve: Vec<Value<T, N>> = step
+            .curve_vertices
+            .iter()
+            .map(|cv| match cv.edges {
+                Some([a, b]) => scale(add(edge_values[a as usize], edge_values[b as usize]), T::from_f64(0.5)),
+                None => self.cage[cv.vertex as usize],
+            })
+            .collect();
+        let mut vertices = gather(fine.num_vertices, |v| {
+            let corners = fine.corners_of_vertex(v);
+            let mut sum = faces[corners[0] as usize >> 2];
+            for &c in &corners[1..] {
+                sum = add(sum, faces[c as usize >> 2]);
+            }
+            scale(sum, reciprocal(corners.len()))
+        });
+        for (cv, &value) in step.curve_vertices.iter().zip(&curve) {
+            blend(&mut vertices[cv.vertex as usize], value, cv);
+        }
+        self.data = Data::Primal(Cow::Owned(vertices));
+        self.curve = CurveData::Primal(curve);
+    }
+
+    /// Primal -> dual average on `fine`: each face takes the centroid of its four corners, each
+    /// curve edge the midpoint of its two ends. Returns the face values.
+    fn to_dual(&mut self, fine: &Level, step: &Step) -> Vec<Value<T, N>> {
+        let Data::Primal(vertices) = &self.data else { unreachable!("2-D data out of step") };
+        let CurveData::Primal(curve) = &self.curve else { unreachable!("1-D data out of step") };
+        let quarter = T::from_f64(0.25);
+        let faces = gather(fine.num_faces(), |f| {
+            let q = &fine.corner_verts[4 * f..4 * f + 4];
+            let s = add(
+                add(vertices[q[0] as usize], vertices[q[1] as usize]),
+                add(vertices[q[2] as usize], vertices[q[3] as usize]),
+            );
+            scale(s, quarter)
+        });
+        let half = T::from_f64(0.5);
+        let edges = step
+            .curve_edges
+            .iter()
+            .map(|e| scale(add(curve[e.ends[0] as usize], curve[e.ends[1] as usize]), half))
+            .collect();
+        self.curve = CurveData::Dual(edges);
+        faces
+    }
+
+    /// One full step `coarse -> fine` of the given degree: replicate, then `degree` averages.
+    fn step(&mut self, coarse: &Level, fine: &Level, step: &Step, degree: u32) {
+        let mut faces = self.replicate(coarse, step);
+        for a in 1..=degree {
+            if a % 2 == 1 {
+                self.to_primal(fine, step, &faces);
+            } else {
+                faces = self.to_dual(fine, step);
+            }
+        }
+        if degree % 2 == 0 {
+            self.data = Data::Dual(faces);
+        }
+    }
+}
+
+/// Sets a vertex to `w * curve + (1 - w) * centroid` (exactly the curve value when w = 1).
+#[inline]
+fn blend<T: Scalar, const N: usize>(vertex: &mut Value<T, N>, curve: Value<T, N>, cv: &CurveVertex) {
+    if cv.weight >= 1.0 {
+        *vertex = curve;
+    } else if cv.weight > 0.0 {
+        *vertex = add(scale(curve, T::from_f64(cv.weight)), scale(*vertex, T::from_f64(1.0 - cv.weight)));
+    }
+}
+
+/// `out[i] = f(i)` for `i < n`, in parallel chunks.
+pub(crate) fn gather<V: Send, F: Fn(usize) -> V + Sync + Send>(n: usize, f: F) -> Vec<V> {
+    let mut out = Vec::with_capacity(n);
+    (0..n).into_par_iter().with_min_len(CHUNK).map(f).collect_into_vec(&mut out);
+    out
+}
+
+/// What the evaluation hands to the output stage: values at the last level, primal (per vertex)
+/// or dual (per face, plus the 1-D values of the last step's curve edges).
+pub(crate) enum Final<T: Scalar, const N: usize> {
+    Primal(Vec<Value<T, N>>),
+    Dual { faces: Vec<Value<T, N>>, curve_edges: Vec<Value<T, N>> },
+}
+
+impl Plan {
+    /// Runs `cage` (one value per vertex of `M_0`) through every level. `want_dual` selects the
+    /// final kind: the drawing mesh wants primal data, the true dual mesh dual data; the extra
+    /// average that converts is the paper's drawing step.
+    pub(crate) fn run<T: Scalar, const N: usize>(&self, cage: &[Value<T, N>], want_dual: bool) -> Final<T, N> {
+        let degree = self.options().degree;
+        let mut run = Run { cage, data: Data::Primal(Cow::Borrowed(cage)), curve: CurveData::Cage };
+        let levels = self.levels();
+        for (j, step) in self.steps().iter().enumerate() {
+            run.step(&levels[j], &levels[j + 1], step, degree);
+        }
+        let fine = levels.last().expect("at least one level");
+        let Some(last) = self.steps().last() else {
+            let Data::Primal(v) = run.data else { unreachable!("no step, primal cage data") };
+            return Final::Primal(v.into_owned());
+        };
+        match (run.data, want_dual) {
+            (Data::Primal(v), false) => Final::Primal(v.into_owned()),
+            (Data::Dual(faces), true) => {
+                let CurveData::Dual(curve_edges) = run.curve else { unreachable!("dual 1-D data") };
+                Final::Dual { faces, curve_edges }
+            }
+            (data @ Data::Primal(_), true) => {
+                let mut run = Run { cage, data, curve: run.curve };
+                let faces = run.to_dual(fine, last);
+                let CurveData::Dual(curve_edges) = run.curve else { unreachable!("dual 1-D data") };
+                Final::Dual { faces, curve_edges }
+            }
+            (Data::Dual(faces), false) => {
+                let mut run = Run { cage, data: Data::Dual(Vec::new()), curve: run.curve };
+                run.to_primal(fine, last, &faces);
+                let Data::Primal(v) = run.data else { unreachable!("to_primal yields primal data") };
+                Final::Primal(v.into_owned())
+            }
+        }
+    }
+
+    /// Evaluates per-vertex values of the cage (`channels` interleaved values per cage vertex,
+    /// in the user's numbering) and returns the values at the output vertices, interleaved.
+    pub fn evaluate<T: Scalar>(&self, values: &[T], channels: usize) -> Result<Vec<T>> {
+        check_values(values, channels, self.num_input_vertices())?;
+        Ok(match channels {
+            1 => self.evaluate_n::<T, 1>(values),
+            2 => self.evaluate_n::<T, 2>(values),
+            3 => self.evaluate_n::<T, 3>(values),
+            4 => self.evaluate_n::<T, 4>(values),
+            _ => self.evaluate_grouped(values, channels),
+        })
+    }
+
+    fn evaluate_n<T: Scalar, const N: usize>(&self, values: &[T]) -> Vec<T> {
+        let (points, _) = values.as_chunks::<N>();
+        let compact: Cow<[Value<T, N>]> = match self.vertex_map() {
+            None => Cow::Borrowed(points),
+            Some(map) => Cow::Owned(map.iter().map(|&v| points[v as usize]).collect()),
+        };
+        self.finish(self.run(&compact, self.wants_dual())).into_flattened()
+    }
+
+    /// More than four channels: evaluated four at a time and interleaved back.
+    fn evaluate_grouped<T: Scalar>(&self, values: &[T], channels: usize) -> Vec<T> {
+        let items = values.len() / channels;
+        let mut out: Vec<T> = Vec::new();
+        for first in (0..channels).step_by(4) {
+            let width = (channels - first).min(4);
+            let group: Vec<T> = (0..items)
+                .flat_map(|i| (0..4).map(move |k| if k < width { values[i * channels + first + k] } else { T::default() }))
+                .collect();
+            let result = self.evaluate_n::<T, 4>(&group);
+            let count = result.len() / 4;
+            if out.is_empty() {
+                out = vec![T::default(); count * channels];
+            }
+            for i in 0..count {
+                out[i * channels + first..i * channels + first + width].copy_from_slice(&result[4 * i..4 * i + width]);
+            }
+        }
+        out
+    }
+
+    /// Evaluates face-varying values (one per corner of the cage, e.g. UVs) with linear
+    /// (bilinear per face) interpolation and returns one value per corner of the output faces.
+    pub fn evaluate_face_varying<T: Scalar>(&self, values: &[T], channels: usize) -> Result<Vec<T>> {
+        check_values(values, channels, self.levels()[0].num_corners())?;
+        let mut current: Vec<T> = values.to_vec();
+        let levels = self.levels();
+        let half = T::from_f64(0.5);
+        for level in &levels[..levels.len() - 1] {
+            let centers: Vec<Vec<T>> = gather(level.num_faces(), |f| {
+                let corners = level.face_corners(f);
+                let w = reciprocal::<T>(corners.len());
+                (0..channels)
+                    .map(|k| corners.clone().fold(T::default(), |s, c| s + current[c * channels + k]) * w)
+                    .collect()
+            });
+            let next: Vec<Vec<T>> = gather(level.num_corners(), |c| {
+                let at = |c: usize, k: usize| current[c * channels + k];
+                let (n, p) = (level.next(c), level.prev(c));
+                let center = &centers[level.face_of(c)];
+                let mut quad = Vec::with_capacity(4 * channels);
+                quad.extend((0..channels).map(|k| at(c, k)));
+                quad.extend((0..channels).map(|k| (at(c, k) + at(n, k)) * half));
+                quad.extend_from_slice(center);
+                quad.extend((0..channels).map(|k| (at(p, k) + at(c, k)) * half));
+                quad
+            });
+            current = next.concat();
+        }
+        Ok(self.face_varying_output(current, channels))
+    }
+}

@@ -1,0 +1,198 @@
+//! Output meshes: the drawing mesh (`M_L` itself) or the true dual mesh of `M_L` (one face per
+//! vertex, its corners the points of the faces around it, closed along boundaries by the 1-D
+//! points of the boundary curve), with edges, corner edges and the cage face of every face.
+
+use crate::evaluate::{Final, Scalar};
+use crate::plan::{OutputKind, Plan};
+use crate::topology::{Level, NONE};
+
+/// The dual mesh of the last level, as a polygon level plus where its data comes from.
+#[derive(Debug, Default)]
+pub(crate) struct DualMesh {
+    /// Its polygons, edges and adjacency.
+    pub level: Level,
+    /// Indices (among the last step's curve edges) of the boundary curve edges whose 1-D points
+    /// follow the face points among the output vertices.
+    pub boundary_points: Vec<u32>,
+    /// For each corner of the dual mesh, the corner of `M_L` whose face-varying value it takes.
+    pub corner_source: Vec<u32>,
+    /// Cage face of each dual face.
+    pub face_origin: Vec<u32>,
+}
+
+/// Output topology that is not a table of the last level itself.
+#[derive(Debug, Default)]
+pub(crate) struct OutputMesh {
+    /// Face offsets of the drawing mesh.
+    pub face_offsets: Vec<u32>,
+    /// Cage face of each face of the drawing mesh.
+    pub face_origin: Vec<u32>,
+    /// The dual mesh, when asked for.
+    pub dual: Option<DualMesh>,
+}
+
+impl OutputMesh {
+    /// Builds the output topology of a plan whose levels and steps are laid out.
+    pub fn build(plan: &Plan) -> OutputMesh {
+        let levels = plan.levels();
+        let last = levels.last().expect("at least one level");
+        let depth = levels.len() - 1;
+        let (face_offsets, face_origin): (Vec<u32>, Vec<u32>) = if depth == 0 {
+            (last.face_offsets.clone(), (0..last.num_faces() as u32).collect())
+        } else {
+            // Face f of M_L is corner f of M_{L-1}, inside face f/4 of M_{L-1} (for L-1 >= 1),
+            // down to a corner of the cage.
+            let shift = 2 * (depth - 1);
+            let cage = &levels[0];
+            (
+                (0..=last.num_faces() as u32).map(|f| 4 * f).collect(),
+                (0..last.num_faces()).map(|f| cage.corner_faces[f >> shift]).collect(),
+            )
+        };
+        let dual = (plan.options().output == OutputKind::Dual && depth > 0).then(|| dual_mesh(plan, &face_origin));
+        OutputMesh { face_offsets, face_origin, dual }
+    }
+}
+
+/// The dual of `M_L`: the faces around each vertex, walked from face to face across edges and
+/// reversed so that the dual faces keep the orientation of the surface.
+fn dual_mesh(plan: &Plan, face_origin: &[u32]) -> DualMesh {
+    let last = plan.levels().last().expect("a refined level");
+    let step = plan.steps().last().expect("a step");
+    let num_faces = last.num_faces() as u32;
+    let boundary_points: Vec<u32> = (0..step.curve_edges.len() as u32)
+        .filter(|&i| last.is_boundary_edge(step.curve_edges[i as usize].edge as usize))
+        .collect();
+    let point_of_edge = |e: u32| -> u32 {
+        let at = boundary_points
+            .binary_search_by_key(&e, |&i| step.curve_edges[i as usize].edge)
+            .expect("boundary edges are curve edges of the last step");
+        num_faces + at as u32
+    };
+    let mut offsets = vec![0u32];
+    let mut verts = Vec::with_capacity(last.num_corners() + 2 * boundary_points.len());
+    let mut sources = Vec::with_capacity(verts.capacity());
+    let mut origin = Vec::with_capacity(last.num_vertices);
+    let mut visited = vec![false; last.num_corners()];
+    for v in 0..last.num_vertices {
+        let corners = last.corners_of_vertex(v);
+        // Fans that start at a boundary come first; closed fans start anywhere.
+        let starts = corners.iter().copied().filter(|&c| last.is_boundary_edge(last.corner_edges[last.prev(c as usize)] as usize));
+        let closed = corners.iter().copied();
+        for start in starts.chain(closed) {
+            if visited[start as usize] {
+                continue;
+            }
+            let mut fan = Vec::new();
+            let mut c = start as usize;
+            loop {
+                visited[c] = true;
+                fan.push(c as u32);
+                let [s0, s1] = last.edge_corners[last.corner_edges[c] as usize];
+                let other = if s0 as usize == c { s1 } else { s0 };
+                if other == NONE {
+                    break;
+                }
+                c = last.next(other as usize);
+                if visited[c] {
+                    break;
+                }
+            }
+            let open = last.is_boundary_edge(last.corner_edges[*fan.last().unwrap() as usize] as usize);
+            if open {
+                verts.push(point_of_edge(last.corner_edges[*fan.last().unwrap() as usize]));
+                sources.push(*fan.last().unwrap());
+            }
+            for &c in fan.iter().rev() {
+                verts.push(c >> 2);
+                sources.push(c);
+            }
+            if open {
+                verts.push(point_of_edge(last.corner_edges[last.prev(fan[0] as usize)]));
+                sources.push(fan[0]);
+            }
+            offsets.push(verts.len() as u32);
+            origin.push(face_origin[fan[0] as usize >> 2]);
+        }
+    }
+    let num_points = num_faces as usize + boundary_points.len();
+    let level = Level::from_polygons(num_points, offsets, verts).expect("the dual of a manifold mesh is manifold");
+    DualMesh { level, boundary_points, corner_source: sources, face_origin: origin }
+}
+
+impl Plan {
+    /// Number of output vertices.
+    pub fn num_output_vertices(&self) -> usize {
+        match &self.output().dual {
+            Some(d) => d.level.num_vertices,
+            None => self.levels().last().expect("a level").num_vertices,
+        }
+    }
+
+    /// Number of output faces.
+    pub fn num_output_faces(&self) -> usize {
+        self.output_face_offsets().len() - 1
+    }
+
+    fn output_level(&self) -> &Level {
+        match &self.output().dual {
+            Some(d) => &d.level,
+            None => self.levels().last().expect("a level"),
+        }
+    }
+
+    /// Offsets of each output face's vertices in [`Plan::output_face_vertices`] (faces + 1).
+    pub fn output_face_offsets(&self) -> &[u32] {
+        match &self.output().dual {
+            Some(d) => &d.level.face_offsets,
+            None => &self.output().face_offsets,
+        }
+    }
+
+    /// Vertex indices of the output faces, face after face, counter-clockwise like the cage.
+    pub fn output_face_vertices(&self) -> &[u32] {
+        &self.output_level().corner_verts
+    }
+
+    /// The cage face each output face comes from (for materials, shading, face attributes).
+    pub fn output_face_origin(&self) -> &[u32] {
+        match &self.output().dual {
+            Some(d) => &d.face_origin,
+            None => &self.output().face_origin,
+        }
+    }
+
+    /// The edges of the output mesh.
+    pub fn output_edges(&self) -> &[[u32; 2]] {
+        &self.output_level().edge_verts
+    }
+
+    /// For each entry of [`Plan::output_face_vertices`], the edge to the next corner of its face.
+    pub fn output_corner_edges(&self) -> &[u32] {
+        &self.output_level().corner_edges
+    }
+
+    /// Turns the values of the last level into output vertex values.
+    pub(crate) fn finish<T: Scalar, const N: usize>(&self, result: Final<T, N>) -> Vec<[T; N]> {
+        match result {
+            Final::Primal(points) => points,
+            Final::Dual { mut faces, curve_edges } => {
+                let dual = self.output().dual.as_ref().expect("dual output has a dual mesh");
+                faces.extend(dual.boundary_points.iter().map(|&i| curve_edges[i as usize]));
+                faces
+            }
+        }
+    }
+
+    /// Turns face-varying values at the corners of `M_L` into values at the output corners.
+    pub(crate) fn face_varying_output<T: Scalar>(&self, values: Vec<T>, channels: usize) -> Vec<T> {
+        match &self.output().dual {
+            None => values,
+            Some(d) => d
+                .corner_source
+                .iter()
+                .flat_map(|&c| values[c as usize * channels..(c as usize + 1) * channels].iter().copied())
+                .collect(),
+        }
+    }
+}
