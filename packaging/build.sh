@@ -11,7 +11,9 @@
 # 3. Builds and validates the extension zip with Blender's own extension tool
 #    (bl_pkg/cli/blender_ext.py from the bpy wheel, run as a plain script).
 #
-# Environment: VENV (default <repo>/.venv), DIST (default <repo>/dist).
+# Environment: VENV (default <repo>/.venv), DIST (default <repo>/dist),
+#   BIDEGREE_NO_ZIG=1 skips zig/manylinux_2_28 (plain `maturin build --release`, reuses the cargo
+#   cache of `maturin develop --release`: the fast path used by the Blender tests).
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -30,7 +32,8 @@ if ! "$PY" -c "import maturin" 2>/dev/null && [ ! -x "$VENV/bin/maturin" ]; then
     "$PY" -m pip install --quiet "maturin>=1.7,<2"
 fi
 MATURIN="$VENV/bin/maturin"
-if ! "$PY" -c "import ziglang" 2>/dev/null; then
+NO_ZIG="${BIDEGREE_NO_ZIG:-0}"
+if [ "$NO_ZIG" != "1" ] && ! "$PY" -c "import ziglang" 2>/dev/null; then
     log "installing ziglang into $VENV"
     "$PY" -m pip install --quiet ziglang || log "could not install ziglang (will fall back)"
 fi
@@ -40,7 +43,10 @@ WHEEL_DIR="$(mktemp -d)"
 trap 'rm -rf "$WHEEL_DIR"' EXIT
 cd "$ROOT/native/python"
 export PATH="$VENV/bin:$PATH"
-if "$MATURIN" build --release --zig --compatibility manylinux_2_28 --out "$WHEEL_DIR"; then
+if [ "$NO_ZIG" = "1" ]; then
+    log "BIDEGREE_NO_ZIG=1: plain 'maturin build --release' (wheel tagged for this host's glibc)"
+    "$MATURIN" build --release --out "$WHEEL_DIR"
+elif "$MATURIN" build --release --zig --compatibility manylinux_2_28 --out "$WHEEL_DIR"; then
     log "built manylinux_2_28 wheel with zig"
 else
     log "WARNING: 'maturin build --zig --compatibility manylinux_2_28' failed;"

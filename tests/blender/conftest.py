@@ -1,0 +1,137 @@
+"""Fixtures of the Blender tests: the BUILT extension zip, installed offline into headless bpy.
+
+* A temporary ``BLENDER_USER_RESOURCES`` directory is set before ``bpy`` is imported, so the
+  extension (and its wheel) is installed there and nothing leaks into the user's Blender.
+* The extension zip is ``dist/bidegree-*.zip`` when it is newer than every source file, else it
+  is built once per session with ``BIDEGREE_NO_ZIG=1 packaging/build.sh``.
+* The tests use the installed copy: the extension's wheel ``site-packages`` comes first on
+  ``sys.path`` and ``bidegree_blender`` is imported from there.
+
+Run these tests in their own pytest process (``pytest tests/blender``): ``bidegree`` is a native
+module that can only be initialised once per process, so if another test imported it first from
+the source tree, the installed wheel's copy cannot be loaded.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+DIST = ROOT / "dist"
+EXTENSION_ID = "bidegree"
+ADDON_MODULE = f"bl_ext.user_default.{EXTENSION_ID}"
+
+_USER_DIR = tempfile.mkdtemp(prefix="bidegree-blender-user-")
+os.environ["BLENDER_USER_RESOURCES"] = _USER_DIR
+_SITE = Path(_USER_DIR, "extensions", ".local", "lib", "python3.11", "site-packages")
+# Exists before bpy starts, so Blender puts it *before* the venv's site-packages on sys.path.
+_SITE.mkdir(parents=True, exist_ok=True)
+
+bpy = pytest.importorskip("bpy")
+
+
+def _newest_source_mtime() -> float:
+    patterns = [
+        "addon/bidegree/**/*",
+        "native/python/python/**/*.py",
+        "native/python/src/**/*.rs",
+        "native/python/Cargo.toml",
+        "native/python/pyproject.toml",
+        "native/core/src/**/*.rs",
+        "native/core/Cargo.toml",
+        "packaging/build.sh",
+    ]
+    newest = 0.0
+    for pattern in patterns:
+        for path in glob.glob(str(ROOT / pattern), recursive=True):
+            if os.path.isfile(path) and "__pycache__" not in path:
+                newest = max(newest, os.path.getmtime(path))
+    return newest
+
+
+def _extension_zip() -> Path:
+    zips = sorted(DIST.glob(f"{EXTENSION_ID}-*.zip"), key=os.path.getmtime)
+    if zips and os.path.getmtime(zips[-1]) >= _newest_source_mtime():
+        return zips[-1]
+    env = dict(os.environ, BIDEGREE_NO_ZIG="1")
+    env.pop("BLENDER_USER_RESOURCES", None)
+    proc = subprocess.run(
+        ["bash", str(ROOT / "packaging" / "build.sh")],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    if proc.returncode != 0:
+        pytest.fail(
+            f"packaging/build.sh failed:\n{proc.stdout[-4000:]}\n{proc.stderr[-4000:]}"
+        )
+    zips = sorted(DIST.glob(f"{EXTENSION_ID}-*.zip"), key=os.path.getmtime)
+    assert zips, "packaging/build.sh produced no extension zip"
+    return zips[-1]
+
+
+@pytest.fixture(scope="session")
+def extension_zip() -> Path:
+    """The built extension zip (fresh from dist/ or built now)."""
+    return _extension_zip()
+
+
+@pytest.fixture(scope="session")
+def addon(extension_zip: Path) -> Iterator[ModuleType]:
+    """Install + enable the built extension offline and return its (installed) module."""
+    for name in [
+        m
+        for m in sys.modules
+        if m == "bidegree_blender" or m.startswith("bidegree_blender.")
+    ]:
+        del sys.modules[name]
+    result = bpy.ops.extensions.package_install_files(
+        filepath=str(extension_zip), repo="user_default", enable_on_install=True
+    )
+    assert result == {"FINISHED"}, result
+    module = sys.modules.get(ADDON_MODULE)
+    assert module is not None, (
+        f"{ADDON_MODULE} not enabled after install ({sorted(sys.modules)[:5]})"
+    )
+    if str(_SITE) in sys.path:
+        sys.path.remove(str(_SITE))
+    sys.path.insert(0, str(_SITE))
+    yield module
+    bpy.ops.preferences.addon_disable(module=ADDON_MODULE)
+    shutil.rmtree(_USER_DIR, ignore_errors=True)
+
+
+@pytest.fixture(scope="session")
+def user_dir() -> str:
+    """The temporary Blender user resources directory of this session."""
+    return _USER_DIR
+
+
+@pytest.fixture
+def scene(addon: ModuleType) -> Iterator[Any]:
+    """The current scene, emptied of objects and meshes before and after the test."""
+
+    def clear() -> None:
+        for ob in list(bpy.data.objects):
+            bpy.data.objects.remove(ob)
+        for me in list(bpy.data.meshes):
+            bpy.data.meshes.remove(me)
+        for mat in list(bpy.data.materials):
+            bpy.data.materials.remove(mat)
+        addon.CACHE.clear()
+
+    clear()
+    yield bpy.context.scene
+    clear()
