@@ -78,6 +78,7 @@ class UpdateReport:
 @dataclass
 class _Entry:
     plan: Any
+    check: GeometryCheck
     topology: tuple[str, Settings]
     positions: str
     face_data: str
@@ -99,40 +100,56 @@ def face_data_fingerprint(cage: mesh_io.CageArrays, materials: list[Any] | None)
     return h.hexdigest()
 
 
-def check_geometry(cage: mesh_io.CageArrays) -> None:
-    """Reject non-finite positions and zero-area faces before they reach the core.
+class GeometryCheck:
+    """Rejects non-finite positions and zero-area faces before they reach the core.
 
-    Raises:
-        bidegree.NonFiniteError: a position is NaN or infinite.
-        bidegree.DegenerateFaceError: a face has (numerically) zero area.
+    The fan triangulation of the faces is precomputed once per topology, so a
+    check of new positions is a handful of vectorised numpy operations.
     """
-    pts = cage.points.astype(np.float64)
-    bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
-    if len(bad):
-        raise bidegree.NonFiniteError(f"vertex {int(bad[0])} has a non-finite position")
-    if cage.num_faces == 0:
-        return
-    sizes = cage.face_sizes.astype(np.int64)
-    starts = np.zeros(len(sizes), dtype=np.int64)
-    np.cumsum(sizes[:-1], out=starts[1:])
-    # Fan triangulation (v0, vi, vi+1) of every face; area = sum of |cross| / 2.
-    ntri = sizes - 2
-    face_of_tri = np.repeat(np.arange(len(sizes)), ntri)
-    local = np.arange(int(ntri.sum())) - np.repeat(np.cumsum(ntri) - ntri, ntri)
-    v0 = cage.corner_verts[starts[face_of_tri]]
-    v1 = cage.corner_verts[starts[face_of_tri] + local + 1]
-    v2 = cage.corner_verts[starts[face_of_tri] + local + 2]
-    cross = np.cross(pts[v1] - pts[v0], pts[v2] - pts[v0])
-    area = np.zeros(len(sizes))
-    np.add.at(area, face_of_tri, np.linalg.norm(cross, axis=1))
-    extent = float(np.ptp(pts, axis=0).max()) if len(pts) else 0.0
-    tol = max(extent, 1e-30) ** 2 * 1e-12
-    degenerate = np.flatnonzero(area <= tol)
-    if len(degenerate):
-        raise bidegree.DegenerateFaceError(
-            f"face {int(degenerate[0])} has zero area ({len(degenerate)} degenerate face(s)); "
-            "merge or dissolve them (Mesh > Clean Up > Degenerate Dissolve)"
-        )
+
+    def __init__(self, face_sizes: np.ndarray, corner_verts: np.ndarray) -> None:
+        sizes = np.asarray(face_sizes, dtype=np.int64)
+        starts = np.zeros(len(sizes), dtype=np.int64)
+        if len(sizes):
+            np.cumsum(sizes[:-1], out=starts[1:])
+        ntri = np.maximum(sizes - 2, 0)
+        self.num_faces = len(sizes)
+        self.face_of_tri = np.repeat(np.arange(len(sizes)), ntri)
+        local = np.arange(int(ntri.sum())) - np.repeat(np.cumsum(ntri) - ntri, ntri)
+        first = starts[self.face_of_tri]
+        self.v0 = corner_verts[first]
+        self.v1 = corner_verts[first + local + 1]
+        self.v2 = corner_verts[first + local + 2]
+
+    def __call__(self, points: np.ndarray) -> None:
+        """Raise on bad ``points``.
+
+        Raises:
+            bidegree.NonFiniteError: a position is NaN or infinite.
+            bidegree.DegenerateFaceError: a face has (numerically) zero area.
+        """
+        finite = np.isfinite(points).all(axis=1)
+        if not finite.all():
+            bad = int(np.flatnonzero(~finite)[0])
+            raise bidegree.NonFiniteError(f"vertex {bad} has a non-finite position")
+        if self.num_faces == 0:
+            return
+        p0 = points[self.v0]
+        cross = np.cross(points[self.v1] - p0, points[self.v2] - p0)
+        tri_area = np.sqrt(np.einsum("ij,ij->i", cross, cross))
+        area = np.bincount(self.face_of_tri, weights=tri_area, minlength=self.num_faces)
+        extent = float((points.max(axis=0) - points.min(axis=0)).max()) if len(points) else 0.0
+        degenerate = np.flatnonzero(area <= max(extent, 1e-30) ** 2 * 1e-12)
+        if len(degenerate):
+            raise bidegree.DegenerateFaceError(
+                f"face {int(degenerate[0])} has zero area ({len(degenerate)} degenerate "
+                "face(s)); merge or dissolve them (Mesh > Clean Up > Degenerate Dissolve)"
+            )
+
+
+def check_geometry(cage: mesh_io.CageArrays) -> None:
+    """One-off :class:`GeometryCheck` of ``cage`` (see there for the errors raised)."""
+    GeometryCheck(cage.face_sizes, cage.corner_verts)(cage.points)
 
 
 def build_plan(cage: mesh_io.CageArrays, settings: Settings) -> tuple[Any, list[str]]:
@@ -263,7 +280,7 @@ class LiveCache:
             if entry.positions == positions and entry.face_data == face_data:
                 self.stats.skips += 1
                 return self._report(UNCHANGED, t0, cage, entry)
-            check_geometry(cage)
+            entry.check(cage.points)
             points = entry.plan.evaluate(cage.points)
             self.stats.plan_reuses += 1
             if entry.face_data == face_data:
@@ -275,20 +292,22 @@ class LiveCache:
                 action = REWRITTEN
         elif entry is not None and entry.topology == topology:
             # Same plan, but the result mesh was replaced or emptied behind our back.
-            check_geometry(cage)
+            entry.check(cage.points)
             points = entry.plan.evaluate(cage.points)
             self.stats.plan_reuses += 1
             write_full(mesh, entry.plan, points, cage, materials)
             self.stats.rewrites += 1
             action = REWRITTEN
         else:
-            check_geometry(cage)
+            check = GeometryCheck(cage.face_sizes, cage.corner_verts)
+            check(cage.points)
             plan, notes = build_plan(cage, settings)
             points = plan.evaluate(cage.points)
             write_full(mesh, plan, points, cage, materials)
             self.stats.plan_builds += 1
             entry = _Entry(
                 plan=plan,
+                check=check,
                 topology=topology,
                 positions="",
                 face_data="",
