@@ -309,7 +309,7 @@ impl Parser<'_> {
             .collect::<LineResult<Vec<f32>>>()?;
         match name {
             "crease" => {
-                if num_ints < 2 || num_ints % 2 != 0 {
+                if num_ints < 2 || !num_ints.is_multiple_of(2) {
                     return Err(format!(
                         "tag 'crease' needs vertex pairs (an even number of vertices, at least 2), got {num_ints}"
                     ));
@@ -355,9 +355,11 @@ impl Parser<'_> {
                                     supported; use 1 (edge-and-corner) or 2 (edge-only)"
                             .to_string())
                     }
-                    m => return Err(format!(
+                    m => {
+                        return Err(format!(
                         "unknown interpolateboundary mode {m} (1 = edge-and-corner, 2 = edge-only)"
-                    )),
+                    ))
+                    }
                 });
             }
             // Other OpenSubdiv tags (creasemethod, facevaryinginterpolateboundary, ...) have no
@@ -587,7 +589,7 @@ fn check_write_input<T>(
     uvs: Option<(&[T], &[u32])>,
 ) -> Result<()> {
     let invalid = |message: String| Err(Error::InvalidInput(message));
-    if points.len() % 3 != 0 {
+    if !points.len().is_multiple_of(3) {
         return invalid(format!(
             "write_obj: points has {} values, not a multiple of 3",
             points.len()
@@ -622,7 +624,7 @@ fn check_write_input<T>(
         ));
     }
     if let Some((values, indices)) = uvs {
-        if values.len() % 2 != 0 {
+        if !values.len().is_multiple_of(2) {
             return invalid(format!(
                 "write_obj: uv values has {} entries, not a multiple of 2",
                 values.len()
