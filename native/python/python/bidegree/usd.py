@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from bidegree import BidegreeIOError, InvalidInputError
+from ._errors import BidegreeIOError, InvalidInputError
 
 __all__ = [
     "BOUNDARY_TO_USD",
@@ -64,7 +64,7 @@ BOUNDARY_TO_USD: dict[str, str] = {
 #: File extensions :func:`export` accepts.
 SUPPORTED_EXTENSIONS: tuple[str, ...] = (".usda", ".usdc", ".usd")
 
-#: Sharpness at or above which OpenSubdiv (and bidegree) treat a crease or corner as infinitely sharp.
+#: Sharpness at or above which OpenSubdiv and bidegree treat a crease or corner as infinitely sharp.
 INFINITELY_SHARP = 10.0
 
 _UP_AXES = ("Y", "Z")
@@ -75,9 +75,7 @@ def _pxr() -> Any:
     try:
         from pxr import Gf, Kind, Sdf, Usd, UsdGeom, Vt  # noqa: F401
     except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise BidegreeIOError(
-            "USD export needs usd-core: pip install usd-core"
-        ) from exc
+        raise BidegreeIOError("USD export needs usd-core: pip install usd-core") from exc
     import pxr
 
     return pxr
@@ -86,18 +84,12 @@ def _pxr() -> Any:
 class _Topology:
     """Validated polygon-mesh arrays (points, face sizes, face indices) of a cage or result."""
 
-    def __init__(
-        self, what: str, points: Any, face_sizes: Any, face_indices: Any
-    ) -> None:
+    def __init__(self, what: str, points: Any, face_sizes: Any, face_indices: Any) -> None:
         pts = np.asarray(points)
         if pts.ndim != 2 or pts.shape[1] != 3:
-            raise InvalidInputError(
-                f"{what}: points must have shape (N, 3), got {pts.shape}"
-            )
+            raise InvalidInputError(f"{what}: points must have shape (N, 3), got {pts.shape}")
         if not np.issubdtype(pts.dtype, np.number):
-            raise InvalidInputError(
-                f"{what}: points must be numeric, got dtype {pts.dtype}"
-            )
+            raise InvalidInputError(f"{what}: points must be numeric, got dtype {pts.dtype}")
         if pts.shape[0] == 0:
             raise InvalidInputError(f"{what}: no points")
         if not np.all(np.isfinite(pts)):
@@ -105,18 +97,13 @@ class _Topology:
         sizes = np.asarray(face_sizes)
         indices = np.asarray(face_indices)
         if sizes.ndim != 1 or indices.ndim != 1:
-            raise InvalidInputError(
-                f"{what}: face_sizes and face_indices must be 1-D arrays"
-            )
+            raise InvalidInputError(f"{what}: face_sizes and face_indices must be 1-D arrays")
         if sizes.size == 0:
             raise InvalidInputError(f"{what}: no faces")
         if not (
-            np.issubdtype(sizes.dtype, np.integer)
-            and np.issubdtype(indices.dtype, np.integer)
+            np.issubdtype(sizes.dtype, np.integer) and np.issubdtype(indices.dtype, np.integer)
         ):
-            raise InvalidInputError(
-                f"{what}: face_sizes and face_indices must be integer arrays"
-            )
+            raise InvalidInputError(f"{what}: face_sizes and face_indices must be integer arrays")
         if sizes.min() < 3:
             raise InvalidInputError(f"{what}: every face needs at least 3 vertices")
         total = int(sizes.sum(dtype=np.int64))
@@ -200,9 +187,7 @@ def _pair(value: Any, what: str) -> tuple[np.ndarray, np.ndarray] | None:
     try:
         first, second = value
     except (TypeError, ValueError) as exc:
-        raise InvalidInputError(
-            f"cage {what} must be a pair (indices, sharpness)"
-        ) from exc
+        raise InvalidInputError(f"cage {what} must be a pair (indices, sharpness)") from exc
     a = np.asarray(first)
     s = np.asarray(second)
     if a.size == 0 and s.size == 0:
@@ -215,9 +200,7 @@ def _face_varying(value: Any, num_corners: int, what: str) -> np.ndarray | None:
         return None
     uv = np.asarray(value)
     if uv.ndim != 2 or uv.shape[1] != 2:
-        raise InvalidInputError(
-            f"{what}: uvs must have shape (corners, 2), got {uv.shape}"
-        )
+        raise InvalidInputError(f"{what}: uvs must have shape (corners, 2), got {uv.shape}")
     if uv.shape[0] != num_corners:
         raise InvalidInputError(
             f"{what}: {uv.shape[0]} uvs but the mesh has {num_corners} face corners "
@@ -309,7 +292,7 @@ def _version() -> str:
         from importlib.metadata import version as dist_version
 
         return dist_version("bidegree")
-    except Exception:  # noqa: BLE001 - metadata missing in a source checkout
+    except Exception:  # metadata missing in a source checkout
         return "unknown"
 
 
@@ -335,18 +318,12 @@ def _build_stage(
         )
 
     cage_topo = _Topology("cage", cage.points, cage.face_sizes, cage.face_indices)
-    res_topo = _Topology(
-        "result", result.points, result.face_sizes, result.face_indices
-    )
+    res_topo = _Topology("result", result.points, result.face_sizes, result.face_indices)
     cage_uvs = _face_varying(getattr(cage, "uvs", None), cage_topo.num_corners, "cage")
-    res_uvs = _face_varying(
-        getattr(result, "uvs", None), res_topo.num_corners, "result"
-    )
+    res_uvs = _face_varying(getattr(result, "uvs", None), res_topo.num_corners, "result")
     dist = _check_distances(distances, res_topo.num_points, "result")
 
-    boundary = str(
-        getattr(cage, "boundary", None) or getattr(result, "boundary", "edge-only")
-    )
+    boundary = str(getattr(cage, "boundary", None) or getattr(result, "boundary", "edge-only"))
     if boundary not in BOUNDARY_TO_USD:
         raise InvalidInputError(
             f"unknown boundary mode {boundary!r}; expected one of {sorted(BOUNDARY_TO_USD)}"
@@ -355,9 +332,7 @@ def _build_stage(
     creases = _pair(getattr(cage, "creases", None), "creases")
     if creases is not None:
         edges, sharp = creases
-        edges = (
-            edges.reshape(-1, 2) if edges.ndim == 1 and edges.size % 2 == 0 else edges
-        )
+        edges = edges.reshape(-1, 2) if edges.ndim == 1 and edges.size % 2 == 0 else edges
         if edges.ndim != 2 or edges.shape[1] != 2 or sharp.shape != (edges.shape[0],):
             raise InvalidInputError(
                 "cage creases must be ((K, 2) vertex pairs, (K,) sharpness), "
@@ -371,7 +346,8 @@ def _build_stage(
         cverts, csharp = corners
         if cverts.ndim != 1 or csharp.shape != cverts.shape:
             raise InvalidInputError(
-                f"cage corners must be ((K,) vertices, (K,) sharpness), got {cverts.shape} and {csharp.shape}"
+                "cage corners must be ((K,) vertices, (K,) sharpness), "
+                f"got {cverts.shape} and {csharp.shape}"
             )
         if cverts.size and (cverts.min() < 0 or cverts.max() >= cage_topo.num_points):
             raise InvalidInputError("cage corner vertex index out of range")
@@ -380,16 +356,12 @@ def _build_stage(
     for name, (mesh_like, extra_dist) in (extra_meshes or {}).items():
         if not Sdf.Path.IsValidIdentifier(name) or name in ("Cage", "Result"):
             raise InvalidInputError(f"invalid extra mesh name {name!r}")
-        topo = _Topology(
-            name, mesh_like.points, mesh_like.face_sizes, mesh_like.face_indices
-        )
+        topo = _Topology(name, mesh_like.points, mesh_like.face_sizes, mesh_like.face_indices)
         extras.append((name, topo, _check_distances(extra_dist, topo.num_points, name)))
 
     # ---- build the stage in memory
     stage = Usd.Stage.CreateInMemory("bidegree.usda")
-    UsdGeom.SetStageUpAxis(
-        stage, UsdGeom.Tokens.y if up_axis == "Y" else UsdGeom.Tokens.z
-    )
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y if up_axis == "Y" else UsdGeom.Tokens.z)
     UsdGeom.SetStageMetersPerUnit(stage, mpu)
     root = UsdGeom.Xform.Define(stage, "/Bidegree")
     stage.SetDefaultPrim(root.GetPrim())
@@ -409,9 +381,7 @@ def _build_stage(
     if creases is not None:
         edges, sharp = creases
         cmesh.CreateCreaseIndicesAttr(_ints(pxr, edges.reshape(-1)))
-        cmesh.CreateCreaseLengthsAttr(
-            _ints(pxr, np.full(edges.shape[0], 2, dtype=np.int32))
-        )
+        cmesh.CreateCreaseLengthsAttr(_ints(pxr, np.full(edges.shape[0], 2, dtype=np.int32)))
         cmesh.CreateCreaseSharpnessesAttr(_floats(pxr, _sharpness(sharp)))
     if corners is not None:
         cverts, csharp = corners
@@ -444,9 +414,7 @@ def _build_stage(
         prim.CreateAttribute(name, type_name, custom=True).Set(value)
 
     for name, topo, extra_dist in extras:
-        _define_polymesh(
-            pxr, stage, f"/Bidegree/{name}", topo, normals=True, distances=extra_dist
-        )
+        _define_polymesh(pxr, stage, f"/Bidegree/{name}", topo, normals=True, distances=extra_dist)
     return stage
 
 
@@ -498,7 +466,8 @@ def export(
     stem, ext = os.path.splitext(filename)
     if ext.lower() not in SUPPORTED_EXTENSIONS:
         raise InvalidInputError(
-            f"{path}: unsupported USD extension {ext!r}; use one of {', '.join(SUPPORTED_EXTENSIONS)}"
+            f"{path}: unsupported USD extension {ext!r}; "
+            f"use one of {', '.join(SUPPORTED_EXTENSIONS)}"
         )
     if not os.path.isdir(directory):
         raise BidegreeIOError(f"{path}: directory {directory} does not exist")
@@ -515,9 +484,7 @@ def export(
     )
 
     try:
-        fd, tmp = tempfile.mkstemp(
-            prefix=f".{stem}.", suffix=f".tmp{ext}", dir=directory
-        )
+        fd, tmp = tempfile.mkstemp(prefix=f".{stem}.", suffix=f".tmp{ext}", dir=directory)
     except OSError as exc:
         raise BidegreeIOError(
             f"{path}: cannot write to {directory}: {exc.strerror or exc}"
@@ -534,9 +501,7 @@ def export(
             os.chmod(tmp, _file_mode(target))
             os.replace(tmp, target)
         except OSError as exc:
-            raise BidegreeIOError(
-                f"{path}: cannot write: {exc.strerror or exc}"
-            ) from exc
+            raise BidegreeIOError(f"{path}: cannot write: {exc.strerror or exc}") from exc
     except BaseException:
         try:
             os.unlink(tmp)
@@ -572,9 +537,7 @@ def validate(path: str | os.PathLike[str]) -> list[str]:
             if err.GetType() == UsdValidation.ValidationErrorType.Error:
                 errors.append(f"{err.GetName()}: {err.GetMessage()}")
     checker_cls = (
-        getattr(pxr.UsdUtils, "ComplianceChecker", None)
-        if hasattr(pxr, "UsdUtils")
-        else None
+        getattr(pxr.UsdUtils, "ComplianceChecker", None) if hasattr(pxr, "UsdUtils") else None
     )
     if checker_cls is None:
         try:
