@@ -2,6 +2,7 @@
 //! vertex, its corners the points of the faces around it, closed along boundaries by the 1-D
 //! points of the boundary curve), with edges, corner edges and the cage face of every face.
 
+use crate::error::{Error, Result};
 use crate::evaluate::{Final, Scalar};
 use crate::plan::{OutputKind, Plan};
 use crate::topology::{Level, NONE};
@@ -33,7 +34,7 @@ pub(crate) struct OutputMesh {
 
 impl OutputMesh {
     /// Builds the output topology of a plan whose levels and steps are laid out.
-    pub fn build(plan: &Plan) -> OutputMesh {
+    pub fn build(plan: &Plan) -> Result<OutputMesh> {
         let levels = plan.levels();
         let last = levels.last().expect("at least one level");
         let depth = levels.len() - 1;
@@ -49,14 +50,14 @@ impl OutputMesh {
                 (0..last.num_faces()).map(|f| cage.corner_faces[f >> shift]).collect(),
             )
         };
-        let dual = (plan.options().output == OutputKind::Dual && depth > 0).then(|| dual_mesh(plan, &face_origin));
-        OutputMesh { face_offsets, face_origin, dual }
+        let dual = if plan.options().output == OutputKind::Dual && depth > 0 { Some(dual_mesh(plan, &face_origin)?) } else { None };
+        Ok(OutputMesh { face_offsets, face_origin, dual })
     }
 }
 
 /// The dual of `M_L`: the faces around each vertex, walked from face to face across edges and
 /// reversed so that the dual faces keep the orientation of the surface.
-fn dual_mesh(plan: &Plan, face_origin: &[u32]) -> DualMesh {
+fn dual_mesh(plan: &Plan, face_origin: &[u32]) -> Result<DualMesh> {
     let last = plan.levels().last().expect("a refined level");
     let step = plan.steps().last().expect("a step");
     let num_faces = last.num_faces() as u32;
@@ -74,6 +75,7 @@ fn dual_mesh(plan: &Plan, face_origin: &[u32]) -> DualMesh {
     let mut sources = Vec::with_capacity(verts.capacity());
     let mut origin = Vec::with_capacity(last.num_vertices);
     let mut visited = vec![false; last.num_corners()];
+    let mut centre = Vec::with_capacity(last.num_vertices);
     for v in 0..last.num_vertices {
         let corners = last.corners_of_vertex(v);
         // Fans that start at a boundary come first; closed fans start anywhere.
@@ -113,11 +115,20 @@ fn dual_mesh(plan: &Plan, face_origin: &[u32]) -> DualMesh {
             }
             offsets.push(verts.len() as u32);
             origin.push(face_origin[fan[0] as usize >> 2]);
+            centre.push(v);
         }
     }
     let num_points = num_faces as usize + boundary_points.len();
-    let level = Level::from_polygons(num_points, offsets, verts).expect("the dual of a manifold mesh is manifold");
-    DualMesh { level, boundary_points, corner_source: sources, face_origin: origin }
+    if let Some(f) = offsets.windows(2).position(|w| w[1] - w[0] < 3) {
+        let v = centre[f];
+        return Err(Error::InvalidInput(format!(
+            "the dual output needs every vertex on at least 3 faces or a boundary; vertex {v} of the last level is not (the cage has a vertex of valence 2)"
+        )));
+    }
+    let level = Level::from_polygons(num_points, offsets, verts).map_err(|problem| {
+        Error::InvalidInput(format!("the dual of this mesh is not a 2-manifold ({problem:?}); use the primal output"))
+    })?;
+    Ok(DualMesh { level, boundary_points, corner_source: sources, face_origin: origin })
 }
 
 impl Plan {

@@ -250,7 +250,7 @@ impl Plan {
             steps,
             output: OutputMesh::default(),
         };
-        plan.output = OutputMesh::build(&plan);
+        plan.output = OutputMesh::build(&plan)?;
         Ok(plan)
     }
 
