@@ -1,0 +1,111 @@
+"""Type stubs of the Rust extension ``bidegree._native`` (use the ``bidegree`` API instead).
+
+Arrays must be C-contiguous and of exactly the dtypes named; the ``bidegree`` package converts.
+Every function releases the GIL while the core works; core errors arrive as the classes of
+``bidegree._errors`` and a panic as ``bidegree.InternalError``.
+"""
+
+import os
+from typing import Any, Literal, TypedDict
+
+import numpy as np
+from numpy.typing import NDArray
+
+__version__: str
+MAX_DEGREE: int
+MAX_LEVELS: int
+DEFAULT_MEMORY_BUDGET: int
+INFINITELY_SHARP: float
+
+_Float = NDArray[np.float32] | NDArray[np.float64]
+_Output = Literal["primal", "dual"]
+_Boundary = Literal["edge-only", "edge-and-corner"]
+
+class Cage:
+    def __init__(
+        self,
+        num_vertices: int,
+        face_sizes: NDArray[np.int64],
+        face_indices: NDArray[np.int64],
+        crease_edges: NDArray[np.int64],
+        crease_sharpness: NDArray[np.float32],
+        corner_vertices: NDArray[np.int64],
+        corner_sharpness: NDArray[np.float32],
+    ) -> None: ...
+    @property
+    def num_vertices(self) -> int: ...
+    @property
+    def num_faces(self) -> int: ...
+    def validate_geometry(self, points: _Float) -> None: ...
+
+class Plan:
+    def __init__(
+        self,
+        cage: Cage,
+        degree: int,
+        levels: int,
+        output: str,
+        boundary: str,
+        memory_budget: int | None = None,
+    ) -> None: ...
+    def evaluate(self, values: _Float) -> Any: ...
+    def evaluate_face_varying(self, values: _Float) -> Any: ...
+    @property
+    def degree(self) -> int: ...
+    @property
+    def levels(self) -> int: ...
+    @property
+    def output(self) -> _Output: ...
+    @property
+    def boundary(self) -> _Boundary: ...
+    @property
+    def memory_budget(self) -> int: ...
+    @property
+    def num_input_vertices(self) -> int: ...
+    @property
+    def num_output_vertices(self) -> int: ...
+    @property
+    def num_output_faces(self) -> int: ...
+    def isolated_vertices(self) -> NDArray[np.int32]: ...
+    def face_sizes(self) -> NDArray[np.int32]: ...
+    def face_indices(self) -> NDArray[np.int32]: ...
+    def face_origin(self) -> NDArray[np.int32]: ...
+    def corner_edges(self) -> NDArray[np.int32]: ...
+    def edges(self) -> NDArray[np.int32]: ...
+    def write_obj(
+        self, path: str | os.PathLike[str], points: _Float, uvs: _Float | None = None
+    ) -> None: ...
+
+class _ObjData(TypedDict):
+    points: NDArray[np.float64]
+    face_sizes: NDArray[np.int64]
+    face_indices: NDArray[np.int64]
+    uvs: NDArray[np.float64]
+    face_uvs: NDArray[np.int64] | None
+    crease_edges: NDArray[np.int64]
+    crease_sharpness: NDArray[np.float32]
+    corner_vertices: NDArray[np.int64]
+    corner_sharpness: NDArray[np.float32]
+    boundary: _Boundary | None
+
+def subdivide(
+    cage: Cage,
+    points: _Float,
+    degree: int,
+    levels: int,
+    output: str,
+    boundary: str,
+    memory_budget: int | None = None,
+) -> tuple[Plan, Any]: ...
+def estimate(
+    cage: Cage, degree: int, levels: int, output: str = "primal", boundary: str = "edge-only"
+) -> tuple[int, int, int]: ...
+def read_obj(path: str | os.PathLike[str]) -> _ObjData: ...
+def write_obj(
+    path: str | os.PathLike[str],
+    points: _Float,
+    face_offsets: NDArray[np.uint32],
+    face_indices: NDArray[np.uint32],
+    uvs: _Float | None = None,
+) -> None: ...
+def _panic_for_tests() -> None: ...

@@ -1,0 +1,246 @@
+"""The ``bidegree`` command line.
+
+Subcommands:
+    subdivide   subdivide an OBJ cage, write OBJ (or USD through ``bidegree.usd``)
+    bench       throughput of fresh and cached subdivision against a plain memory copy
+    compare     (when ``bidegree.compare`` is available) compare with OpenSubdiv
+
+Other modules can provide subcommands: a module ``bidegree.<name>`` listed in
+:data:`OPTIONAL_SUBCOMMANDS` that defines ``add_arguments(parser)`` and ``run(args) -> int`` is
+registered as ``bidegree <name>`` when it imports.
+
+Errors (bad files, invalid meshes, refused requests) print one line, ``bidegree: error: ...``,
+on stderr and exit with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+import time
+import warnings
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import bidegree
+
+#: Modules ``bidegree.<name>`` registered as subcommands when they import (with help text).
+OPTIONAL_SUBCOMMANDS: dict[str, str] = {
+    "compare": "compare with OpenSubdiv's Catmull-Clark surface of the same cage",
+    "analyze": "analyse a subdivided surface",
+}
+
+_USD_EXTENSIONS = (".usda", ".usdc", ".usd")
+_SIZE_SUFFIXES = {"k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40}
+
+
+class CliError(Exception):
+    """A user error found by the command line itself (bad option value, missing module)."""
+
+
+def parse_size(text: str) -> int:
+    """Parses a byte count: ``4294967296``, ``4G``, ``512M``, ``64k`` (binary multiples)."""
+    value = text.strip().lower().removesuffix("b").removesuffix("i")
+    scale = 1
+    if value and value[-1] in _SIZE_SUFFIXES:
+        scale = _SIZE_SUFFIXES[value[-1]]
+        value = value[:-1]
+    try:
+        number = float(value) if "." in value else int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a byte count: {text!r}") from None
+    if number < 0:
+        raise argparse.ArgumentTypeError(f"byte count must be >= 0: {text!r}")
+    return int(number * scale)
+
+
+def _seconds(t: float) -> str:
+    return f"{t * 1000:.1f} ms" if t < 1 else f"{t:.2f} s"
+
+
+# ---------------------------------------------------------------------------------------------
+# subdivide
+
+
+def _add_subdivide(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("input", help="cage OBJ file (v, vt, f; OpenSubdiv t-tags)")
+    parser.add_argument(
+        "-o",
+        "--out",
+        required=True,
+        metavar="OUT",
+        help="output file: .obj, or .usda/.usdc/.usd (needs usd-core)",
+    )
+    parser.add_argument(
+        "--degree", type=int, default=4, help="degree, 1..31 (3 ~ Catmull-Clark; default 4)"
+    )
+    parser.add_argument("--levels", type=int, default=2, help="refinement levels (default 2)")
+    parser.add_argument(
+        "--output",
+        choices=("primal", "dual"),
+        default="primal",
+        help="drawing mesh (primal, default) or true dual mesh",
+    )
+    parser.add_argument(
+        "--boundary",
+        choices=("edge-only", "edge-and-corner"),
+        default=None,
+        help="boundary rule (default: the OBJ's 't interpolateboundary' tag, else edge-only)",
+    )
+    parser.add_argument(
+        "--memory-budget",
+        type=parse_size,
+        default=None,
+        metavar="BYTES",
+        help="refuse requests estimated above this size (e.g. 8G; default 4G)",
+    )
+    parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+
+
+def _export_usd(path: str, cage: bidegree.Mesh, result: bidegree.Result) -> None:
+    try:
+        usd = importlib.import_module("bidegree.usd")
+    except ImportError as exc:
+        raise CliError(f"USD output is not available ({exc})") from None
+    try:
+        usd.export(path, cage, result)
+    except ImportError as exc:
+        raise CliError(f"USD output needs usd-core (pip install usd-core): {exc}") from None
+
+
+def _run_subdivide(args: argparse.Namespace) -> int:
+    out_ext = os.path.splitext(args.out)[1].lower()
+    if out_ext != ".obj" and out_ext not in _USD_EXTENSIONS:
+        raise CliError(f"{args.out}: unsupported output format (use .obj, .usda, .usdc or .usd)")
+    say: Callable[[str], None] = (lambda _: None) if args.quiet else print
+
+    start = time.perf_counter()
+    cage = bidegree.Mesh.from_obj(args.input, boundary=args.boundary)
+    read_time = time.perf_counter() - start
+    say(
+        f"cage: {cage.num_vertices} vertices, {cage.num_faces} faces ({args.input}, read in "
+        f"{_seconds(read_time)})"
+    )
+
+    start = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", bidegree.IsolatedVerticesWarning)
+        result = bidegree.subdivide(
+            cage,
+            degree=args.degree,
+            levels=args.levels,
+            output=args.output,
+            memory_budget=args.memory_budget,
+        )
+    subdivide_time = time.perf_counter() - start
+    for warning in caught:
+        print(f"bidegree: warning: {warning.message}", file=sys.stderr)
+    say(
+        f"degree {result.degree}, {result.levels} levels, {result.output} output, "
+        f"{result.boundary} boundary"
+    )
+    say(
+        f"output: {result.num_vertices} vertices, {result.num_faces} faces (subdivided in "
+        f"{_seconds(subdivide_time)})"
+    )
+
+    start = time.perf_counter()
+    if out_ext == ".obj":
+        result.write_obj(args.out)
+    else:
+        _export_usd(args.out, cage, result)
+    write_time = time.perf_counter() - start
+    say(f"wrote {args.out} in {_seconds(write_time)}")
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------
+# bench
+
+
+def _add_bench(parser: argparse.ArgumentParser) -> None:
+    from . import bench
+
+    bench.add_arguments(parser)
+
+
+def _run_bench(args: argparse.Namespace) -> int:
+    from . import bench
+
+    return bench.run(args)
+
+
+# ---------------------------------------------------------------------------------------------
+# parser and entry point
+
+
+def _optional_subcommands() -> dict[str, Any]:
+    """The optional subcommand modules that import and provide the hooks."""
+    found = {}
+    for name in OPTIONAL_SUBCOMMANDS:
+        try:
+            module = importlib.import_module(f"bidegree.{name}")
+        except ImportError:
+            continue
+        if callable(getattr(module, "add_arguments", None)) and callable(
+            getattr(module, "run", None)
+        ):
+            found[name] = module
+    return found
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser with every available subcommand."""
+    parser = argparse.ArgumentParser(
+        prog="bidegree",
+        description="Subdivision surfaces of any degree by repeated averaging (Zorin-Schröder).",
+    )
+    parser.add_argument("--version", action="version", version=f"bidegree {bidegree.__version__}")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    sub = commands.add_parser(
+        "subdivide",
+        help="subdivide an OBJ cage and write OBJ or USD",
+        description="Subdivide an OBJ cage with a degree-N scheme and write the result.",
+    )
+    _add_subdivide(sub)
+    sub.set_defaults(handler=_run_subdivide)
+
+    sub = commands.add_parser(
+        "bench",
+        help="throughput: fresh vs cached plan vs plain memory copy",
+        description="Output faces per second for degrees 1..9 at ~4M output faces, fresh "
+        "(subdivide) and through a cached Plan, next to a plain memory copy of the same size.",
+    )
+    _add_bench(sub)
+    sub.set_defaults(handler=_run_bench)
+
+    for name, module in _optional_subcommands().items():
+        sub = commands.add_parser(name, help=OPTIONAL_SUBCOMMANDS[name])
+        module.add_arguments(sub)
+        sub.set_defaults(handler=module.run)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Runs the command line; returns the exit status (0 ok, 2 error)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    handler = getattr(args, "handler", None)
+    if handler is None:
+        parser.print_help(sys.stderr)
+        return 2
+    try:
+        return int(handler(args) or 0)
+    except (bidegree.BidegreeError, CliError, OSError) as exc:
+        print(f"bidegree: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("bidegree: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
