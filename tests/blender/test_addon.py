@@ -127,10 +127,10 @@ def test_panel_registered_in_modifier_tab(addon: ModuleType) -> None:
     assert panel.bl_context == "modifier"
     assert panel.bl_space_type == "PROPERTIES"
     assert panel.bl_region_type == "WINDOW"
-    assert (
-        "UNDO"
-        in bpy.types.Operator.bl_rna_get_subclass_py("BIDEGREE_OT_apply").bl_options
-    )
+    ops = sys.modules[addon.__name__ + ".operators"]
+    assert ops.BIDEGREE_OT_apply.bl_options == {"REGISTER", "UNDO"}
+    for name in ("bidegree_apply", "bidegree_export_usd", "bidegree_remove"):
+        assert getattr(bpy.ops.object, name).get_rna_type() is not None
     props = bpy.types.Object.bl_rna.properties["bidegree"].fixed_type.properties
     assert props["degree"].default == 4 and props["degree"].hard_min == 1
     assert props["degree"].hard_max == 31
@@ -321,9 +321,13 @@ def test_huge_level_requests_are_refused(addon: ModuleType, scene: Any) -> None:
     assert "MemoryBudget" in obj.bidegree.last_error
     assert obj.bidegree.result is None and snapshot(obj) == before
     # Back to a sane request: works, and the error is cleared.
+    builds = addon.CACHE.stats.plan_builds
+    # The property's update callback recomputes (in background mode: at once).
     obj.bidegree.levels = 1
-    assert addon.update(obj) == "built"
+    assert addon.CACHE.stats.plan_builds == builds + 1
     assert obj.bidegree.last_error == "" and obj.bidegree.result is not None
+    assert addon.update(obj) == "unchanged"
+    assert obj.bidegree.result_faces == 24
 
 
 def test_render_levels_swap(addon: ModuleType, scene: Any) -> None:

@@ -285,6 +285,11 @@ def write_mesh(
     ne = int(edges.shape[0])
 
     mesh.clear_geometry()
+    if materials is not None:
+        # Before the material indices: changing the material list clamps them.
+        mesh.materials.clear()
+        for mat in materials:
+            mesh.materials.append(mat)
     mesh.vertices.add(nv)
     mesh.edges.add(ne)
     mesh.loops.add(nc)
@@ -322,11 +327,6 @@ def write_mesh(
     if active_uv is not None and active_uv in mesh.uv_layers:
         mesh.uv_layers.active = mesh.uv_layers[active_uv]
         mesh.uv_layers[active_uv].active_render = True
-
-    if materials is not None:
-        mesh.materials.clear()
-        for mat in materials:
-            mesh.materials.append(mat)
 
     mesh.update(calc_edges=False)
     return mesh
