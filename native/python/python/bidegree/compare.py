@@ -282,7 +282,8 @@ def _grid_search(
                 )
                 lower += gap * gap
             counts_run = np.diff(np.r_[run, pair_q.size])
-            keep = lower <= np.repeat(upper, counts_run)
+            # (the tolerance covers the rounding of the centroid; it never drops the nearest)
+            keep = lower <= np.repeat(upper, counts_run) * (1.0 + 1e-6) + 1e-300
             pair_q, pair_t = pair_q[keep], pair_t[keep]
             px, py, pz = px[keep], py[keep], pz[keep]
             d2 = _sqdist_soa(px, py, pz, tuple(col.take(pair_t) for col in tcols))
@@ -300,7 +301,8 @@ def _nearest_triangle_distances(
 
     Exact: a query is final once the best distance found is <= the search radius r, because
     every triangle that comes within r of the query has its bounding box in the searched cells.
-    Unresolved queries are retried with a 4x larger cell size and radius.
+    An unresolved query is retried on a coarser grid whose radius covers the best candidate
+    found so far (or 4x coarser when none was found).
     """
     queries = np.asarray(queries, dtype=np.float64)
     points = np.asarray(points, dtype=np.float64)
@@ -350,7 +352,7 @@ def _nearest_triangle_distances(
         need = np.full(int(todo.sum()), e + 2, dtype=np.int64)
         finite = np.isfinite(best[todo])
         need[finite] = np.maximum(
-            e + 1, np.ceil(np.log2(2.0 * best[todo][finite] / h)).astype(np.int64) + 1
+            e + 1, np.ceil(np.log2(2.0 * best[todo][finite] / h)).astype(np.int64)
         )
         level[active[todo]] = need
     return result
@@ -850,29 +852,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--up-axis", choices=("Y", "Z"), default="Y", help="up axis (default Y)")
 
 
-def _with_boundary(mesh: Any, boundary: str) -> Any:
-    import bidegree
-
-    kwargs: dict[str, Any] = {
-        "face_sizes": mesh.face_sizes,
-        "face_indices": mesh.face_indices,
-        "boundary": boundary,
-    }
-    for name in ("creases", "corners", "uvs"):
-        value = getattr(mesh, name, None)
-        if value is not None:
-            kwargs[name] = value
-    return bidegree.Mesh(mesh.points, **kwargs)
-
-
 def run(args: argparse.Namespace) -> int:
     """Run ``bidegree compare``; returns the exit status."""
     import bidegree
 
     try:
-        mesh = bidegree.Mesh.from_obj(args.input)
-        if args.boundary is not None and args.boundary != mesh.boundary:
-            mesh = _with_boundary(mesh, args.boundary)
+        mesh = bidegree.Mesh.from_obj(args.input, boundary=args.boundary)
         comparison = compare(mesh, args.degree, args.levels, limit=args.limit, output=args.kind)
         print(comparison.summary())
         if args.output:

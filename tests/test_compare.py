@@ -1,0 +1,290 @@
+"""bidegree vs OpenSubdiv (real bpy, real usd-core): distances, surfaces, report, CLI hook."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import bidegree
+import numpy as np
+import pytest
+from bidegree import compare, usd
+from pxr import Usd, UsdGeom
+
+CUBE_POINTS = np.array(
+    [
+        [0, 0, 0],
+        [1, 0, 0],
+        [1, 1, 0],
+        [0, 1, 0],
+        [0, 0, 1],
+        [1, 0, 1],
+        [1, 1, 1],
+        [0, 1, 1],
+    ],
+    dtype=float,
+)
+CUBE_FACES = [
+    [0, 3, 2, 1],
+    [4, 5, 6, 7],
+    [0, 1, 5, 4],
+    [1, 2, 6, 5],
+    [2, 3, 7, 6],
+    [3, 0, 4, 7],
+]
+
+
+def cube(**kwargs: object) -> bidegree.Mesh:
+    return bidegree.Mesh(CUBE_POINTS, CUBE_FACES, **kwargs)
+
+
+def torus(n: int = 12, m: int = 8, big: float = 2.0, small: float = 0.7) -> bidegree.Mesh:
+    """A closed all-quad torus: every vertex has valence 4 (a regular mesh)."""
+    i, j = np.meshgrid(np.arange(n), np.arange(m), indexing="ij")
+    u, v = 2 * np.pi * i / n, 2 * np.pi * j / m
+    points = np.stack(
+        [
+            (big + small * np.cos(v)) * np.cos(u),
+            small * np.sin(v),
+            (big + small * np.cos(v)) * np.sin(u),
+        ],
+        axis=-1,
+    ).reshape(-1, 3)
+    a, b = i * m + j, ((i + 1) % n) * m + j
+    c, d = ((i + 1) % n) * m + (j + 1) % m, i * m + (j + 1) % m
+    return bidegree.Mesh(points, np.stack([a, d, c, b], axis=-1).reshape(-1, 4))
+
+
+# ------------------------------------------------------------------------------------------
+# geometry
+
+
+def test_point_triangle_distance_regions() -> None:
+    a, b, c = np.array([0.0, 0, 0]), np.array([2.0, 0, 0]), np.array([0.0, 2, 0])
+    cases = [
+        ([0.5, 0.5, 3.0], 3.0),  # above the interior
+        ([0.5, 0.5, -0.25], 0.25),  # below the interior
+        ([1.0, -2.0, 0.0], 2.0),  # beyond edge ab
+        ([2.0, 2.0, 0.0], np.sqrt(2.0)),  # beyond edge bc (nearest (1, 1, 0))
+        ([-1.0, -1.0, 1.0], np.sqrt(3.0)),  # beyond vertex a
+        ([3.0, -1.0, 0.0], np.sqrt(2.0)),  # beyond vertex b
+        ([0.0, 2.0, 0.0], 0.0),  # on vertex c
+    ]
+    p = np.array([q for q, _ in cases])
+    want = np.array([d for _, d in cases])
+    got = compare.point_triangle_distances(
+        p, np.tile(a, (len(p), 1)), np.tile(b, (len(p), 1)), np.tile(c, (len(p), 1))
+    )
+    np.testing.assert_allclose(got, want, atol=1e-12)
+    # degenerate triangles: a segment and a point
+    seg = compare.point_triangle_distances(
+        np.array([[1.0, 1.0, 0.0]]),
+        np.zeros((1, 3)),
+        np.array([[2.0, 0, 0]]),
+        np.zeros((1, 3)),
+    )
+    pnt = compare.point_triangle_distances(
+        np.array([[3.0, 4.0, 0.0]]),
+        np.zeros((1, 3)),
+        np.zeros((1, 3)),
+        np.zeros((1, 3)),
+    )
+    np.testing.assert_allclose([seg[0], pnt[0]], [1.0, 5.0])
+
+
+def _brute_force(queries: np.ndarray, mesh: compare.SurfaceMesh) -> np.ndarray:
+    tri = compare.triangulate(mesh.face_sizes, mesh.face_indices)
+    a, b, c = (mesh.points[tri[:, k]] for k in range(3))
+    out = np.empty(len(queries))
+    for i, q in enumerate(queries):
+        out[i] = compare.point_triangle_distances(np.broadcast_to(q, a.shape), a, b, c).min()
+    return out
+
+
+def test_grid_search_is_exact() -> None:
+    """Against brute force, for queries near the surface, far from it and outside its box."""
+    result = bidegree.subdivide(torus(8, 6), degree=4, levels=2)
+    mesh = compare.SurfaceMesh(result.points, result.face_sizes, result.face_indices)
+    rng = np.random.default_rng(3)
+    near = result.points[rng.choice(len(result.points), 150)] + rng.normal(0, 0.02, (150, 3))
+    far = rng.uniform(-4, 4, (100, 3))
+    queries = np.concatenate([near, far, [[0.0, 0.0, 0.0], [40.0, -30.0, 5.0]]])
+    got = compare.distances_to_mesh(queries, mesh)
+    np.testing.assert_allclose(got, _brute_force(queries, mesh), rtol=1e-12, atol=1e-12)
+    # vertex-only distances
+    pts = compare.nearest_point_distances(queries, mesh.points)
+    want = np.linalg.norm(queries[:, None, :] - mesh.points[None], axis=2).min(axis=1)
+    np.testing.assert_allclose(pts, want, rtol=1e-12, atol=1e-12)
+
+
+def test_grid_search_matches_blender_bvh() -> None:
+    """Independent check with Blender's BVH tree (mathutils) on a bigger mesh."""
+    import bpy  # noqa: F401 - makes Blender's mathutils importable
+    from mathutils.bvhtree import BVHTree
+
+    result = bidegree.subdivide(cube(), degree=3, levels=4)
+    mesh = compare.SurfaceMesh(result.points, result.face_sizes, result.face_indices)
+    tri = compare.triangulate(mesh.face_sizes, mesh.face_indices)
+    tree = BVHTree.FromPolygons(mesh.points.tolist(), tri.tolist(), epsilon=0.0)
+    rng = np.random.default_rng(5)
+    queries = rng.uniform(-0.5, 1.5, (400, 3))
+    want = np.array([tree.find_nearest(q.tolist())[3] for q in queries])
+    np.testing.assert_allclose(compare.distances_to_mesh(queries, mesh), want, atol=1e-6)
+
+
+# ------------------------------------------------------------------------------------------
+# OpenSubdiv through bpy
+
+
+def test_opensubdiv_cube_level1_is_catmull_clark() -> None:
+    osd = compare.opensubdiv_surface(cube(), 1)
+    assert (osd.num_vertices, osd.num_faces) == (26, 24)
+    # Catmull-Clark vertex rule at a valence-3 corner of the unit cube: (Q + 2R + (n-3)S)/n
+    corner = osd.points[np.argmin(osd.points.sum(axis=1))]
+    np.testing.assert_allclose(corner, [2 / 9] * 3, atol=1e-6)
+    # face points: centres of the cube's faces
+    assert np.min(np.linalg.norm(osd.points - [0.5, 0.5, 0.0], axis=1)) < 1e-6
+
+
+def test_opensubdiv_sharp_creases_and_boundary_modes() -> None:
+    """All 12 edges infinitely sharp and all 8 corners sharp: the surface stays the cube."""
+    edges = np.array(
+        [
+            [0, 1],
+            [1, 2],
+            [2, 3],
+            [3, 0],
+            [4, 5],
+            [5, 6],
+            [6, 7],
+            [7, 4],
+            [0, 4],
+            [1, 5],
+            [2, 6],
+            [3, 7],
+        ]
+    )
+    sharp = cube(creases=(edges, np.full(12, np.inf)), corners=(np.arange(8), np.full(8, 10.0)))
+    osd = compare.opensubdiv_surface(sharp, 2)
+    on_face = np.min(np.minimum(np.abs(osd.points), np.abs(osd.points - 1.0)), axis=1)
+    assert on_face.max() < 1e-6
+
+    # a semi-sharp crease (sharpness 2) pulls the surface towards edge 0-1, but not onto it
+    def gap_to_edge01(mesh: compare.SurfaceMesh) -> float:
+        mid = np.abs(mesh.points[:, 0] - 0.5) < 1e-6
+        return float(np.min(np.linalg.norm(mesh.points[mid][:, 1:], axis=1)))
+
+    soft = compare.opensubdiv_surface(cube(creases=(edges[:1], [2.0])), 2)
+    plain = compare.opensubdiv_surface(cube(), 2)
+    assert 1e-3 < gap_to_edge01(soft) < 0.5 * gap_to_edge01(plain)
+    assert gap_to_edge01(osd) < 1e-6
+
+    # boundary modes on an open 2 x 2 grid: edge-and-corner pins the valence-2 corners
+    grid_pts = np.array([[x, y, 0.0] for y in range(3) for x in range(3)])
+    grid = [[0, 1, 4, 3], [1, 2, 5, 4], [3, 4, 7, 6], [4, 5, 8, 7]]
+    pinned = compare.opensubdiv_surface(
+        bidegree.Mesh(grid_pts, grid, boundary="edge-and-corner"), 2
+    )
+    smooth = compare.opensubdiv_surface(bidegree.Mesh(grid_pts, grid, boundary="edge-only"), 2)
+    assert np.min(np.linalg.norm(pinned.points - [0, 0, 0], axis=1)) < 1e-6
+    assert np.min(np.linalg.norm(smooth.points - [0, 0, 0], axis=1)) > 0.05
+
+
+# ------------------------------------------------------------------------------------------
+# bidegree vs OpenSubdiv
+
+
+def test_regular_torus_degree3_equals_catmull_clark() -> None:
+    """On a closed all-valence-4 quad mesh, degree-3 averaging is uniform bicubic B-spline
+    refinement, exactly like Catmull-Clark: same refined points at every level."""
+    mesh = torus()
+    for levels in (1, 2):
+        c = compare.compare(mesh, degree=3, levels=levels)
+        assert len(c.result.points) == c.opensubdiv.num_vertices
+        assert c.hausdorff_relative < 1e-6
+        assert c.stats["vertex_sets"]["max_relative"] < 1e-6
+        # point sets match one to one (float32 noise only)
+        order_a = np.lexsort(np.round(c.result.points, 5).T)
+        order_b = np.lexsort(np.round(c.opensubdiv.points, 5).T)
+        np.testing.assert_allclose(
+            c.result.points[order_a], c.opensubdiv.points[order_b], atol=1e-5
+        )
+
+
+def test_torus_degree4_differs() -> None:
+    c = compare.compare(torus(), degree=4, levels=2)
+    assert 1e-4 < c.hausdorff_relative < 5e-2
+
+
+def test_cube_degree3_close_but_not_equal() -> None:
+    """At valence-3 vertices averaging differs from Catmull-Clark's vertex rule."""
+    c = compare.compare(cube(), degree=3, levels=2)
+    s = c.stats
+    assert 1e-3 < c.hausdorff_relative < 0.1
+    assert 0 < s["symmetric"]["rms_relative"] < s["symmetric"]["max_relative"]
+    assert s["symmetric"]["mean_relative"] <= s["symmetric"]["rms_relative"]
+    # worst at the corners (valence 3), tiny at the face centres (valence 4, regular nearby)
+    corner = np.argmin(c.result.points.sum(axis=1))
+    assert c.forward[corner] == pytest.approx(c.forward.max(), rel=0.5)
+    centre = np.argmin(np.linalg.norm(c.result.points - [0.5, 0.5, 0.0], axis=1))
+    assert c.forward[centre] < 0.2 * c.forward.max()
+    # the limit comparison also runs and gives a different, still small, number
+    lim = compare.compare(cube(), degree=3, levels=2, limit=True)
+    assert 1e-3 < lim.hausdorff_relative < 0.1
+    assert lim.hausdorff != pytest.approx(c.hausdorff)
+    assert "Hausdorff" in c.summary()
+
+
+def test_report_usd_and_plot(tmp_path: Path) -> None:
+    c = compare.compare(cube(uvs=np.random.default_rng(1).random((24, 2))), degree=3, levels=2)
+    report = tmp_path / "report.usdc"
+    compare.write_usd(c, str(report))
+    assert usd.validate(report) == []
+    stage = Usd.Stage.Open(str(report))
+    dist = stage.GetPrimAtPath("/Bidegree/Result").GetAttribute("primvars:distance").Get()
+    np.testing.assert_allclose(np.asarray(dist), c.forward, atol=1e-6)
+    osd = UsdGeom.Mesh(stage.GetPrimAtPath("/Bidegree/OpenSubdiv"))
+    np.testing.assert_allclose(
+        np.asarray(osd.GetPointsAttr().Get()), c.opensubdiv.points, atol=1e-6
+    )
+    back = stage.GetPrimAtPath("/Bidegree/OpenSubdiv").GetAttribute("primvars:distance").Get()
+    np.testing.assert_allclose(np.asarray(back), c.backward, atol=1e-6)
+    png = tmp_path / "report.png"
+    compare.write_plot(c, str(png))
+    import matplotlib.image
+
+    image = matplotlib.image.imread(str(png))
+    assert image.shape[0] > 500 and image.shape[1] > 500
+    assert image[..., :3].std() > 0.05  # not a blank canvas
+
+
+def test_cli_hook(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    obj = tmp_path / "cube.obj"
+    lines = [f"v {x} {y} {z}" for x, y, z in CUBE_POINTS]
+    lines += ["f " + " ".join(str(i + 1) for i in f) for f in CUBE_FACES]
+    obj.write_text("\n".join(lines) + "\n")
+    parser = argparse.ArgumentParser(prog="bidegree compare")
+    compare.add_arguments(parser)
+    report, png = tmp_path / "r.usda", tmp_path / "r.png"
+    args = parser.parse_args(
+        [
+            str(obj),
+            "--degree",
+            "3",
+            "--levels",
+            "2",
+            "-o",
+            str(report),
+            "--plot",
+            str(png),
+        ]
+    )
+    assert compare.run(args) == 0
+    out = capsys.readouterr().out
+    assert "bidegree -> OpenSubdiv" in out and "OpenSubdiv -> bidegree" in out
+    assert report.exists() and png.exists()
+    assert usd.validate(report) == []
+
+    bad = parser.parse_args([str(tmp_path / "missing.obj"), "--levels", "1"])
+    assert compare.run(bad) == 1
+    assert "error" in capsys.readouterr().err
