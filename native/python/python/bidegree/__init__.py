@@ -5,7 +5,7 @@ The work happens in a Rust core (``bidegree._native``); this module checks and c
 arguments (numpy in, numpy out) and documents the API::
 
     import numpy as np, bidegree
-    cage = bidegree.Mesh(points, faces)                  # validated topology
+    cage = bidegree.Mesh(points, faces)
     result = bidegree.subdivide(cage, degree=4, levels=3)
     result.points, result.face_sizes, result.face_indices
 
@@ -222,8 +222,10 @@ def _values_2d(values: ArrayLike, rows: int, what: str, expected: str) -> tuple[
 
 class Mesh:
     """A subdivision cage: points, polygonal faces, and optional creases, corners, face-varying
-    UVs and boundary rule. The topology is validated on construction (the geometry, such as NaN
-    coordinates or zero-area faces, by :func:`subdivide`).
+    UVs and boundary rule. Construction checks shapes, face sizes, indices and repeated vertices;
+    the rest of the topology (manifold edges, consistent orientation, creases that are edges) is
+    checked when a :class:`Plan` is built, the geometry (finite points, no zero-area face) by
+    :func:`subdivide`.
 
     Args:
         points: (V, 3) coordinates, float32 or float64 (other numbers become float64).
@@ -239,9 +241,9 @@ class Mesh:
             boundary vertices of a single face are corners).
 
     Raises:
-        InvalidInputError: wrong shapes or types.
-        EmptyMeshError, FaceTooSmallError, RepeatedVertexError, IndexOutOfRangeError,
-        NonManifoldEdgeError, InconsistentOrientationError, CreaseNotAnEdgeError: bad topology.
+        InvalidInputError: wrong shapes or types, bad sharpness or boundary values.
+        EmptyMeshError, FaceTooSmallError, RepeatedVertexError, IndexOutOfRangeError: bad faces,
+            creases or corners.
     """
 
     def __init__(
@@ -499,6 +501,7 @@ class Plan:
         memory_budget: refuse requests estimated to need more bytes (default 4 GiB).
 
     Raises:
+        NonManifoldEdgeError, InconsistentOrientationError, CreaseNotAnEdgeError: bad topology.
         DegreeOutOfRangeError, LevelOutOfRangeError, MemoryBudgetError, InvalidInputError.
 
     Warns:
@@ -749,6 +752,7 @@ def subdivide(
 
     Raises:
         NonFiniteError, DegenerateFaceError: bad geometry.
+        NonManifoldEdgeError, InconsistentOrientationError, CreaseNotAnEdgeError: bad topology.
         DegreeOutOfRangeError, LevelOutOfRangeError, MemoryBudgetError, InvalidInputError.
 
     Warns:

@@ -6,7 +6,7 @@ Every function releases the GIL while the core works; core errors arrive as the 
 """
 
 import os
-from typing import Any, Literal, TypedDict
+from typing import Any, Literal, TypeAlias, TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
@@ -17,9 +17,9 @@ MAX_LEVELS: int
 DEFAULT_MEMORY_BUDGET: int
 INFINITELY_SHARP: float
 
-_Float = NDArray[np.float32] | NDArray[np.float64]
-_Output = Literal["primal", "dual"]
-_Boundary = Literal["edge-only", "edge-and-corner"]
+_Float: TypeAlias = NDArray[np.float32] | NDArray[np.float64]
+_Output: TypeAlias = Literal["primal", "dual"]
+_Boundary: TypeAlias = Literal["edge-only", "edge-and-corner"]
 
 class Cage:
     def __init__(
