@@ -38,7 +38,9 @@ def cube(**kwargs: object) -> bidegree.Mesh:
     return bidegree.Mesh(CUBE_POINTS, CUBE_FACES, **kwargs)
 
 
-def torus(n: int = 12, m: int = 8, big: float = 2.0, small: float = 0.7) -> bidegree.Mesh:
+def torus(
+    n: int = 12, m: int = 8, big: float = 2.0, small: float = 0.7, **kwargs: object
+) -> bidegree.Mesh:
     """A closed all-quad torus: every vertex has valence 4 (a regular mesh)."""
     i, j = np.meshgrid(np.arange(n), np.arange(m), indexing="ij")
     u, v = 2 * np.pi * i / n, 2 * np.pi * j / m
@@ -52,7 +54,7 @@ def torus(n: int = 12, m: int = 8, big: float = 2.0, small: float = 0.7) -> bide
     ).reshape(-1, 3)
     a, b = i * m + j, ((i + 1) % n) * m + j
     c, d = ((i + 1) % n) * m + (j + 1) % m, i * m + (j + 1) % m
-    return bidegree.Mesh(points, np.stack([a, d, c, b], axis=-1).reshape(-1, 4))
+    return bidegree.Mesh(points, np.stack([a, d, c, b], axis=-1).reshape(-1, 4), **kwargs)
 
 
 # ------------------------------------------------------------------------------------------
@@ -209,6 +211,34 @@ def test_regular_torus_degree3_equals_catmull_clark() -> None:
         np.testing.assert_allclose(
             c.result.points[order_a], c.opensubdiv.points[order_b], atol=1e-5
         )
+
+
+@pytest.mark.parametrize("sharpness", [np.inf, 3.0, 0.5])
+def test_regular_torus_with_crease_loop_matches(sharpness: float) -> None:
+    """A crease loop around the tube keeps the mesh regular for both schemes; semi-sharp values
+    check the Blender crease mapping (c = sqrt(s / 10)) against bidegree's sharpness."""
+    n, m = 12, 8
+    ring = np.stack([np.arange(n) * m, ((np.arange(n) + 1) % n) * m], axis=1)
+    c = compare.compare(torus(n, m, creases=(ring, np.full(n, sharpness))), degree=3, levels=2)
+    assert c.hausdorff_relative < 1e-6
+    assert c.stats["vertex_sets"]["max_relative"] < 1e-6
+    plain = compare.opensubdiv_surface(torus(n, m), 2)
+    assert np.abs(c.opensubdiv.points - plain.points).max() > 1e-3  # the crease does something
+
+
+@pytest.mark.parametrize("boundary", ["edge-only", "edge-and-corner"])
+def test_open_regular_grid_matches(boundary: str) -> None:
+    n = 4
+    pts = np.array([[x, y, 0.2 * np.sin(x + 2 * y)] for y in range(n + 1) for x in range(n + 1)])
+    quads = [
+        [y * (n + 1) + x, y * (n + 1) + x + 1, (y + 1) * (n + 1) + x + 1, (y + 1) * (n + 1) + x]
+        for y in range(n)
+        for x in range(n)
+    ]
+    c = compare.compare(bidegree.Mesh(pts, quads, boundary=boundary), degree=3, levels=2)
+    assert c.hausdorff_relative < 1e-6
+    corner = np.min(np.linalg.norm(c.result.points - pts[0], axis=1))
+    assert (corner < 1e-9) == (boundary == "edge-and-corner")
 
 
 def test_torus_degree4_differs() -> None:

@@ -252,7 +252,6 @@ def _grid_search(
     sub: np.ndarray,
     radius: float,
     tcols: list[np.ndarray],
-    centroid: list[np.ndarray],
     bmin: list[np.ndarray],
     bmax: list[np.ndarray],
 ) -> np.ndarray:
@@ -272,8 +271,9 @@ def _grid_search(
             qs = sub[q0:q1]
             px, py, pz = (qs[:, k].take(pair_q) for k in range(3))
             run = np.flatnonzero(np.r_[True, pair_q[1:] != pair_q[:-1]])
-            # cheap bounds: distance to the centroid (upper), to the bounding box (lower)
-            dx, dy, dz = ((px, py, pz)[k] - centroid[k].take(pair_t) for k in range(3))
+            # cheap bounds: distance to the first vertex (upper), to the bounding box (lower);
+            # both computed without rounding trouble (the vertex is exactly on the triangle)
+            dx, dy, dz = ((px, py, pz)[k] - tcols[k].take(pair_t) for k in range(3))
             upper = np.minimum.reduceat(dx * dx + dy * dy + dz * dz, run)
             lower = np.zeros_like(px)
             for k, pk in enumerate((px, py, pz)):
@@ -282,10 +282,12 @@ def _grid_search(
                 )
                 lower += gap * gap
             counts_run = np.diff(np.r_[run, pair_q.size])
-            # (the tolerance covers the rounding of the centroid; it never drops the nearest)
-            keep = lower <= np.repeat(upper, counts_run) * (1.0 + 1e-6) + 1e-300
+            keep = lower <= np.repeat(upper, counts_run) * (1.0 + 1e-9)
             pair_q, pair_t = pair_q[keep], pair_t[keep]
             px, py, pz = px[keep], py[keep], pz[keep]
+            if pair_q.size == 0:  # cannot happen (the bounding pair is kept); stay safe
+                q0 = q1
+                continue
             d2 = _sqdist_soa(px, py, pz, tuple(col.take(pair_t) for col in tcols))
             # pairs are grouped by query: reduce each query's run
             run = np.flatnonzero(np.r_[True, pair_q[1:] != pair_q[:-1]])
@@ -321,7 +323,6 @@ def _nearest_triangle_distances(
     tmax = np.maximum(np.maximum(a, b), c)
     bmin = [np.ascontiguousarray(tmin[:, k]) for k in range(3)]
     bmax = [np.ascontiguousarray(tmax[:, k]) for k in range(3)]
-    centroid = [(tcols[k] + tcols[3 + k] + tcols[6 + k]) / 3.0 for k in range(3)]
     lo = np.minimum(tmin.min(axis=0), queries.min(axis=0))
     hi = np.maximum(tmax.max(axis=0), queries.max(axis=0))
     world = float(np.linalg.norm(hi - lo))
@@ -342,7 +343,7 @@ def _nearest_triangle_distances(
         cell = h * 2.0**e
         radius = 0.5 * cell
         grid = _TriangleGrid(lo, tmin, tmax, cell)
-        best = _grid_search(grid, queries[active], radius, tcols, centroid, bmin, bmax)
+        best = _grid_search(grid, queries[active], radius, tcols, bmin, bmax)
         done = best <= radius
         if radius > world:  # the searched cells contain every triangle
             done[:] = True
