@@ -119,6 +119,20 @@ def test_grid_search_is_exact() -> None:
     np.testing.assert_allclose(pts, want, rtol=1e-12, atol=1e-12)
 
 
+@pytest.mark.parametrize("offset", [0.0, 1e4])
+def test_grid_search_on_coincident_points(offset: float) -> None:
+    """Queries on (or float32-rounding away from) the target's vertices, far from the origin."""
+    result = bidegree.subdivide(torus(6, 5), degree=3, levels=2)
+    points = result.points + offset
+    mesh = compare.SurfaceMesh(points, result.face_sizes, result.face_indices)
+    rounded = points.astype(np.float32).astype(np.float64)
+    assert compare.distances_to_mesh(points, mesh).max() == 0.0
+    assert compare.nearest_point_distances(points, points).max() == 0.0
+    gap = np.linalg.norm(rounded - points, axis=1)
+    np.testing.assert_allclose(compare.nearest_point_distances(rounded, points), gap, atol=1e-12)
+    assert np.all(compare.distances_to_mesh(rounded, mesh) <= gap + 1e-12)
+
+
 def test_grid_search_matches_blender_bvh() -> None:
     """Independent check with Blender's BVH tree (mathutils) on a bigger mesh."""
     import bpy  # noqa: F401 - makes Blender's mathutils importable
