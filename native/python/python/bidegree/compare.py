@@ -692,22 +692,52 @@ def _display(points: np.ndarray, up_axis: str) -> np.ndarray:
     return p
 
 
+_ELEV, _AZIM = 28.0, -55.0  # matplotlib view of the 3D panels
+
+
+def _is_closed(face_sizes: np.ndarray, face_indices: np.ndarray) -> bool:
+    """True when every edge is shared by exactly two faces."""
+    sizes = np.asarray(face_sizes, dtype=np.int64)
+    idx = np.asarray(face_indices, dtype=np.int64)
+    starts = np.zeros(sizes.size, dtype=np.int64)
+    np.cumsum(sizes[:-1], out=starts[1:])
+    nxt = np.arange(1, idx.size + 1, dtype=np.int64)
+    nxt[starts + sizes - 1] = starts
+    a, b = idx, idx[nxt]
+    keys = np.minimum(a, b) * (int(idx.max()) + 1) + np.maximum(a, b)
+    _, counts = np.unique(keys, return_counts=True)
+    return bool(np.all(counts == 2))
+
+
 def _face_polys(mesh: SurfaceMesh, up_axis: str) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
-    """Polygons (display frame), per-face unit normals, per-face index subset used."""
+    """Polygons to draw (display frame), their unit normals, and their face indices.
+
+    Faces turned away from the camera are left out on closed meshes (matplotlib sorts polygons
+    by mean depth only, so back faces would otherwise show through); at most
+    ``_MAX_PLOT_FACES`` evenly spaced faces are drawn.
+    """
     pts = _display(mesh.points, up_axis)
     sizes = np.asarray(mesh.face_sizes, dtype=np.int64)
     idx = np.asarray(mesh.face_indices, dtype=np.int64)
     starts = np.zeros(sizes.size, dtype=np.int64)
     np.cumsum(sizes[:-1], out=starts[1:])
-    faces = np.arange(sizes.size)
-    if sizes.size > _MAX_PLOT_FACES:  # keep the drawing responsive: evenly spaced subset
-        faces = np.linspace(0, sizes.size - 1, _MAX_PLOT_FACES).astype(np.int64)
-    polys = [pts[idx[starts[f] : starts[f] + sizes[f]]] for f in faces]
-    normals = np.array([np.cross(p[1] - p[0], p[-1] - p[0]) for p in polys])
-    # Newell-free approximation is fine for shading; normalise safely
+    # vector area per face (Newell's formula around the first vertex)
+    nxt = np.arange(1, idx.size + 1, dtype=np.int64)
+    nxt[starts + sizes - 1] = starts
+    origin = np.repeat(pts[idx[starts]], sizes, axis=0)
+    cross = np.cross(pts[idx] - origin, pts[idx[nxt]] - origin)
+    normals = np.add.reduceat(cross, starts, axis=0)
     length = np.linalg.norm(normals, axis=1, keepdims=True)
     normals = np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
-    return polys, normals, faces
+    faces = np.arange(sizes.size)
+    if _is_closed(sizes, idx):
+        elev, azim = np.radians(_ELEV), np.radians(_AZIM)
+        eye = np.array([np.cos(elev) * np.cos(azim), np.cos(elev) * np.sin(azim), np.sin(elev)])
+        faces = faces[normals @ eye > 0]
+    if faces.size > _MAX_PLOT_FACES:  # keep the drawing responsive: evenly spaced subset
+        faces = faces[np.linspace(0, faces.size - 1, _MAX_PLOT_FACES).astype(np.int64)]
+    polys = [pts[idx[starts[f] : starts[f] + sizes[f]]] for f in faces]
+    return polys, normals[faces], faces
 
 
 def _shade(normals: np.ndarray) -> np.ndarray:
@@ -724,7 +754,7 @@ def _setup_axes(ax: Any, pts: np.ndarray, title: str) -> None:
     ax.set_ylim(center[1] - span[1] / 2, center[1] + span[1] / 2)
     ax.set_zlim(center[2] - span[2] / 2, center[2] + span[2] / 2)
     ax.set_box_aspect(tuple(span), zoom=1.25)
-    ax.view_init(elev=28, azim=-55)
+    ax.view_init(elev=_ELEV, azim=_AZIM)
     ax.set_axis_off()
     ax.set_title(title, fontsize=10)
 
