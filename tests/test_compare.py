@@ -332,3 +332,10 @@ def test_cli_hook(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     bad = parser.parse_args([str(tmp_path / "missing.obj"), "--levels", "1"])
     assert compare.run(bad) == 1
     assert "error" in capsys.readouterr().err
+    # unusable report paths are refused before any work is done
+    for option, target in (("-o", "nowhere/r.usda"), ("-o", "r.obj"), ("--plot", "nowhere/r.png")):
+        args = parser.parse_args([str(obj), option, str(tmp_path / target)])
+        assert compare.run(args) == 1
+        captured = capsys.readouterr()
+        assert captured.out == "" and "error" in captured.err
+    assert not (tmp_path / "nowhere").exists() and not (tmp_path / "r.obj").exists()

@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from dataclasses import dataclass, field
@@ -883,11 +884,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--up-axis", choices=("Y", "Z"), default="Y", help="up axis (default Y)")
 
 
+def usd_extensions() -> tuple[str, ...]:
+    """File extensions accepted for the report USD."""
+    from bidegree import usd
+
+    return usd.SUPPORTED_EXTENSIONS
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``bidegree compare``; returns the exit status."""
     import bidegree
 
     try:
+        # check the output paths first: the comparison can take a while
+        for out, exts in ((args.output, usd_extensions()), (args.plot, None)):
+            if not out:
+                continue
+            directory = os.path.dirname(os.path.abspath(out))
+            if not os.path.isdir(directory):
+                raise bidegree.BidegreeIOError(f"{out}: directory {directory} does not exist")
+            if exts is not None and os.path.splitext(out)[1].lower() not in exts:
+                raise bidegree.InvalidInputError(f"{out}: the report must be {' or '.join(exts)}")
         mesh = bidegree.Mesh.from_obj(args.input, boundary=args.boundary)
         comparison = compare(mesh, args.degree, args.levels, limit=args.limit, output=args.kind)
         print(comparison.summary())
