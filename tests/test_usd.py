@@ -281,6 +281,7 @@ def _result_like(result: bidegree.Result, **changes: object) -> SimpleNamespace:
         ({"points": "nan"}, "NaN"),
         ({"up_axis": "X"}, "up_axis"),
         ({"meters_per_unit": 0.0}, "meters_per_unit"),
+        ({"boundary": "edge-only"}, "boundary mode"),
     ],
 )
 def test_bad_input_keeps_existing_file(
@@ -313,6 +314,8 @@ def test_bad_input_keeps_existing_file(
         sizes = result.face_sizes.copy()
         sizes[0] += 1
         res = _result_like(result, face_sizes=sizes)
+    elif key == "boundary":
+        res = _result_like(result, boundary=value)
     else:
         kwargs[key] = value
     with pytest.raises(bidegree.InvalidInputError, match=message):

@@ -324,6 +324,12 @@ def _build_stage(
     dist = _check_distances(distances, res_topo.num_points, "result")
 
     boundary = str(getattr(cage, "boundary", None) or getattr(result, "boundary", "edge-only"))
+    result_boundary = getattr(result, "boundary", None)
+    if result_boundary is not None and str(result_boundary) != boundary:
+        raise InvalidInputError(
+            f"the cage's boundary mode {boundary!r} differs from the result's "
+            f"{result_boundary!r}: is the result from another cage?"
+        )
     if boundary not in BOUNDARY_TO_USD:
         raise InvalidInputError(
             f"unknown boundary mode {boundary!r}; expected one of {sorted(BOUNDARY_TO_USD)}"
