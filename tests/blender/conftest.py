@@ -32,6 +32,10 @@ DIST = ROOT / "dist"
 EXTENSION_ID = "bidegree"
 ADDON_MODULE = f"bl_ext.user_default.{EXTENSION_ID}"
 
+#: ``bidegree`` was imported by other tests of this process before the extension was installed
+#: (then the installed wheel's native module cannot be loaded any more; see the docstring).
+BIDEGREE_PREIMPORTED = "bidegree" in sys.modules
+
 _USER_DIR = tempfile.mkdtemp(prefix="bidegree-blender-user-")
 os.environ["BLENDER_USER_RESOURCES"] = _USER_DIR
 _SITE = Path(_USER_DIR, "extensions", ".local", "lib", "python3.11", "site-packages")
