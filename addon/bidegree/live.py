@@ -127,9 +127,11 @@ def update(
                 result = objects.ensure_result_object(obj, None, scratch)
                 props.result = result
             else:
-                result = objects.ensure_result_object(obj, result)
+                mine = objects.ensure_result_object(obj, result)
+                if mine != result:  # obj is a duplicate: now it has a result of its own
+                    props.result = mine
                 report = objects.update_result(
-                    CACHE, obj, result, settings, depsgraph=depsgraph
+                    CACHE, obj, mine, settings, depsgraph=depsgraph
                 )
         except bidegree.BidegreeError as exc:
             _set_if_changed(props, "last_error", f"{type(exc).__name__}: {exc}")

@@ -368,6 +368,20 @@ def test_apply_and_remove(addon: ModuleType, scene: Any) -> None:
     assert len(bpy.data.objects) == 2 and other.display_type == "TEXTURED"
 
 
+def test_duplicate_gets_its_own_result(addon: ModuleType, scene: Any) -> None:
+    obj = cube(scene)
+    enable(obj)
+    original_result = obj.bidegree.result
+    dup = obj.copy()  # what Shift+D does: the settings (and result pointer) are copied
+    dup.data = obj.data.copy()
+    scene.collection.objects.link(dup)
+    dup.location.x = 5.0
+    assert addon.update(dup) == "built"
+    assert dup.bidegree.result is not None and dup.bidegree.result != original_result
+    assert dup.bidegree.result.parent == dup and original_result.parent == obj
+    assert obj.bidegree.result == original_result
+
+
 def test_export_usd_operator(addon: ModuleType, scene: Any, tmp_path: Path) -> None:
     obj = cube(scene)
     obj.modifiers.new("Bevel", "BEVEL")

@@ -50,11 +50,17 @@ def ensure_result_object(
     """Return ``result`` if it is a valid result of ``obj``, else create one (with ``mesh``)."""
     import bpy
 
-    if result is not None and result.name in bpy.data.objects and result.type == "MESH":
-        if result.parent != obj:
-            result.parent = obj
-            result.matrix_parent_inverse.identity()
+    if (
+        result is not None
+        and result.name in bpy.data.objects
+        and result.type == "MESH"
+        and result.parent == obj
+    ):
+        if result.get(RESULT_TAG) != obj.name_full:  # the source was renamed
+            result[RESULT_TAG] = obj.name_full
         return result
+    # No result yet, or ``result`` belongs to another object (this one is a duplicate whose
+    # settings still point at the original's result): make our own.
     name = f"{obj.name}.bidegree"
     if mesh is None:
         mesh = bpy.data.meshes.new(name)
