@@ -4,7 +4,9 @@ and counts that follow from the topology. (The mathematics of the scheme is test
 
 from __future__ import annotations
 
+import sys
 import threading
+import time
 import warnings
 from pathlib import Path
 
@@ -593,3 +595,37 @@ def test_threads_share_a_plan() -> None:
     assert len(outputs) == 20
     for out in outputs:
         np.testing.assert_array_equal(out, expected)
+
+
+def test_gil_is_released_during_evaluation() -> None:
+    from bidegree.bench import make_cage
+
+    mesh = make_cage(600)
+    plan = bidegree.Plan(mesh, degree=9, levels=4)
+    started, finished = threading.Event(), threading.Event()
+    seconds: list[float] = []
+
+    def work() -> None:
+        started.set()
+        start = time.perf_counter()
+        plan.evaluate(mesh.points)
+        seconds.append(time.perf_counter() - start)
+        finished.set()
+
+    # A long switch interval: the interpreter itself never takes the GIL from the worker, so this
+    # thread only runs during the evaluation if the extension releases the GIL (a GIL-holding C
+    # call, e.g. a catastrophic regex, gives 0 spins here).
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(0.25)
+    try:
+        thread = threading.Thread(target=work)
+        thread.start()
+        started.wait()
+        spins = 0
+        while not finished.is_set():
+            spins += 1
+        thread.join()
+    finally:
+        sys.setswitchinterval(interval)
+    assert seconds[0] > 0.01
+    assert spins > 1000, spins

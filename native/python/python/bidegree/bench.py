@@ -107,7 +107,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--degrees", type=parse_degrees, default=list(range(1, 10)), help="e.g. 1-9 (default)"
     )
     parser.add_argument(
-        "--faces", type=int, default=3000, help="approximate cage faces (default 3000)"
+        "--faces",
+        type=int,
+        default=3900,
+        help="approximate cage faces (default 3900: ~4M faces at 5 levels)",
     )
     parser.add_argument(
         "--target-faces",
