@@ -127,6 +127,13 @@ def test_round_trip_every_attribute(
     dist = UsdGeom.PrimvarsAPI(rprim).GetPrimvar("distance")
     assert dist.GetInterpolation() == UsdGeom.Tokens.vertex
     np.testing.assert_allclose(_np(dist.Get()), distances, atol=1e-7)
+    color = UsdGeom.PrimvarsAPI(rprim).GetPrimvar("displayColor")
+    assert color.GetInterpolation() == UsdGeom.Tokens.vertex
+    colors = _np(color.Get())
+    np.testing.assert_allclose(colors, usd.distance_colors(distances))
+    np.testing.assert_allclose(colors[0], [0.05, 0.03, 0.25], atol=1e-6)  # distance 0
+    np.testing.assert_allclose(colors[-1], [1.0, 1.0, 0.6], atol=1e-6)  # the largest
+    assert np.all(np.diff(colors.sum(axis=1)) >= -1e-6)  # brighter with distance
     ext_r = _np(rmesh.GetExtentAttr().Get())
     np.testing.assert_allclose(ext_r, [pts.min(0), pts.max(0)])
     assert _attr(rprim, "bidegree:degree") == 3
@@ -176,6 +183,7 @@ def test_edge_only_without_uvs_creases_or_distances(tmp_path: Path) -> None:
     rprim = stage.GetPrimAtPath("/Bidegree/Result")
     assert not rprim.GetAttribute("primvars:st").HasAuthoredValue()
     assert not rprim.GetAttribute("primvars:distance").HasAuthoredValue()
+    assert not rprim.GetAttribute("primvars:displayColor").HasAuthoredValue()
     assert rprim.GetAttribute("bidegree:degree").Get() == 4
     assert rprim.GetAttribute("bidegree:boundary").Get() == "edge-only"
     assert usd.validate(path) == []

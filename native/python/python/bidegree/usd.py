@@ -7,7 +7,8 @@ The stage written by :func:`export` looks like this::
                            creases, corners and boundary rule, so that any USD renderer draws the
                            Catmull-Clark surface of the same cage (for comparison)
     /Bidegree/Result       Mesh: the bidegree surface, subdivisionScheme = none, vertex normals,
-                           primvars:st (when the cage has UVs), primvars:distance (optional),
+                           primvars:st (when the cage has UVs), primvars:distance (optional,
+                           with a matching primvars:displayColor ramp for viewing),
                            extent and the custom attributes bidegree:degree, bidegree:levels,
                            bidegree:output, bidegree:boundary, bidegree:version
     /Bidegree/<Name>       optional extra meshes (``extra_meshes``; ``bidegree.compare`` writes the
@@ -50,6 +51,7 @@ from ._errors import BidegreeIOError, InvalidInputError
 __all__ = [
     "BOUNDARY_TO_USD",
     "SUPPORTED_EXTENSIONS",
+    "distance_colors",
     "export",
     "validate",
     "vertex_normals",
@@ -173,6 +175,30 @@ def vertex_normals(
     return acc.astype(np.float32)
 
 
+#: Colour ramp of :func:`distance_colors` (dark blue -> purple -> orange -> light yellow).
+_RAMP = np.array(
+    [
+        [0.05, 0.03, 0.25],
+        [0.45, 0.10, 0.50],
+        [0.85, 0.30, 0.25],
+        [0.99, 0.65, 0.05],
+        [1.0, 1.0, 0.6],
+    ]
+)
+
+
+def distance_colors(distances: np.ndarray) -> np.ndarray:
+    """(N, 3) float32 display colours for per-vertex distances: 0 -> dark blue, the largest
+    distance -> light yellow (piecewise-linear ramp; all dark blue when every distance is 0)."""
+    d = np.asarray(distances, dtype=np.float64)
+    top = float(d.max()) if d.size else 0.0
+    t = d / top if top > 0 else np.zeros_like(d)
+    x = np.clip(t, 0.0, 1.0) * (len(_RAMP) - 1)
+    i = np.minimum(x.astype(np.int64), len(_RAMP) - 2)
+    f = (x - i)[:, None]
+    return ((1.0 - f) * _RAMP[i] + f * _RAMP[i + 1]).astype(np.float32)
+
+
 def _sharpness(values: np.ndarray) -> np.ndarray:
     """Sharpness values for USD: finite values unchanged, +inf -> 10 (infinitely sharp)."""
     out = np.asarray(values, dtype=np.float32).copy()
@@ -266,6 +292,10 @@ def _define_polymesh(
             "distance", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
         )
         dist.Set(_floats(pxr, distances))
+        color = primvars.CreatePrimvar(
+            "displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex
+        )
+        color.Set(_vec3f(pxr, distance_colors(distances)))
     return mesh
 
 
@@ -456,7 +486,8 @@ def export(
         up_axis: ``"Y"`` or ``"Z"`` (stage ``upAxis``).
         meters_per_unit: stage ``metersPerUnit`` (> 0).
         distances: optional per-result-vertex values, written as ``primvars:distance``
-            (``vertex`` interpolation) on ``/Bidegree/Result``.
+            (``vertex`` interpolation) on ``/Bidegree/Result``, together with a
+            ``primvars:displayColor`` ramp of them (:func:`distance_colors`) for viewers.
         extra_meshes: optional ``{name: (mesh, distances_or_None)}``; each mesh (anything with
             points, face_sizes, face_indices) is written as a plain polygon mesh
             ``/Bidegree/<name>``.
@@ -526,35 +557,31 @@ def export(
 def validate(path: str | os.PathLike[str]) -> list[str]:
     """Validate a USD file with usd-core's validators; return the error messages (empty = valid).
 
-    Uses ``UsdValidation`` (every registered validator, as ``usdchecker`` does) and, on usd-core
-    releases that still ship it, ``UsdUtils.ComplianceChecker``.  Warnings are not returned.
+    Uses ``UsdValidation`` with every registered validator (what ``usdchecker`` runs in recent
+    usd-core) and, on usd-core releases that still ship it, ``UsdUtils.ComplianceChecker``.
+    Warnings are not returned.
     """
-    pxr = _pxr()
-    errors: list[str] = []
-    stage = pxr.Usd.Stage.Open(os.fspath(path))
-    try:
-        from pxr import UsdValidation
-    except ImportError:  # pragma: no cover - older usd-core
-        UsdValidation = None
-    if UsdValidation is not None:
-        registry = UsdValidation.ValidationRegistry()
-        context = UsdValidation.ValidationContext(registry.GetOrLoadAllValidators())
-        for err in context.Validate(stage):
-            if err.GetType() == UsdValidation.ValidationErrorType.Error:
-                errors.append(f"{err.GetName()}: {err.GetMessage()}")
-    checker_cls = (
-        getattr(pxr.UsdUtils, "ComplianceChecker", None) if hasattr(pxr, "UsdUtils") else None
-    )
-    if checker_cls is None:
-        try:
-            from pxr import UsdUtils
+    import importlib
 
-            checker_cls = getattr(UsdUtils, "ComplianceChecker", None)
-        except ImportError:  # pragma: no cover
-            checker_cls = None
+    pxr = _pxr()
+    file = os.fspath(path)
+    errors: list[str] = []
+    try:
+        validation = importlib.import_module("pxr.UsdValidation")
+    except ImportError:  # pragma: no cover - usd-core before 25.x
+        validation = None
+    if validation is not None:
+        stage = pxr.Usd.Stage.Open(file)
+        registry = validation.ValidationRegistry()
+        context = validation.ValidationContext(registry.GetOrLoadAllValidators())
+        for err in context.Validate(stage):
+            if err.GetType() == validation.ValidationErrorType.Error:
+                errors.append(f"{err.GetName()}: {err.GetMessage()}")
+    usd_utils = importlib.import_module("pxr.UsdUtils")
+    checker_cls = getattr(usd_utils, "ComplianceChecker", None)
     if checker_cls is not None:  # pragma: no cover - removed from recent usd-core
         checker = checker_cls()
-        checker.CheckCompliance(os.fspath(path))
+        checker.CheckCompliance(file)
         errors.extend(checker.GetErrors())
         errors.extend(checker.GetFailedChecks())
     return errors
