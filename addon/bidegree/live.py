@@ -199,46 +199,64 @@ def remove(obj: bpy.types.Object) -> None:
 
 
 def _cleanup_orphans(scene: bpy.types.Scene) -> None:
-    """Delete result objects whose source object was deleted."""
+    """Delete result objects whose source object was deleted (it unparents its children)."""
     for ob in list(scene.objects):
+        if not objects.is_result_object(ob) or ob.parent is not None:
+            continue
+        source = objects.find_source(ob)
         if (
-            objects.is_result_object(ob)
-            and ob.parent is None
-            and objects.find_source(ob) is None
+            source is None
+            or source.users == 0
+            or scene.objects.get(source.name) is None
         ):
             objects.remove_result_object(None, ob)
 
 
+def _sync_visibility(source: bpy.types.Object, result: bpy.types.Object) -> None:
+    """Hiding the source (H, or the monitor toggle) hides its result too."""
+    if result.hide_viewport != source.hide_viewport:
+        result.hide_viewport = source.hide_viewport
+    try:
+        hidden = source.hide_get()
+        if result.hide_get() != hidden:
+            result.hide_set(hidden)
+    except RuntimeError:  # not in the current view layer
+        pass
+
+
 @persistent
 def on_depsgraph_update(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph) -> None:
-    """Mark enabled objects whose geometry (or mesh, or settings) changed as dirty."""
+    """Mark enabled objects whose geometry (or mesh) changed as dirty; housekeeping."""
     if _busy:
         return
     changed_objects: set[str] = set()
     changed_data: set[str] = set()
+    any_object = False
     for upd in depsgraph.updates:
         idv = upd.id
         orig = getattr(idv, "original", idv)
         if isinstance(orig, bpy.types.Object):
+            any_object = True
             if upd.is_updated_geometry:
                 changed_objects.add(orig.name_full)
-        elif isinstance(orig, (bpy.types.Mesh, bpy.types.Material)):
+        elif isinstance(orig, bpy.types.Mesh):
             changed_data.add(orig.name_full)
-    if not changed_objects and not changed_data:
+        elif isinstance(orig, (bpy.types.Collection, bpy.types.Scene)):
+            any_object = True  # objects added/removed/relinked: housekeeping
+    if not any_object and not changed_data:
         return
     any_dirty = False
     for ob in scene.objects:
-        if ob.type != "MESH":
-            continue
-        if objects.is_result_object(ob):
-            continue
-        if not ob.bidegree.enabled:
+        if ob.type != "MESH" or objects.is_result_object(ob) or not ob.bidegree.enabled:
             continue
         if ob.name_full in changed_objects or (
             ob.data is not None and ob.data.name_full in changed_data
         ):
             _dirty.add(ob.name_full)
             any_dirty = True
+        result = ob.bidegree.result
+        if result is not None and result.parent == ob:
+            _sync_visibility(ob, result)
     if any_dirty:
         _schedule()
     _cleanup_orphans(scene)

@@ -382,6 +382,18 @@ def test_duplicate_gets_its_own_result(addon: ModuleType, scene: Any) -> None:
     assert obj.bidegree.result == original_result
 
 
+def test_deleting_the_source_deletes_its_result(addon: ModuleType, scene: Any) -> None:
+    obj = cube(scene)
+    enable(obj)
+    result_name = obj.bidegree.result.name
+    obj.hide_viewport = True
+    bpy.context.view_layer.update()
+    assert bpy.data.objects[result_name].hide_viewport
+    bpy.data.objects.remove(obj)
+    bpy.context.view_layer.update()
+    assert result_name not in bpy.data.objects
+
+
 def test_export_usd_operator(addon: ModuleType, scene: Any, tmp_path: Path) -> None:
     obj = cube(scene)
     obj.modifiers.new("Bevel", "BEVEL")
