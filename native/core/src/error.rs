@@ -17,7 +17,11 @@ pub enum Error {
     RepeatedVertex { face: usize, vertex: usize },
     /// A face, crease or corner refers to a vertex that does not exist.
     #[error("{what} refers to vertex {index}, but the mesh has {num_vertices} vertices")]
-    IndexOutOfRange { what: String, index: i64, num_vertices: usize },
+    IndexOutOfRange {
+        what: String,
+        index: i64,
+        num_vertices: usize,
+    },
     /// A coordinate or attribute value is NaN or infinite.
     #[error("vertex {vertex} has a non-finite coordinate")]
     NonFinite { vertex: usize },
@@ -29,7 +33,12 @@ pub enum Error {
     NonManifoldEdge { a: usize, b: usize, faces: usize },
     /// Two faces traverse a shared edge in the same direction.
     #[error("faces {face_a} and {face_b} have opposite orientations across edge ({a}, {b})")]
-    InconsistentOrientation { a: usize, b: usize, face_a: usize, face_b: usize },
+    InconsistentOrientation {
+        a: usize,
+        b: usize,
+        face_a: usize,
+        face_b: usize,
+    },
     /// A crease names a vertex pair that is not an edge of the mesh.
     #[error("crease {crease} ({a}, {b}) is not an edge of the mesh")]
     CreaseNotAnEdge { crease: usize, a: usize, b: usize },
@@ -43,7 +52,11 @@ pub enum Error {
     #[error(
         "the result would need about {required} bytes ({faces} faces), over the memory budget of {budget} bytes"
     )]
-    MemoryBudget { required: u64, budget: u64, faces: u64 },
+    MemoryBudget {
+        required: u64,
+        budget: u64,
+        faces: u64,
+    },
     /// Arrays of the wrong length or shape, a bad option value, a sharpness below zero.
     #[error("invalid input: {0}")]
     InvalidInput(String),

@@ -13,11 +13,19 @@ use rayon::prelude::*;
 use crate::error::Result;
 use crate::mesh::check_values;
 use crate::plan::{CurveVertex, Plan, Step};
-use crate::topology::{Level, CHUNK};
+use crate::topology::{Level, CHUNK, NONE};
 
 /// Floating-point types that points and attributes can be given in: `f32` and `f64`.
 pub trait Scalar:
-    Copy + Send + Sync + Default + PartialOrd + Debug + Add<Output = Self> + Mul<Output = Self> + 'static
+    Copy
+    + Send
+    + Sync
+    + Default
+    + PartialOrd
+    + Debug
+    + Add<Output = Self>
+    + Mul<Output = Self>
+    + 'static
 {
     /// Converts from f64 (weights are computed in f64).
     fn from_f64(x: f64) -> Self;
@@ -80,14 +88,6 @@ fn reciprocal<T: Scalar>(k: usize) -> T {
     }
 }
 
-/// Where the 2-D data of a step comes from and what kind it is.
-enum Data<'a, T: Scalar, const N: usize> {
-    /// One value per vertex of the current level.
-    Primal(Cow<'a, [Value<T, N>]>),
-    /// One value per face of the current level.
-    Dual(Vec<Value<T, N>>),
-}
-
 /// 1-D data on the curve network: per curve vertex (primal) or per curve edge (dual) of the
 /// previous step, or the cage points themselves before the first step.
 enum CurveData<T: Scalar, const N: usize> {
@@ -96,68 +96,189 @@ enum CurveData<T: Scalar, const N: usize> {
     Dual(Vec<Value<T, N>>),
 }
 
-/// The state of one evaluation while it runs through the levels.
+/// The state of one evaluation while it runs through the levels. Two buffers carry the 2-D
+/// data (per vertex and per face of the current level) and are reused from pass to pass.
 struct Run<'a, T: Scalar, const N: usize> {
     /// The cage points (compacted numbering): corners keep these.
     cage: &'a [Value<T, N>],
-    data: Data<'a, T, N>,
+    /// Primal data, valid when `primal`.
+    vertices: Cow<'a, [Value<T, N>]>,
+    /// Dual data, valid when not `primal`.
+    faces: Vec<Value<T, N>>,
+    primal: bool,
     curve: CurveData<T, N>,
 }
 
 impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
-    /// Replication of step `j`: each child face (a corner of the coarse level) takes the value of
-    /// the corner's vertex (primal) or face (dual); each curve half-edge the value of its parent.
-    fn replicate(&mut self, coarse: &Level, step: &Step) -> Vec<Value<T, N>> {
-        let faces = match &self.data {
-            Data::Primal(v) => gather(coarse.num_corners(), |c| v[coarse.corner_verts[c] as usize]),
-            Data::Dual(f) => gather(coarse.num_corners(), |c| f[coarse.face_of(c)]),
-        };
-        let curve = match &self.curve {
-            CurveData::Cage => step.curve_edges.iter().map(|e| self.cage[e.source as usize]).collect(),
-            CurveData::Primal(v) | CurveData::Dual(v) => step.curve_edges.iter().map(|e| v[e.source as usize]).collect(),
-        };
-        self.curve = CurveData::Dual(curve);
-        faces
+    fn new(cage: &'a [Value<T, N>]) -> Self {
+        Run {
+            cage,
+            vertices: Cow::Borrowed(cage),
+            faces: Vec::new(),
+            primal: true,
+            curve: CurveData::Cage,
+        }
     }
 
-    /// Dual -> primal average on `fine`: each vertex takes the centroid of its faces; curve
-    /// vertices and corners take (a blend towards) their 1-D values.
-    fn to_primal(&mut self, fine: &Level, step: &Step, faces: &[Value<T, N>]) {
-        let CurveData::Dual(edge_values) = &self.curve else { unreachable!("1-D data out of step") };
-        let curve: Vec<Value<T, N>> = step
-            .curve_vertices
+    /// Replication of the 1-D data: each curve half-edge takes the value of its parent.
+    fn replicate_curves(&mut self, step: &Step) {
+        let curve = match &self.curve {
+            CurveData::Cage => step
+                .curve_edges
+                .iter()
+                .map(|e| self.cage[e.source as usize])
+                .collect(),
+            CurveData::Primal(v) | CurveData::Dual(v) => step
+                .curve_edges
+                .iter()
+                .map(|e| v[e.source as usize])
+                .collect(),
+        };
+        self.curve = CurveData::Dual(curve);
+    }
+
+    /// The 1-D half of a dual -> primal average: curve vertices take the midpoint of their two
+    /// curve edges, corners their cage point.
+    fn curve_to_primal(&mut self, step: &Step) -> Vec<Value<T, N>> {
+        let CurveData::Dual(edge_values) = &self.curve else {
+            unreachable!("1-D data out of step")
+        };
+        let half = T::from_f64(0.5);
+        step.curve_vertices
             .iter()
             .map(|cv| match cv.edges {
-                Some([a, b]) => scale(add(edge_values[a as usize], edge_values[b as usize]), T::from_f64(0.5)),
+                Some([a, b]) => scale(add(edge_values[a as usize], edge_values[b as usize]), half),
                 None => self.cage[cv.vertex as usize],
             })
-            .collect();
-        let mut vertices = gather(fine.num_vertices, |v| {
-            let corners = fine.corners_of_vertex(v);
-            let mut sum = faces[corners[0] as usize >> 2];
-            for &c in &corners[1..] {
-                sum = add(sum, faces[c as usize >> 2]);
-            }
-            scale(sum, reciprocal(corners.len()))
-        });
+            .collect()
+    }
+
+    /// Curve vertices and corners take (a blend towards) their 1-D values.
+    fn finish_primal(&mut self, mut vertices: Vec<Value<T, N>>, step: &Step) {
+        let curve = self.curve_to_primal(step);
         for (cv, &value) in step.curve_vertices.iter().zip(&curve) {
             blend(&mut vertices[cv.vertex as usize], value, cv);
         }
-        self.data = Data::Primal(Cow::Owned(vertices));
+        self.vertices = Cow::Owned(vertices);
         self.curve = CurveData::Primal(curve);
+        self.primal = true;
+    }
+
+    /// A buffer for new primal data: the old one when it is ours, else a fresh one.
+    fn take_vertices(&mut self) -> Vec<Value<T, N>> {
+        match std::mem::replace(&mut self.vertices, Cow::Borrowed(&[])) {
+            Cow::Owned(v) => v,
+            Cow::Borrowed(_) => Vec::new(),
+        }
+    }
+
+    /// Replication followed by the first dual -> primal average, in closed form on the coarse
+    /// level (the replicated face values are never stored): an old vertex takes its own point
+    /// (primal) or the centroid of its faces (dual), an edge point the midpoint of its ends
+    /// (primal) or of its faces (dual), a face point the centroid of its corners (primal) or its
+    /// face's point (dual).
+    fn first_average(&mut self, coarse: &Level, fine: &Level, step: &Step) {
+        self.replicate_curves(step);
+        let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
+        let mut out = if self.primal {
+            std::mem::take(&mut self.faces)
+        } else {
+            self.take_vertices()
+        };
+        if self.primal {
+            let v = &self.vertices;
+            let half = T::from_f64(0.5);
+            gather_into(&mut out, fine.num_vertices, |w| {
+                if w < nv {
+                    v[w]
+                } else if w < nv + ne {
+                    let [a, b] = coarse.edge_verts[w - nv];
+                    scale(add(v[a as usize], v[b as usize]), half)
+                } else {
+                    let corners = coarse.face_corners(w - nv - ne);
+                    let k = corners.len();
+                    let sum =
+                        corners.fold(zero(), |s, c| add(s, v[coarse.corner_verts[c] as usize]));
+                    scale(sum, reciprocal(k))
+                }
+            });
+            // The coarse primal buffer is free now: keep it for later passes.
+            if let Cow::Owned(old) = std::mem::replace(&mut self.vertices, Cow::Borrowed(&[])) {
+                self.faces = old;
+            }
+        } else {
+            let f = &self.faces;
+            let half = T::from_f64(0.5);
+            gather_into(&mut out, fine.num_vertices, |w| {
+                if w < nv {
+                    let corners = coarse.corners_of_vertex(w);
+                    let sum = corners
+                        .iter()
+                        .fold(zero(), |s, &c| add(s, f[coarse.face_of(c as usize)]));
+                    scale(sum, reciprocal(corners.len()))
+                } else if w < nv + ne {
+                    match coarse.edge_corners[w - nv] {
+                        [c, NONE] => f[coarse.face_of(c as usize)],
+                        [c, d] => scale(
+                            add(f[coarse.face_of(c as usize)], f[coarse.face_of(d as usize)]),
+                            half,
+                        ),
+                    }
+                } else {
+                    f[w - nv - ne]
+                }
+            });
+        }
+        self.finish_primal(out, step);
+    }
+
+    /// Dual -> primal average on `fine`, gathered through the coarse level's tables: face `c` of
+    /// `fine` is corner `c` of `coarse`, so an old vertex's faces are its coarse corners, an edge
+    /// point's faces the corners on its edge and their successors, a face point's faces the
+    /// corners of its face.
+    fn to_primal(&mut self, coarse: &Level, fine: &Level, step: &Step) {
+        let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
+        let mut out = self.take_vertices();
+        let f = &self.faces;
+        let quarter = T::from_f64(0.25);
+        let half = T::from_f64(0.5);
+        gather_into(&mut out, fine.num_vertices, |w| {
+            if w < nv {
+                let corners = coarse.corners_of_vertex(w);
+                let sum = corners.iter().fold(zero(), |s, &c| add(s, f[c as usize]));
+                scale(sum, reciprocal(corners.len()))
+            } else if w < nv + ne {
+                match coarse.edge_corners[w - nv] {
+                    [c, NONE] => scale(add(f[c as usize], f[coarse.next(c as usize)]), half),
+                    [c, d] => {
+                        let (c, d) = (c as usize, d as usize);
+                        let s = add(add(f[c], f[coarse.next(c)]), add(f[d], f[coarse.next(d)]));
+                        scale(s, quarter)
+                    }
+                }
+            } else {
+                let corners = coarse.face_corners(w - nv - ne);
+                let k = corners.len();
+                let sum = f[corners].iter().fold(zero(), |s, &x| add(s, x));
+                scale(sum, reciprocal(k))
+            }
+        });
+        self.finish_primal(out, step);
     }
 
     /// Primal -> dual average on `fine`: each face takes the centroid of its four corners, each
-    /// curve edge the midpoint of its two ends. Returns the face values.
-    fn to_dual(&mut self, fine: &Level, step: &Step) -> Vec<Value<T, N>> {
-        let Data::Primal(vertices) = &self.data else { unreachable!("2-D data out of step") };
-        let CurveData::Primal(curve) = &self.curve else { unreachable!("1-D data out of step") };
+    /// curve edge the midpoint of its two ends.
+    fn to_dual(&mut self, fine: &Level, step: &Step) {
+        let CurveData::Primal(curve) = &self.curve else {
+            unreachable!("1-D data out of step")
+        };
         let quarter = T::from_f64(0.25);
-        let faces = gather(fine.num_faces(), |f| {
+        let v = &self.vertices;
+        gather_into(&mut self.faces, fine.num_faces(), |f| {
             let q = &fine.corner_verts[4 * f..4 * f + 4];
             let s = add(
-                add(vertices[q[0] as usize], vertices[q[1] as usize]),
-                add(vertices[q[2] as usize], vertices[q[3] as usize]),
+                add(v[q[0] as usize], v[q[1] as usize]),
+                add(v[q[2] as usize], v[q[3] as usize]),
             );
             scale(s, quarter)
         });
@@ -165,86 +286,114 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
         let edges = step
             .curve_edges
             .iter()
-            .map(|e| scale(add(curve[e.ends[0] as usize], curve[e.ends[1] as usize]), half))
+            .map(|e| {
+                scale(
+                    add(curve[e.ends[0] as usize], curve[e.ends[1] as usize]),
+                    half,
+                )
+            })
             .collect();
         self.curve = CurveData::Dual(edges);
-        faces
+        self.primal = false;
     }
 
     /// One full step `coarse -> fine` of the given degree: replicate, then `degree` averages.
     fn step(&mut self, coarse: &Level, fine: &Level, step: &Step, degree: u32) {
-        let mut faces = self.replicate(coarse, step);
-        for a in 1..=degree {
+        self.first_average(coarse, fine, step);
+        for a in 2..=degree {
             if a % 2 == 1 {
-                self.to_primal(fine, step, &faces);
+                self.to_primal(coarse, fine, step);
             } else {
-                faces = self.to_dual(fine, step);
+                self.to_dual(fine, step);
             }
-        }
-        if degree % 2 == 0 {
-            self.data = Data::Dual(faces);
         }
     }
 }
 
+#[inline(always)]
+fn zero<T: Scalar, const N: usize>() -> Value<T, N> {
+    [T::default(); N]
+}
+
 /// Sets a vertex to `w * curve + (1 - w) * centroid` (exactly the curve value when w = 1).
 #[inline]
-fn blend<T: Scalar, const N: usize>(vertex: &mut Value<T, N>, curve: Value<T, N>, cv: &CurveVertex) {
+fn blend<T: Scalar, const N: usize>(
+    vertex: &mut Value<T, N>,
+    curve: Value<T, N>,
+    cv: &CurveVertex,
+) {
     if cv.weight >= 1.0 {
         *vertex = curve;
     } else if cv.weight > 0.0 {
-        *vertex = add(scale(curve, T::from_f64(cv.weight)), scale(*vertex, T::from_f64(1.0 - cv.weight)));
+        *vertex = add(
+            scale(curve, T::from_f64(cv.weight)),
+            scale(*vertex, T::from_f64(1.0 - cv.weight)),
+        );
     }
 }
 
 /// `out[i] = f(i)` for `i < n`, in parallel chunks.
 pub(crate) fn gather<V: Send, F: Fn(usize) -> V + Sync + Send>(n: usize, f: F) -> Vec<V> {
-    let mut out = Vec::with_capacity(n);
-    (0..n).into_par_iter().with_min_len(CHUNK).map(f).collect_into_vec(&mut out);
+    let mut out = Vec::new();
+    gather_into(&mut out, n, f);
     out
+}
+
+/// As [`gather`], reusing the allocation of `out`.
+pub(crate) fn gather_into<V: Send, F: Fn(usize) -> V + Sync + Send>(
+    out: &mut Vec<V>,
+    n: usize,
+    f: F,
+) {
+    (0..n)
+        .into_par_iter()
+        .with_min_len(CHUNK)
+        .map(f)
+        .collect_into_vec(out);
 }
 
 /// What the evaluation hands to the output stage: values at the last level, primal (per vertex)
 /// or dual (per face, plus the 1-D values of the last step's curve edges).
 pub(crate) enum Final<T: Scalar, const N: usize> {
     Primal(Vec<Value<T, N>>),
-    Dual { faces: Vec<Value<T, N>>, curve_edges: Vec<Value<T, N>> },
+    Dual {
+        faces: Vec<Value<T, N>>,
+        curve_edges: Vec<Value<T, N>>,
+    },
 }
 
 impl Plan {
     /// Runs `cage` (one value per vertex of `M_0`) through every level. `want_dual` selects the
     /// final kind: the drawing mesh wants primal data, the true dual mesh dual data; the extra
     /// average that converts is the paper's drawing step.
-    pub(crate) fn run<T: Scalar, const N: usize>(&self, cage: &[Value<T, N>], want_dual: bool) -> Final<T, N> {
+    pub(crate) fn run<T: Scalar, const N: usize>(
+        &self,
+        cage: &[Value<T, N>],
+        want_dual: bool,
+    ) -> Final<T, N> {
         let degree = self.options().degree;
-        let mut run = Run { cage, data: Data::Primal(Cow::Borrowed(cage)), curve: CurveData::Cage };
+        let mut run = Run::new(cage);
         let levels = self.levels();
         for (j, step) in self.steps().iter().enumerate() {
             run.step(&levels[j], &levels[j + 1], step, degree);
         }
-        let fine = levels.last().expect("at least one level");
-        let Some(last) = self.steps().last() else {
-            let Data::Primal(v) = run.data else { unreachable!("no step, primal cage data") };
-            return Final::Primal(v.into_owned());
+        if let Some(last) = self.steps().last() {
+            let (coarse, fine) = (&levels[levels.len() - 2], &levels[levels.len() - 1]);
+            match (run.primal, want_dual) {
+                (true, true) => run.to_dual(fine, last),
+                (false, false) => run.to_primal(coarse, fine, last),
+                _ => {}
+            }
+        }
+        if run.primal {
+            return Final::Primal(run.vertices.into_owned());
+        }
+        let CurveData::Dual(curve_edges) = run.curve else {
+            unreachable!("dual 1-D data")
         };
-        match (run.data, want_dual) {
-            (Data::Primal(v), false) => Final::Primal(v.into_owned()),
-            (Data::Dual(faces), true) => {
-                let CurveData::Dual(curve_edges) = run.curve else { unreachable!("dual 1-D data") };
-                Final::Dual { faces, curve_edges }
-            }
-            (data @ Data::Primal(_), true) => {
-                let mut run = Run { cage, data, curve: run.curve };
-                let faces = run.to_dual(fine, last);
-                let CurveData::Dual(curve_edges) = run.curve else { unreachable!("dual 1-D data") };
-                Final::Dual { faces, curve_edges }
-            }
-            (Data::Dual(faces), false) => {
-                let mut run = Run { cage, data: Data::Dual(Vec::new()), curve: run.curve };
-                run.to_primal(fine, last, &faces);
-                let Data::Primal(v) = run.data else { unreachable!("to_primal yields primal data") };
-                Final::Primal(v.into_owned())
-            }
+        Final::Dual {
+            faces: run.faces,
+            curve_edges,
         }
     }
 
@@ -267,7 +416,8 @@ impl Plan {
             None => Cow::Borrowed(points),
             Some(map) => Cow::Owned(map.iter().map(|&v| points[v as usize]).collect()),
         };
-        self.finish(self.run(&compact, self.wants_dual())).into_flattened()
+        self.finish(self.run(&compact, self.wants_dual()))
+            .into_flattened()
     }
 
     /// More than four channels: evaluated four at a time and interleaved back.
@@ -277,7 +427,15 @@ impl Plan {
         for first in (0..channels).step_by(4) {
             let width = (channels - first).min(4);
             let group: Vec<T> = (0..items)
-                .flat_map(|i| (0..4).map(move |k| if k < width { values[i * channels + first + k] } else { T::default() }))
+                .flat_map(|i| {
+                    (0..4).map(move |k| {
+                        if k < width {
+                            values[i * channels + first + k]
+                        } else {
+                            T::default()
+                        }
+                    })
+                })
                 .collect();
             let result = self.evaluate_n::<T, 4>(&group);
             let count = result.len() / 4;
@@ -285,7 +443,8 @@ impl Plan {
                 out = vec![T::default(); count * channels];
             }
             for i in 0..count {
-                out[i * channels + first..i * channels + first + width].copy_from_slice(&result[4 * i..4 * i + width]);
+                out[i * channels + first..i * channels + first + width]
+                    .copy_from_slice(&result[4 * i..4 * i + width]);
             }
         }
         out
@@ -293,7 +452,11 @@ impl Plan {
 
     /// Evaluates face-varying values (one per corner of the cage, e.g. UVs) with linear
     /// (bilinear per face) interpolation and returns one value per corner of the output faces.
-    pub fn evaluate_face_varying<T: Scalar>(&self, values: &[T], channels: usize) -> Result<Vec<T>> {
+    pub fn evaluate_face_varying<T: Scalar>(
+        &self,
+        values: &[T],
+        channels: usize,
+    ) -> Result<Vec<T>> {
         check_values(values, channels, self.levels()[0].num_corners())?;
         let mut current: Vec<T> = values.to_vec();
         let levels = self.levels();
@@ -303,7 +466,12 @@ impl Plan {
                 let corners = level.face_corners(f);
                 let w = reciprocal::<T>(corners.len());
                 (0..channels)
-                    .map(|k| corners.clone().fold(T::default(), |s, c| s + current[c * channels + k]) * w)
+                    .map(|k| {
+                        corners
+                            .clone()
+                            .fold(T::default(), |s, c| s + current[c * channels + k])
+                            * w
+                    })
                     .collect()
             });
             let next: Vec<Vec<T>> = gather(level.num_corners(), |c| {

@@ -38,14 +38,20 @@ pub struct Cage {
 
 fn check_index(what: impl Fn() -> String, index: i64, num_vertices: usize) -> Result<u32> {
     if index < 0 || index as u64 >= num_vertices as u64 {
-        return Err(Error::IndexOutOfRange { what: what(), index, num_vertices });
+        return Err(Error::IndexOutOfRange {
+            what: what(),
+            index,
+            num_vertices,
+        });
     }
     Ok(index as u32)
 }
 
 fn check_sharpness(what: &str, i: usize, s: f32) -> Result<()> {
     if s.is_nan() || s < 0.0 {
-        return Err(Error::InvalidInput(format!("{what} {i} has sharpness {s}; it must be >= 0")));
+        return Err(Error::InvalidInput(format!(
+            "{what} {i} has sharpness {s}; it must be >= 0"
+        )));
     }
     Ok(())
 }
@@ -53,7 +59,11 @@ fn check_sharpness(what: &str, i: usize, s: f32) -> Result<()> {
 impl Cage {
     /// Builds a cage from face sizes and the flat list of their vertex indices, checking that
     /// every face has at least three distinct vertices and every index is in range.
-    pub fn from_indices(num_vertices: usize, face_sizes: &[i64], face_vertices: &[i64]) -> Result<Cage> {
+    pub fn from_indices(
+        num_vertices: usize,
+        face_sizes: &[i64],
+        face_vertices: &[i64],
+    ) -> Result<Cage> {
         if face_sizes.is_empty() {
             return Err(Error::EmptyMesh("the mesh has no faces".into()));
         }
@@ -61,14 +71,19 @@ impl Cage {
             return Err(Error::EmptyMesh("the mesh has no vertices".into()));
         }
         if num_vertices >= u32::MAX as usize {
-            return Err(Error::InvalidInput(format!("{num_vertices} vertices is more than supported")));
+            return Err(Error::InvalidInput(format!(
+                "{num_vertices} vertices is more than supported"
+            )));
         }
         let mut face_offsets = Vec::with_capacity(face_sizes.len() + 1);
         face_offsets.push(0u32);
         let mut total: u64 = 0;
         for (face, &size) in face_sizes.iter().enumerate() {
             if size < 3 {
-                return Err(Error::FaceTooSmall { face, size: size.max(0) as usize });
+                return Err(Error::FaceTooSmall {
+                    face,
+                    size: size.max(0) as usize,
+                });
             }
             total += size as u64;
             if total > face_vertices.len() as u64 {
@@ -92,12 +107,21 @@ impl Cage {
             for &index in &face_vertices[range] {
                 let v = check_index(|| format!("face {face}"), index, num_vertices)?;
                 if verts[start..].contains(&v) {
-                    return Err(Error::RepeatedVertex { face, vertex: v as usize });
+                    return Err(Error::RepeatedVertex {
+                        face,
+                        vertex: v as usize,
+                    });
                 }
                 verts.push(v);
             }
         }
-        Ok(Cage { num_vertices, face_offsets, face_vertices: verts, creases: Vec::new(), corners: Vec::new() })
+        Ok(Cage {
+            num_vertices,
+            face_offsets,
+            face_vertices: verts,
+            creases: Vec::new(),
+            corners: Vec::new(),
+        })
     }
 
     /// Adds edge creases `(a, b, sharpness)`. Whether `a-b` is an edge is checked by the plan.
@@ -107,7 +131,11 @@ impl Cage {
             let b = check_index(|| format!("crease {i}"), b, self.num_vertices)?;
             check_sharpness("crease", i, s)?;
             if a == b {
-                return Err(Error::CreaseNotAnEdge { crease: i, a: a as usize, b: b as usize });
+                return Err(Error::CreaseNotAnEdge {
+                    crease: i,
+                    a: a as usize,
+                    b: b as usize,
+                });
             }
             self.creases.push(Crease { a, b, sharpness: s });
         }
@@ -119,7 +147,10 @@ impl Cage {
         for (i, &(v, s)) in corners.iter().enumerate() {
             let vertex = check_index(|| format!("corner {i}"), v, self.num_vertices)?;
             check_sharpness("corner", i, s)?;
-            self.corners.push(Corner { vertex, sharpness: s });
+            self.corners.push(Corner {
+                vertex,
+                sharpness: s,
+            });
         }
         Ok(self)
     }
@@ -165,7 +196,11 @@ pub fn validate_geometry<T: Scalar>(cage: &Cage, points: &[T], channels: usize) 
     }
     let p = |v: u32| -> [f64; 3] {
         let i = v as usize * channels;
-        [points[i].to_f64(), points[i + 1].to_f64(), points[i + 2].to_f64()]
+        [
+            points[i].to_f64(),
+            points[i + 1].to_f64(),
+            points[i + 2].to_f64(),
+        ]
     };
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
@@ -204,7 +239,9 @@ pub fn validate_geometry<T: Scalar>(cage: &Cage, points: &[T], channels: usize) 
 /// Checks that `values` holds `channels` finite values for each of `count` items.
 pub(crate) fn check_values<T: Scalar>(values: &[T], channels: usize, count: usize) -> Result<()> {
     if channels == 0 {
-        return Err(Error::InvalidInput("values need at least one channel".into()));
+        return Err(Error::InvalidInput(
+            "values need at least one channel".into(),
+        ));
     }
     if values.len() != count * channels {
         return Err(Error::InvalidInput(format!(
@@ -214,7 +251,9 @@ pub(crate) fn check_values<T: Scalar>(values: &[T], channels: usize, count: usiz
         )));
     }
     if let Some(i) = values.iter().position(|x| !x.is_finite()) {
-        return Err(Error::NonFinite { vertex: i / channels });
+        return Err(Error::NonFinite {
+            vertex: i / channels,
+        });
     }
     Ok(())
 }

@@ -39,7 +39,10 @@ impl OutputMesh {
         let last = levels.last().expect("at least one level");
         let depth = levels.len() - 1;
         let (face_offsets, face_origin): (Vec<u32>, Vec<u32>) = if depth == 0 {
-            (last.face_offsets.clone(), (0..last.num_faces() as u32).collect())
+            (
+                last.face_offsets.clone(),
+                (0..last.num_faces() as u32).collect(),
+            )
         } else {
             // Face f of M_L is corner f of M_{L-1}, inside face f/4 of M_{L-1} (for L-1 >= 1),
             // down to a corner of the cage.
@@ -47,11 +50,21 @@ impl OutputMesh {
             let cage = &levels[0];
             (
                 (0..=last.num_faces() as u32).map(|f| 4 * f).collect(),
-                (0..last.num_faces()).map(|f| cage.corner_faces[f >> shift]).collect(),
+                (0..last.num_faces())
+                    .map(|f| cage.corner_faces[f >> shift])
+                    .collect(),
             )
         };
-        let dual = if plan.options().output == OutputKind::Dual && depth > 0 { Some(dual_mesh(plan, &face_origin)?) } else { None };
-        Ok(OutputMesh { face_offsets, face_origin, dual })
+        let dual = if plan.options().output == OutputKind::Dual && depth > 0 {
+            Some(dual_mesh(plan, &face_origin)?)
+        } else {
+            None
+        };
+        Ok(OutputMesh {
+            face_offsets,
+            face_origin,
+            dual,
+        })
     }
 }
 
@@ -79,7 +92,10 @@ fn dual_mesh(plan: &Plan, face_origin: &[u32]) -> Result<DualMesh> {
     for v in 0..last.num_vertices {
         let corners = last.corners_of_vertex(v);
         // Fans that start at a boundary come first; closed fans start anywhere.
-        let starts = corners.iter().copied().filter(|&c| last.is_boundary_edge(last.corner_edges[last.prev(c as usize)] as usize));
+        let starts = corners
+            .iter()
+            .copied()
+            .filter(|&c| last.is_boundary_edge(last.corner_edges[last.prev(c as usize)] as usize));
         let closed = corners.iter().copied();
         for start in starts.chain(closed) {
             if visited[start as usize] {
@@ -100,9 +116,12 @@ fn dual_mesh(plan: &Plan, face_origin: &[u32]) -> Result<DualMesh> {
                     break;
                 }
             }
-            let open = last.is_boundary_edge(last.corner_edges[*fan.last().unwrap() as usize] as usize);
+            let open =
+                last.is_boundary_edge(last.corner_edges[*fan.last().unwrap() as usize] as usize);
             if open {
-                verts.push(point_of_edge(last.corner_edges[*fan.last().unwrap() as usize]));
+                verts.push(point_of_edge(
+                    last.corner_edges[*fan.last().unwrap() as usize],
+                ));
                 sources.push(*fan.last().unwrap());
             }
             for &c in fan.iter().rev() {
@@ -126,9 +145,16 @@ fn dual_mesh(plan: &Plan, face_origin: &[u32]) -> Result<DualMesh> {
         )));
     }
     let level = Level::from_polygons(num_points, offsets, verts).map_err(|problem| {
-        Error::InvalidInput(format!("the dual of this mesh is not a 2-manifold ({problem:?}); use the primal output"))
+        Error::InvalidInput(format!(
+            "the dual of this mesh is not a 2-manifold ({problem:?}); use the primal output"
+        ))
     })?;
-    Ok(DualMesh { level, boundary_points, corner_source: sources, face_origin: origin })
+    Ok(DualMesh {
+        level,
+        boundary_points,
+        corner_source: sources,
+        face_origin: origin,
+    })
 }
 
 impl Plan {
@@ -187,9 +213,20 @@ impl Plan {
     pub(crate) fn finish<T: Scalar, const N: usize>(&self, result: Final<T, N>) -> Vec<[T; N]> {
         match result {
             Final::Primal(points) => points,
-            Final::Dual { mut faces, curve_edges } => {
-                let dual = self.output().dual.as_ref().expect("dual output has a dual mesh");
-                faces.extend(dual.boundary_points.iter().map(|&i| curve_edges[i as usize]));
+            Final::Dual {
+                mut faces,
+                curve_edges,
+            } => {
+                let dual = self
+                    .output()
+                    .dual
+                    .as_ref()
+                    .expect("dual output has a dual mesh");
+                faces.extend(
+                    dual.boundary_points
+                        .iter()
+                        .map(|&i| curve_edges[i as usize]),
+                );
                 faces
             }
         }
@@ -202,7 +239,11 @@ impl Plan {
             Some(d) => d
                 .corner_source
                 .iter()
-                .flat_map(|&c| values[c as usize * channels..(c as usize + 1) * channels].iter().copied())
+                .flat_map(|&c| {
+                    values[c as usize * channels..(c as usize + 1) * channels]
+                        .iter()
+                        .copied()
+                })
                 .collect(),
         }
     }

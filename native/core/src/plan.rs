@@ -117,10 +117,16 @@ pub struct Plan {
 
 fn check_options(options: &Options) -> Result<()> {
     if options.degree < 1 || options.degree > MAX_DEGREE {
-        return Err(Error::DegreeOutOfRange { degree: options.degree as i64, max: MAX_DEGREE });
+        return Err(Error::DegreeOutOfRange {
+            degree: options.degree as i64,
+            max: MAX_DEGREE,
+        });
     }
     if options.levels > MAX_LEVELS {
-        return Err(Error::LevelOutOfRange { levels: options.levels as i64, max: MAX_LEVELS });
+        return Err(Error::LevelOutOfRange {
+            levels: options.levels as i64,
+            max: MAX_LEVELS,
+        });
     }
     Ok(())
 }
@@ -143,7 +149,11 @@ pub fn estimate(cage: &Cage, options: &Options) -> Result<Estimate> {
     }
     // Evaluation keeps about three arrays of the larger of vertices and faces (f64 x 3).
     bytes += 3.0 * 24.0 * v.max(f);
-    Ok(Estimate { vertices: v as u64, faces: f as u64, bytes: bytes.min(u64::MAX as f64) as u64 })
+    Ok(Estimate {
+        vertices: v as u64,
+        faces: f as u64,
+        bytes: bytes.min(u64::MAX as f64) as u64,
+    })
 }
 
 impl Plan {
@@ -152,7 +162,11 @@ impl Plan {
     pub fn new(cage: &Cage, options: &Options) -> Result<Plan> {
         let est = estimate(cage, options)?;
         if est.bytes > options.memory_budget {
-            return Err(Error::MemoryBudget { required: est.bytes, budget: options.memory_budget, faces: est.faces });
+            return Err(Error::MemoryBudget {
+                required: est.bytes,
+                budget: options.memory_budget,
+                faces: est.faces,
+            });
         }
         if 4 * est.faces >= u32::MAX as u64 || est.vertices >= u32::MAX as u64 {
             return Err(Error::InvalidInput(format!(
@@ -201,10 +215,12 @@ impl Plan {
             for (i, crease) in cage.creases().iter().enumerate() {
                 let (a, b) = (compact(crease.a), compact(crease.b));
                 let key = ((a.min(b) as u64) << 32) | a.max(b) as u64;
-                let at = keys.binary_search_by_key(&key, |k| k.0).map_err(|_| Error::CreaseNotAnEdge {
-                    crease: i,
-                    a: crease.a as usize,
-                    b: crease.b as usize,
+                let at = keys.binary_search_by_key(&key, |k| k.0).map_err(|_| {
+                    Error::CreaseNotAnEdge {
+                        crease: i,
+                        a: crease.a as usize,
+                        b: crease.b as usize,
+                    }
                 })?;
                 let e = keys[at].1 as usize;
                 sharpness[e] = sharpness[e].max(sharp_or_inf(crease.sharpness));
@@ -229,13 +245,24 @@ impl Plan {
 
         let mut parents: Vec<Parent> = (0..level0.num_edges())
             .filter(|&e| sharpness[e] > 0.0)
-            .map(|e| Parent { edge: e as u32, sharpness: sharpness[e], previous: NONE })
+            .map(|e| Parent {
+                edge: e as u32,
+                sharpness: sharpness[e],
+                previous: NONE,
+            })
             .collect();
         let mut levels = vec![level0];
         let mut steps: Vec<Step> = Vec::with_capacity(options.levels as usize);
         for j in 0..options.levels {
             let fine = levels[j as usize].refine();
-            let (step, next) = curve_step(&levels[j as usize], &parents, &tags, j, options.degree, steps.last());
+            let (step, next) = curve_step(
+                &levels[j as usize],
+                &parents,
+                &tags,
+                j,
+                options.degree,
+                steps.last(),
+            );
             levels.push(fine);
             steps.push(step);
             parents = next;
@@ -339,11 +366,17 @@ fn curve_step(
             let source = match previous {
                 None => end,
                 Some(prev) if degree % 2 == 1 => {
-                    prev.curve_vertices.binary_search_by_key(&end, |cv| cv.vertex).expect("curve end in previous step") as u32
+                    prev.curve_vertices
+                        .binary_search_by_key(&end, |cv| cv.vertex)
+                        .expect("curve end in previous step") as u32
                 }
                 Some(_) => p.previous,
             };
-            curve_edges.push(CurveEdge { edge: 2 * p.edge + k as u32, ends: [0, 0], source });
+            curve_edges.push(CurveEdge {
+                edge: 2 * p.edge + k as u32,
+                ends: [0, 0],
+                source,
+            });
         }
     }
     ends.sort_unstable_by(|x, y| x.0.cmp(&y.0).then(x.1.cmp(&y.1)));
@@ -374,11 +407,23 @@ fn curve_step(
             0.0
         };
         let group = &ends[start..i];
-        let mean = if group.is_empty() { 0.0 } else { group.iter().map(|g| g.2).sum::<f64>() / group.len() as f64 };
-        let cv = if group.len() == 2 && tag == 0.0 {
-            CurveVertex { vertex: v, edges: Some([group[0].1, group[1].1]), weight: mean }
+        let mean = if group.is_empty() {
+            0.0
         } else {
-            CurveVertex { vertex: v, edges: None, weight: mean.max(tag) }
+            group.iter().map(|g| g.2).sum::<f64>() / group.len() as f64
+        };
+        let cv = if group.len() == 2 && tag == 0.0 {
+            CurveVertex {
+                vertex: v,
+                edges: Some([group[0].1, group[1].1]),
+                weight: mean,
+            }
+        } else {
+            CurveVertex {
+                vertex: v,
+                edges: None,
+                weight: mean.max(tag),
+            }
         };
         curve_vertices.push(cv);
     }
@@ -397,7 +442,11 @@ fn curve_step(
             .binary_search_by_key(&old, |cv| cv.vertex)
             .expect("curve edge end is a curve vertex") as u32;
         let mid_index = first_mid + (i / 2) as u32;
-        edge.ends = if i % 2 == 0 { [old_index, mid_index] } else { [mid_index, old_index] };
+        edge.ends = if i % 2 == 0 {
+            [old_index, mid_index]
+        } else {
+            [mid_index, old_index]
+        };
     }
 
     let next = parents
@@ -405,8 +454,18 @@ fn curve_step(
         .enumerate()
         .filter(|(_, p)| p.sharpness > 1.0)
         .flat_map(|(i, p)| {
-            (0..2).map(move |k| Parent { edge: 2 * p.edge + k, sharpness: p.sharpness - 1.0, previous: (2 * i) as u32 + k })
+            (0..2).map(move |k| Parent {
+                edge: 2 * p.edge + k,
+                sharpness: p.sharpness - 1.0,
+                previous: (2 * i) as u32 + k,
+            })
         })
         .collect();
-    (Step { curve_vertices, curve_edges }, next)
+    (
+        Step {
+            curve_vertices,
+            curve_edges,
+        },
+        next,
+    )
 }

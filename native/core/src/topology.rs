@@ -124,7 +124,8 @@ impl Level {
     /// The corners at vertex `v`.
     #[inline]
     pub fn corners_of_vertex(&self, v: usize) -> &[u32] {
-        &self.vert_corners[self.vert_corner_offsets[v] as usize..self.vert_corner_offsets[v + 1] as usize]
+        &self.vert_corners
+            [self.vert_corner_offsets[v] as usize..self.vert_corner_offsets[v + 1] as usize]
     }
 
     /// True if edge `e` has a single face.
@@ -141,14 +142,24 @@ impl Level {
 
     /// Builds a level from polygons (all vertices used), finding its edges. Fails with the
     /// corners involved if an edge has more than two faces or two faces traverse it the same way.
-    pub fn from_polygons(num_vertices: usize, face_offsets: Vec<u32>, corner_verts: Vec<u32>) -> std::result::Result<Level, EdgeProblem> {
+    pub fn from_polygons(
+        num_vertices: usize,
+        face_offsets: Vec<u32>,
+        corner_verts: Vec<u32>,
+    ) -> std::result::Result<Level, EdgeProblem> {
         let num_faces = face_offsets.len() - 1;
         let num_corners = corner_verts.len();
         let mut corner_faces = vec![0u32; num_corners];
         for f in 0..num_faces {
             corner_faces[face_offsets[f] as usize..face_offsets[f + 1] as usize].fill(f as u32);
         }
-        let mut level = Level { num_vertices, face_offsets, corner_faces, corner_verts, ..Level::default() };
+        let mut level = Level {
+            num_vertices,
+            face_offsets,
+            corner_faces,
+            corner_verts,
+            ..Level::default()
+        };
 
         // Half-edges sorted by their undirected key, so that equal edges are adjacent and edge
         // ids come out in a fixed order.
@@ -173,7 +184,10 @@ impl Level {
             }
             let c0 = halves[i].1 as usize;
             if j - i > 2 {
-                return Err(EdgeProblem::NonManifold { corner: c0, faces: j - i });
+                return Err(EdgeProblem::NonManifold {
+                    corner: c0,
+                    faces: j - i,
+                });
             }
             let mut slots = [c0 as u32, NONE];
             if j - i == 2 {
@@ -222,18 +236,26 @@ impl Level {
         let face_of = |c: usize| offsets.partition_point(|&o| o as usize <= c) - 1;
         let next = |c: usize| {
             let f = face_of(c);
-            if c + 1 == offsets[f + 1] as usize { offsets[f] as usize } else { c + 1 }
-        };
-        Level::from_polygons(num_vertices, offsets.clone(), corner_verts).map_err(|problem| match problem {
-            EdgeProblem::NonManifold { corner, faces } => {
-                Error::NonManifoldEdge { a: verts[corner] as usize, b: verts[next(corner)] as usize, faces }
+            if c + 1 == offsets[f + 1] as usize {
+                offsets[f] as usize
+            } else {
+                c + 1
             }
-            EdgeProblem::Orientation { corners: [c0, c1] } => Error::InconsistentOrientation {
-                a: verts[c0] as usize,
-                b: verts[next(c0)] as usize,
-                face_a: face_of(c0),
-                face_b: face_of(c1),
-            },
+        };
+        Level::from_polygons(num_vertices, offsets.clone(), corner_verts).map_err(|problem| {
+            match problem {
+                EdgeProblem::NonManifold { corner, faces } => Error::NonManifoldEdge {
+                    a: verts[corner] as usize,
+                    b: verts[next(corner)] as usize,
+                    faces,
+                },
+                EdgeProblem::Orientation { corners: [c0, c1] } => Error::InconsistentOrientation {
+                    a: verts[c0] as usize,
+                    b: verts[next(c0)] as usize,
+                    face_a: face_of(c0),
+                    face_b: face_of(c1),
+                },
+            }
         })
     }
 
@@ -257,7 +279,11 @@ impl Level {
             .enumerate()
             .for_each(|(chunk, (verts, edges))| {
                 let base = chunk * CHUNK;
-                for (i, (qv, qe)) in verts.chunks_exact_mut(4).zip(edges.chunks_exact_mut(4)).enumerate() {
+                for (i, (qv, qe)) in verts
+                    .chunks_exact_mut(4)
+                    .zip(edges.chunks_exact_mut(4))
+                    .enumerate()
+                {
                     let c = base + i;
                     let v = self.corner_verts[c];
                     let p = self.prev(c);
@@ -286,7 +312,11 @@ impl Level {
                 .zip(half_corners.par_chunks_mut(2 * CHUNK))
                 .enumerate()
                 .for_each(|(chunk, (hv, hc))| {
-                    for (i, (v2, c2)) in hv.chunks_exact_mut(2).zip(hc.chunks_exact_mut(2)).enumerate() {
+                    for (i, (v2, c2)) in hv
+                        .chunks_exact_mut(2)
+                        .zip(hc.chunks_exact_mut(2))
+                        .enumerate()
+                    {
                         let e = chunk * CHUNK + i;
                         let [a, b] = self.edge_verts[e];
                         let mid = nv + e as u32;
@@ -339,7 +369,10 @@ impl Level {
             }
         };
         let mut offsets = vec![0u32; new_vertices + 1];
-        offsets[1..].par_iter_mut().enumerate().for_each(|(w, o)| *o = count(w));
+        offsets[1..]
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(w, o)| *o = count(w));
         for w in 0..new_vertices {
             offsets[w + 1] += offsets[w];
         }
@@ -393,7 +426,11 @@ pub enum EdgeProblem {
 /// Fills a CSR table in parallel: `fill(item, slice)` writes the entries of `item`, whose slice
 /// is `offsets[item]..offsets[item + 1]`. Items are split into fixed chunks, so the result does
 /// not depend on the thread count.
-pub(crate) fn fill_csr<T: Send>(offsets: &[u32], data: &mut [T], fill: impl Fn(usize, &mut [T]) + Sync) {
+pub(crate) fn fill_csr<T: Send>(
+    offsets: &[u32],
+    data: &mut [T],
+    fill: impl Fn(usize, &mut [T]) + Sync,
+) {
     let items = offsets.len() - 1;
     let mut pieces = Vec::with_capacity(items / CHUNK + 1);
     let mut rest = data;

@@ -20,20 +20,30 @@ fn lane_riesenfeld(points: &[P], degree: u32) -> Vec<P> {
 
 /// One pass of (1+z)/2 on a closed polygon.
 fn average_periodic(u: &[P]) -> Vec<P> {
-    (0..u.len()).map(|i| mid(u[i], u[(i + 1) % u.len()])).collect()
+    (0..u.len())
+        .map(|i| mid(u[i], u[(i + 1) % u.len()]))
+        .collect()
 }
 
 fn mid(a: P, b: P) -> P {
-    [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0, (a[2] + b[2]) / 2.0]
+    [
+        (a[0] + b[0]) / 2.0,
+        (a[1] + b[1]) / 2.0,
+        (a[2] + b[2]) / 2.0,
+    ]
 }
 
 /// Applies a 1-D operator to every row and then every column of a periodic 2-D array.
 fn tensor(grid: Vec<Vec<P>>, op: impl Fn(&[P]) -> Vec<P>) -> Vec<Vec<P>> {
     let rows: Vec<Vec<P>> = grid.iter().map(|r| op(r)).collect();
     let cols = rows[0].len();
-    let transposed: Vec<Vec<P>> = (0..cols).map(|c| rows.iter().map(|r| r[c]).collect()).collect();
+    let transposed: Vec<Vec<P>> = (0..cols)
+        .map(|c| rows.iter().map(|r| r[c]).collect())
+        .collect();
     let done: Vec<Vec<P>> = transposed.iter().map(|c| op(c)).collect();
-    (0..done[0].len()).map(|r| done.iter().map(|c| c[r]).collect()).collect()
+    (0..done[0].len())
+        .map(|r| done.iter().map(|c| c[r]).collect())
+        .collect()
 }
 
 fn as_points(flat: &[f64]) -> Vec<P> {
@@ -49,11 +59,21 @@ fn random_points(n: usize, seed: u64) -> Vec<f64> {
 /// has a point of the other within the tolerance (max norm).
 fn assert_same_sets(ours: Vec<P>, reference: Vec<P>, tolerance: f64, what: &str) {
     assert_eq!(ours.len(), reference.len(), "{what}: point counts");
-    let nearest = |p: &P, set: &[P]| set.iter().map(|q| (0..3).map(|k| (p[k] - q[k]).abs()).fold(0.0, f64::max)).fold(f64::MAX, f64::min);
-    for (a, b, name) in [(&ours, &reference, "ours"), (&reference, &ours, "reference")] {
+    let nearest = |p: &P, set: &[P]| {
+        set.iter()
+            .map(|q| (0..3).map(|k| (p[k] - q[k]).abs()).fold(0.0, f64::max))
+            .fold(f64::MAX, f64::min)
+    };
+    for (a, b, name) in [
+        (&ours, &reference, "ours"),
+        (&reference, &ours, "reference"),
+    ] {
         for (i, p) in a.iter().enumerate() {
             let d = nearest(p, b);
-            assert!(d <= tolerance, "{what}: {name} point {i} {p:?} is {d:e} from the other set");
+            assert!(
+                d <= tolerance,
+                "{what}: {name} point {i} {p:?} is {d:e} from the other set"
+            );
         }
     }
 }
@@ -65,9 +85,27 @@ fn regular_torus_is_tensor_product_lane_riesenfeld() {
     let points = random_points(m * n, 7);
     for degree in 1..=9 {
         for levels in 1..=2 {
-            let (_, ours) = subdivide(&cage, &points, 3, &Options { degree, levels, ..Options::default() }).unwrap();
-            let mut reference: Vec<Vec<P>> =
-                (0..m).map(|a| (0..n).map(|b| { let i = 3 * (a * n + b); [points[i], points[i + 1], points[i + 2]] }).collect()).collect();
+            let (_, ours) = subdivide(
+                &cage,
+                &points,
+                3,
+                &Options {
+                    degree,
+                    levels,
+                    ..Options::default()
+                },
+            )
+            .unwrap();
+            let mut reference: Vec<Vec<P>> = (0..m)
+                .map(|a| {
+                    (0..n)
+                        .map(|b| {
+                            let i = 3 * (a * n + b);
+                            [points[i], points[i + 1], points[i + 2]]
+                        })
+                        .collect()
+                })
+                .collect();
             for _ in 0..levels {
                 reference = tensor(reference, |row| lane_riesenfeld(row, degree));
             }
@@ -76,7 +114,12 @@ fn regular_torus_is_tensor_product_lane_riesenfeld() {
                 reference = tensor(reference, average_periodic);
             }
             let reference: Vec<P> = reference.into_iter().flatten().collect();
-            assert_same_sets(as_points(&ours), reference, 1e-12, &format!("degree {degree}, levels {levels}"));
+            assert_same_sets(
+                as_points(&ours),
+                reference,
+                1e-12,
+                &format!("degree {degree}, levels {levels}"),
+            );
         }
     }
 }
@@ -89,7 +132,16 @@ fn doo_sabin_weights_on_a_k_gon() {
         let mut faces = vec![(0..k).collect::<Vec<_>>(), (k..2 * k).rev().collect()];
         faces.extend((0..k).map(|i| vec![(i + 1) % k, i, k + i, k + (i + 1) % k]));
         let cage = cage(2 * k, &faces);
-        let plan = Plan::new(&cage, &Options { degree: 2, levels: 1, output: OutputKind::Dual, ..Options::default() }).unwrap();
+        let plan = Plan::new(
+            &cage,
+            &Options {
+                degree: 2,
+                levels: 1,
+                output: OutputKind::Dual,
+                ..Options::default()
+            },
+        )
+        .unwrap();
         for i in 0..k {
             let mut impulse = vec![0.0f64; 2 * k];
             impulse[i] = 1.0;
@@ -100,7 +152,11 @@ fn doo_sabin_weights_on_a_k_gon() {
                 let expected = 1.0 / (4.0 * k as f64)
                     + if d == 0 { 0.5 } else { 0.0 }
                     + if d == 1 || d == k - 1 { 0.125 } else { 0.0 };
-                assert!((out[l] - expected).abs() < 1e-15, "k {k}: weight of p{i} in child {l} is {}, expected {expected}", out[l]);
+                assert!(
+                    (out[l] - expected).abs() < 1e-15,
+                    "k {k}: weight of p{i} in child {l} is {}, expected {expected}",
+                    out[l]
+                );
             }
         }
     }
@@ -133,12 +189,18 @@ fn boundary_is_the_b_spline_of_the_boundary_polygon() {
     let points: Vec<f64> = flat.iter().map(|x| x + 0.3 * r.next()).collect();
     // The boundary polygon of the grid, counter-clockwise from vertex 0.
     let plan0 = plan(&cage, 1, 0);
-    let polygon: Vec<P> = boundary_loop(&plan0, 0).iter().map(|&v| as_points(&points)[v as usize]).collect();
+    let polygon: Vec<P> = boundary_loop(&plan0, 0)
+        .iter()
+        .map(|&v| as_points(&points)[v as usize])
+        .collect();
     for degree in 1..=9 {
         let levels = 3;
         let plan = plan(&cage, degree, levels);
         let out = as_points(&plan.evaluate(&points, 3).unwrap());
-        let ours: Vec<P> = boundary_loop(&plan, 0).iter().map(|&v| out[v as usize]).collect();
+        let ours: Vec<P> = boundary_loop(&plan, 0)
+            .iter()
+            .map(|&v| out[v as usize])
+            .collect();
         let mut reference = polygon.clone();
         for _ in 0..levels {
             reference = lane_riesenfeld(&reference, degree);
@@ -146,7 +208,12 @@ fn boundary_is_the_b_spline_of_the_boundary_polygon() {
         if degree % 2 == 0 {
             reference = average_periodic(&reference);
         }
-        assert_same_sets(ours, reference, 1e-12, &format!("boundary, degree {degree}"));
+        assert_same_sets(
+            ours,
+            reference,
+            1e-12,
+            &format!("boundary, degree {degree}"),
+        );
     }
 }
 
@@ -156,7 +223,9 @@ fn sharp_crease_reproduces_the_curve_and_corners_stay_put() {
     let cage0 = torus(m, n);
     let points = random_points(m * n, 3);
     // A crease along the closed ring a = 0 (vertices 0..n).
-    let ring: Vec<(i64, i64, f32)> = (0..n).map(|b| (b as i64, ((b + 1) % n) as i64, f32::INFINITY)).collect();
+    let ring: Vec<(i64, i64, f32)> = (0..n)
+        .map(|b| (b as i64, ((b + 1) % n) as i64, f32::INFINITY))
+        .collect();
     let creased = cage0.clone().with_creases(&ring).unwrap();
     let polygon: Vec<P> = (0..n).map(|b| as_points(&points)[b]).collect();
     for degree in 1..=6 {
@@ -166,7 +235,11 @@ fn sharp_crease_reproduces_the_curve_and_corners_stay_put() {
         // The crease's vertices at the last level: the old ring vertices and their descendants
         // along curve edges of the last step.
         let step = plan.steps().last().unwrap();
-        let ours: Vec<P> = step.curve_vertices.iter().map(|cv| out[cv.vertex as usize]).collect();
+        let ours: Vec<P> = step
+            .curve_vertices
+            .iter()
+            .map(|cv| out[cv.vertex as usize])
+            .collect();
         let mut reference = polygon.clone();
         for _ in 0..levels {
             reference = lane_riesenfeld(&reference, degree);
@@ -178,13 +251,32 @@ fn sharp_crease_reproduces_the_curve_and_corners_stay_put() {
     }
     // Corners: tagged vertices and, in edge-and-corner mode, the grid's corners.
     let (grid_cage, flat) = grid(3, 3);
-    let tagged = grid_cage.clone().with_corners(&[(5, f32::INFINITY)]).unwrap();
+    let tagged = grid_cage
+        .clone()
+        .with_corners(&[(5, f32::INFINITY)])
+        .unwrap();
     for degree in 1..=9 {
-        for (cage, boundary, fixed) in [(&tagged, Boundary::EdgeOnly, vec![5]), (&grid_cage, Boundary::EdgeAndCorner, vec![0, 3, 12, 15])] {
-            let plan = Plan::new(cage, &Options { degree, levels: 3, boundary, ..Options::default() }).unwrap();
+        for (cage, boundary, fixed) in [
+            (&tagged, Boundary::EdgeOnly, vec![5]),
+            (&grid_cage, Boundary::EdgeAndCorner, vec![0, 3, 12, 15]),
+        ] {
+            let plan = Plan::new(
+                cage,
+                &Options {
+                    degree,
+                    levels: 3,
+                    boundary,
+                    ..Options::default()
+                },
+            )
+            .unwrap();
             let out = plan.evaluate(&flat, 3).unwrap();
             for v in fixed {
-                assert_eq!(&out[3 * v..3 * v + 3], &flat[3 * v..3 * v + 3], "degree {degree}: corner {v} moved");
+                assert_eq!(
+                    &out[3 * v..3 * v + 3],
+                    &flat[3 * v..3 * v + 3],
+                    "degree {degree}: corner {v} moved"
+                );
             }
         }
     }
@@ -202,25 +294,53 @@ fn semi_sharp_crease_lies_between_smooth_and_sharp() {
         let at = |s: f32| plan(&crease(s), degree, 3).evaluate(&points, 3).unwrap();
         let (smooth, half, sharp2, sharp) = (at(0.0), at(0.5), at(2.0), at(f32::INFINITY));
         // Vertex 1 (on the crease): sharpness 0.5 moves it part of the way.
-        let dist = |a: &[f64], b: &[f64]| (0..3).map(|k| (a[3 + k] - b[3 + k]).powi(2)).sum::<f64>().sqrt();
+        let dist = |a: &[f64], b: &[f64]| {
+            (0..3)
+                .map(|k| (a[3 + k] - b[3 + k]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
         let (a, b) = (dist(&half, &smooth), dist(&half, &sharp));
-        assert!(a > 1e-6 && b > 1e-6, "degree {degree}: {a} from smooth, {b} from sharp");
-        assert!(dist(&sharp2, &sharp) < dist(&smooth, &sharp), "degree {degree}");
+        assert!(
+            a > 1e-6 && b > 1e-6,
+            "degree {degree}: {a} from smooth, {b} from sharp"
+        );
+        assert!(
+            dist(&sharp2, &sharp) < dist(&smooth, &sharp),
+            "degree {degree}"
+        );
     }
 }
 
 fn cube() -> (Cage, Vec<f64>) {
-    let faces = vec![vec![0, 3, 2, 1], vec![4, 5, 6, 7], vec![0, 1, 5, 4], vec![1, 2, 6, 5], vec![2, 3, 7, 6], vec![3, 0, 4, 7]];
-    let points = vec![-1., -1., -1., 1., -1., -1., 1., 1., -1., -1., 1., -1., -1., -1., 1., 1., -1., 1., 1., 1., 1., -1., 1., 1.];
+    let faces = vec![
+        vec![0, 3, 2, 1],
+        vec![4, 5, 6, 7],
+        vec![0, 1, 5, 4],
+        vec![1, 2, 6, 5],
+        vec![2, 3, 7, 6],
+        vec![3, 0, 4, 7],
+    ];
+    let points = vec![
+        -1., -1., -1., 1., -1., -1., 1., 1., -1., -1., 1., -1., -1., -1., 1., 1., -1., 1., 1., 1.,
+        1., -1., 1., 1.,
+    ];
     (cage(8, &faces), points)
 }
 
 #[test]
 fn affine_invariance_convex_hull_and_symmetry() {
     let (cube, points) = cube();
-    let (a, t) = ([[0.9, 0.2, -0.1], [0.3, 1.1, 0.4], [-0.2, 0.1, 0.8]], [1.5, -2.0, 0.25]);
+    let (a, t) = (
+        [[0.9, 0.2, -0.1], [0.3, 1.1, 0.4], [-0.2, 0.1, 0.8]],
+        [1.5, -2.0, 0.25],
+    );
     let map = |p: &[f64]| -> Vec<f64> {
-        p.chunks_exact(3).flat_map(|q| (0..3).map(move |r| a[r][0] * q[0] + a[r][1] * q[1] + a[r][2] * q[2] + t[r])).collect()
+        p.chunks_exact(3)
+            .flat_map(|q| {
+                (0..3).map(move |r| a[r][0] * q[0] + a[r][1] * q[1] + a[r][2] * q[2] + t[r])
+            })
+            .collect()
     };
     for degree in 1..=9 {
         let plan = plan(&cube, degree, 2);
@@ -233,11 +353,22 @@ fn affine_invariance_convex_hull_and_symmetry() {
         for dir in [[1., 0., 0.], [1., 1., 0.], [1., 1., 1.], [-1., 2., 0.5]] {
             let f = |p: &[f64]| p[0] * dir[0] + p[1] * dir[1] + p[2] * dir[2];
             let cage_max = points.chunks_exact(3).map(f).fold(f64::MIN, f64::max);
-            assert!(out.chunks_exact(3).all(|p| f(p) <= cage_max + 1e-12), "degree {degree}: convex hull");
+            assert!(
+                out.chunks_exact(3).all(|p| f(p) <= cage_max + 1e-12),
+                "degree {degree}: convex hull"
+            );
         }
         // The cube is symmetric under x -> -x: so is the result, as a point set.
-        let mirrored: Vec<P> = as_points(&out).iter().map(|p| [-p[0], p[1], p[2]]).collect();
-        assert_same_sets(as_points(&out), mirrored, 1e-12, &format!("symmetry, degree {degree}"));
+        let mirrored: Vec<P> = as_points(&out)
+            .iter()
+            .map(|p| [-p[0], p[1], p[2]])
+            .collect();
+        assert_same_sets(
+            as_points(&out),
+            mirrored,
+            1e-12,
+            &format!("symmetry, degree {degree}"),
+        );
     }
 }
 
@@ -246,18 +377,33 @@ fn bitwise_identical_for_any_thread_count() {
     let cage = torus(40, 30);
     let mut r = Random(9);
     let points: Vec<f32> = (0..3 * 1200).map(|_| r.next() as f32).collect();
-    let creased = cage.with_creases(&[(0, 1, 2.5), (1, 2, f32::INFINITY)]).unwrap();
+    let creased = cage
+        .with_creases(&[(0, 1, 2.5), (1, 2, f32::INFINITY)])
+        .unwrap();
     for degree in [2, 3, 4, 9] {
         for output in [OutputKind::Primal, OutputKind::Dual] {
-            let options = Options { degree, levels: 3, output, ..Options::default() };
+            let options = Options {
+                degree,
+                levels: 3,
+                output,
+                ..Options::default()
+            };
             let run = |threads: usize| {
-                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
                 pool.install(|| subdivide(&creased, &points, 3, &options).unwrap().1)
             };
             let one = run(1);
             for threads in [2, 3, 8] {
                 let many = run(threads);
-                assert!(one.iter().zip(&many).all(|(a, b)| a.to_bits() == b.to_bits()), "degree {degree}, {threads} threads");
+                assert!(
+                    one.iter()
+                        .zip(&many)
+                        .all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "degree {degree}, {threads} threads"
+                );
             }
         }
     }

@@ -11,51 +11,144 @@ fn err(r: Result<impl std::fmt::Debug, Error>) -> Error {
 
 #[test]
 fn topology_errors_name_the_offender() {
-    assert!(matches!(err(Cage::from_indices(3, &[], &[])), Error::EmptyMesh(_)));
-    assert!(matches!(err(Cage::from_indices(0, &[3], &[0, 1, 2])), Error::EmptyMesh(_)));
-    assert_eq!(err(Cage::from_indices(4, &[3, 2], &[0, 1, 2, 2, 3])), Error::FaceTooSmall { face: 1, size: 2 });
-    assert_eq!(err(Cage::from_indices(4, &[3, 3], &[0, 1, 2, 2, 3, 2])), Error::RepeatedVertex { face: 1, vertex: 2 });
-    assert!(matches!(err(Cage::from_indices(3, &[3], &[0, 1, 3])), Error::IndexOutOfRange { index: 3, .. }));
-    assert!(matches!(err(Cage::from_indices(3, &[3], &[0, -1, 2])), Error::IndexOutOfRange { index: -1, .. }));
-    assert!(matches!(err(Cage::from_indices(3, &[3], &[0, 1])), Error::InvalidInput(_)));
+    assert!(matches!(
+        err(Cage::from_indices(3, &[], &[])),
+        Error::EmptyMesh(_)
+    ));
+    assert!(matches!(
+        err(Cage::from_indices(0, &[3], &[0, 1, 2])),
+        Error::EmptyMesh(_)
+    ));
+    assert_eq!(
+        err(Cage::from_indices(4, &[3, 2], &[0, 1, 2, 2, 3])),
+        Error::FaceTooSmall { face: 1, size: 2 }
+    );
+    assert_eq!(
+        err(Cage::from_indices(4, &[3, 3], &[0, 1, 2, 2, 3, 2])),
+        Error::RepeatedVertex { face: 1, vertex: 2 }
+    );
+    assert!(matches!(
+        err(Cage::from_indices(3, &[3], &[0, 1, 3])),
+        Error::IndexOutOfRange { index: 3, .. }
+    ));
+    assert!(matches!(
+        err(Cage::from_indices(3, &[3], &[0, -1, 2])),
+        Error::IndexOutOfRange { index: -1, .. }
+    ));
+    assert!(matches!(
+        err(Cage::from_indices(3, &[3], &[0, 1])),
+        Error::InvalidInput(_)
+    ));
 
     // Three triangles on edge (0, 1).
     let fan = cage(5, &[vec![0, 1, 2], vec![1, 0, 3], vec![0, 1, 4]]);
     let e = err(Plan::new(&fan, &Options::default()));
-    assert!(matches!(e, Error::NonManifoldEdge { faces: 3, .. }), "{e:?}");
+    assert!(
+        matches!(e, Error::NonManifoldEdge { faces: 3, .. }),
+        "{e:?}"
+    );
     // Two triangles traversing (0, 1) the same way.
     let flipped = cage(4, &[vec![0, 1, 2], vec![0, 1, 3]]);
     let e = err(Plan::new(&flipped, &Options::default()));
-    assert!(matches!(e, Error::InconsistentOrientation { face_a: 0, face_b: 1, .. }), "{e:?}");
+    assert!(
+        matches!(
+            e,
+            Error::InconsistentOrientation {
+                face_a: 0,
+                face_b: 1,
+                ..
+            }
+        ),
+        "{e:?}"
+    );
     // A crease on a vertex pair that is no edge.
     let (g, _) = grid(2, 2);
-    let e = err(Plan::new(&g.clone().with_creases(&[(0, 8, 1.0)]).unwrap(), &Options::default()));
-    assert_eq!(e, Error::CreaseNotAnEdge { crease: 0, a: 0, b: 8 });
-    assert!(matches!(err(g.clone().with_creases(&[(0, 1, -1.0)])), Error::InvalidInput(_)));
-    assert!(matches!(err(g.clone().with_corners(&[(99, 1.0)])), Error::IndexOutOfRange { index: 99, .. }));
+    let e = err(Plan::new(
+        &g.clone().with_creases(&[(0, 8, 1.0)]).unwrap(),
+        &Options::default(),
+    ));
+    assert_eq!(
+        e,
+        Error::CreaseNotAnEdge {
+            crease: 0,
+            a: 0,
+            b: 8
+        }
+    );
+    assert!(matches!(
+        err(g.clone().with_creases(&[(0, 1, -1.0)])),
+        Error::InvalidInput(_)
+    ));
+    assert!(matches!(
+        err(g.clone().with_corners(&[(99, 1.0)])),
+        Error::IndexOutOfRange { index: 99, .. }
+    ));
 }
 
 #[test]
 fn option_and_budget_errors() {
     let t = torus(4, 4);
     for degree in [0, 32] {
-        let e = err(Plan::new(&t, &Options { degree, ..Options::default() }));
-        assert_eq!(e, Error::DegreeOutOfRange { degree: degree as i64, max: 31 });
+        let e = err(Plan::new(
+            &t,
+            &Options {
+                degree,
+                ..Options::default()
+            },
+        ));
+        assert_eq!(
+            e,
+            Error::DegreeOutOfRange {
+                degree: degree as i64,
+                max: 31
+            }
+        );
     }
-    assert!(matches!(err(Plan::new(&t, &Options { levels: 17, ..Options::default() })), Error::LevelOutOfRange { levels: 17, .. }));
-    let e = err(Plan::new(&t, &Options { levels: 12, ..Options::default() }));
+    assert!(matches!(
+        err(Plan::new(
+            &t,
+            &Options {
+                levels: 17,
+                ..Options::default()
+            }
+        )),
+        Error::LevelOutOfRange { levels: 17, .. }
+    ));
+    let e = err(Plan::new(
+        &t,
+        &Options {
+            levels: 12,
+            ..Options::default()
+        },
+    ));
     assert!(matches!(e, Error::MemoryBudget { .. }), "{e:?}");
-    let e = err(Plan::new(&t, &Options { levels: 3, memory_budget: 1000, ..Options::default() }));
-    assert!(matches!(e, Error::MemoryBudget { budget: 1000, .. }), "{e:?}");
+    let e = err(Plan::new(
+        &t,
+        &Options {
+            levels: 3,
+            memory_budget: 1000,
+            ..Options::default()
+        },
+    ));
+    assert!(
+        matches!(e, Error::MemoryBudget { budget: 1000, .. }),
+        "{e:?}"
+    );
 }
 
 #[test]
 fn geometry_errors() {
     let (g, mut points) = grid(2, 2);
     points[3 * 4 + 1] = f64::NAN;
-    assert_eq!(err(subdivide(&g, &points, 3, &Options::default())), Error::NonFinite { vertex: 4 });
+    assert_eq!(
+        err(subdivide(&g, &points, 3, &Options::default())),
+        Error::NonFinite { vertex: 4 }
+    );
     let (g, points) = grid(2, 2);
-    assert!(matches!(err(subdivide(&g, &points[..9], 3, &Options::default())), Error::InvalidInput(_)));
+    assert!(matches!(
+        err(subdivide(&g, &points[..9], 3, &Options::default())),
+        Error::InvalidInput(_)
+    ));
     // Collapse face 3 (vertices 4, 7, 8, 5) onto a line.
     let mut flat = points.clone();
     for v in [7, 8] {
@@ -63,7 +156,10 @@ fn geometry_errors() {
         flat[3 * v + 1] = flat[3 * 4 + 1];
     }
     flat[3 * 5] = flat[3 * 4];
-    assert_eq!(err(subdivide(&g, &flat, 3, &Options::default())), Error::DegenerateFace { face: 3 });
+    assert_eq!(
+        err(subdivide(&g, &flat, 3, &Options::default())),
+        Error::DegenerateFace { face: 3 }
+    );
     // A plan evaluates any finite pose, but still refuses NaN.
     let plan = Plan::new(&g, &Options::default()).unwrap();
     assert!(plan.evaluate(&flat, 3).is_ok());
@@ -76,17 +172,35 @@ fn geometry_errors() {
 fn isolated_vertices_are_dropped() {
     // Vertex 2 is used by no face.
     let c = cage(5, &[vec![0, 1, 3], vec![3, 1, 4]]);
-    let plan = Plan::new(&c, &Options { degree: 3, levels: 1, ..Options::default() }).unwrap();
+    let plan = Plan::new(
+        &c,
+        &Options {
+            degree: 3,
+            levels: 1,
+            ..Options::default()
+        },
+    )
+    .unwrap();
     assert_eq!(plan.isolated_vertices(), &[2]);
     let points = [0., 0., 0., 1., 0., 0., 9., 9., 9., 0., 1., 0., 1., 1., 0.];
     let out = plan.evaluate(&points, 3).unwrap();
     assert_eq!(out.len(), 3 * plan.num_output_vertices());
-    assert!(out.iter().all(|&x| x < 5.0), "the isolated vertex must not leak into the result");
+    assert!(
+        out.iter().all(|&x| x < 5.0),
+        "the isolated vertex must not leak into the result"
+    );
 }
 
 #[test]
 fn dual_output_refuses_valence_two_vertices() {
     let c = cage(3, &[vec![0, 1, 2], vec![2, 1, 0]]);
-    let e = err(Plan::new(&c, &Options { output: OutputKind::Dual, levels: 1, ..Options::default() }));
+    let e = err(Plan::new(
+        &c,
+        &Options {
+            output: OutputKind::Dual,
+            levels: 1,
+            ..Options::default()
+        },
+    ));
     assert!(matches!(e, Error::InvalidInput(_)), "{e:?}");
 }

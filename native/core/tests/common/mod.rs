@@ -27,7 +27,9 @@ pub fn cage(num_vertices: usize, faces: &[Vec<usize>]) -> Cage {
 pub fn torus(m: usize, n: usize) -> Cage {
     let id = |a: usize, b: usize| (a % m) * n + (b % n);
     let faces: Vec<Vec<usize>> = (0..m)
-        .flat_map(|a| (0..n).map(move |b| vec![id(a, b), id(a + 1, b), id(a + 1, b + 1), id(a, b + 1)]))
+        .flat_map(|a| {
+            (0..n).map(move |b| vec![id(a, b), id(a + 1, b), id(a + 1, b + 1), id(a, b + 1)])
+        })
         .collect();
     cage(m * n, &faces)
 }
@@ -36,9 +38,13 @@ pub fn torus(m: usize, n: usize) -> Cage {
 pub fn grid(m: usize, n: usize) -> (Cage, Vec<f64>) {
     let id = |a: usize, b: usize| a * (n + 1) + b;
     let faces: Vec<Vec<usize>> = (0..m)
-        .flat_map(|a| (0..n).map(move |b| vec![id(a, b), id(a + 1, b), id(a + 1, b + 1), id(a, b + 1)]))
+        .flat_map(|a| {
+            (0..n).map(move |b| vec![id(a, b), id(a + 1, b), id(a + 1, b + 1), id(a, b + 1)])
+        })
         .collect();
-    let points = (0..=m).flat_map(|a| (0..=n).flat_map(move |b| [a as f64, b as f64, 0.0])).collect();
+    let points = (0..=m)
+        .flat_map(|a| (0..=n).flat_map(move |b| [a as f64, b as f64, 0.0]))
+        .collect();
     (cage((m + 1) * (n + 1), &faces), points)
 }
 
@@ -61,7 +67,12 @@ pub fn polar_grid(k: usize, rings: usize) -> (Cage, Vec<f64>) {
     for s in 0..k {
         for i in 0..rings {
             for j in 0..rings {
-                faces.push(vec![id(s, i, j), id(s, i + 1, j), id(s, i + 1, j + 1), id(s, i, j + 1)]);
+                faces.push(vec![
+                    id(s, i, j),
+                    id(s, i + 1, j),
+                    id(s, i + 1, j + 1),
+                    id(s, i, j + 1),
+                ]);
             }
         }
     }
@@ -69,7 +80,10 @@ pub fn polar_grid(k: usize, rings: usize) -> (Cage, Vec<f64>) {
     let mut points = vec![0.0; 3 * n];
     for s in 0..k {
         let angle = |t: usize| 2.0 * std::f64::consts::PI * t as f64 / k as f64;
-        let (u, v) = ((angle(s).cos(), angle(s).sin()), (angle(s + 1).cos(), angle(s + 1).sin()));
+        let (u, v) = (
+            (angle(s).cos(), angle(s).sin()),
+            (angle(s + 1).cos(), angle(s + 1).sin()),
+        );
         for i in 1..=rings {
             for j in 0..=rings {
                 let p = id(s, i, j);
@@ -83,5 +97,13 @@ pub fn polar_grid(k: usize, rings: usize) -> (Cage, Vec<f64>) {
 
 /// A plan with the given degree and levels and default options otherwise.
 pub fn plan(cage: &Cage, degree: u32, levels: u32) -> Plan {
-    Plan::new(cage, &Options { degree, levels, ..Options::default() }).unwrap()
+    Plan::new(
+        cage,
+        &Options {
+            degree,
+            levels,
+            ..Options::default()
+        },
+    )
+    .unwrap()
 }
