@@ -141,9 +141,10 @@ def _readonly(array: np.ndarray) -> np.ndarray:
     return array
 
 
-def _owned(array: np.ndarray, source: Any) -> np.ndarray:
-    """``array`` as an array that shares no memory with the caller's ``source``."""
-    if isinstance(source, np.ndarray) and np.shares_memory(array, source):
+def _owned(array: np.ndarray, source: Any, copy: bool = True) -> np.ndarray:
+    """``array`` as an array that shares no memory with the caller's ``source`` (unless
+    ``copy`` is False: arrays bidegree made itself and hands over)."""
+    if copy and isinstance(source, np.ndarray) and np.shares_memory(array, source):
         return array.copy()
     return array
 
@@ -258,7 +259,9 @@ class Mesh:
         uvs: ArrayLike | None = None,
         boundary: Boundary = "edge-only",
     ) -> None:
-        pts = _owned(_float_array(points, "points"), points)
+        # Mesh.from_obj hands over arrays nobody else holds: no defensive copies for those.
+        copy = not getattr(self, "_arrays_are_ours", False)
+        pts = _owned(_float_array(points, "points"), points, copy)
         if pts.ndim != 2 or pts.shape[1] != 3:
             raise InvalidInputError(f"points must have shape (V, 3), not {pts.shape}")
 
@@ -269,8 +272,8 @@ class Mesh:
         else:
             if face_sizes is None or face_indices is None:
                 raise InvalidInputError("give faces, or both face_sizes and face_indices")
-            sizes = _owned(_int_array(face_sizes, "face_sizes"), face_sizes)
-            indices = _owned(_int_array(face_indices, "face_indices"), face_indices)
+            sizes = _owned(_int_array(face_sizes, "face_sizes"), face_sizes, copy)
+            indices = _owned(_int_array(face_indices, "face_indices"), face_indices, copy)
             if sizes.ndim != 1 or indices.ndim != 1:
                 raise InvalidInputError(
                     f"face_sizes and face_indices must be 1-D, not {sizes.shape} and "
@@ -298,7 +301,7 @@ class Mesh:
 
         uv_array: FloatArray | None = None
         if uvs is not None:
-            uv_array = _owned(_float_array(uvs, "uvs"), uvs)
+            uv_array = _owned(_float_array(uvs, "uvs"), uvs, copy)
             if uv_array.ndim != 2 or uv_array.shape[1] != 2:
                 raise InvalidInputError(
                     f"uvs must have shape (corners, 2) (face-varying), not {uv_array.shape}"
@@ -379,7 +382,9 @@ class Mesh:
         if len(data["corner_sharpness"]):
             corners = (data["corner_vertices"], data["corner_sharpness"])
         chosen = boundary if boundary is not None else (data["boundary"] or "edge-only")
-        return cls(
+        mesh = cls.__new__(cls)
+        mesh._arrays_are_ours = True
+        mesh.__init__(  # type: ignore[misc]
             data["points"],
             face_sizes=data["face_sizes"],
             face_indices=data["face_indices"],
@@ -388,6 +393,8 @@ class Mesh:
             uvs=uvs,
             boundary=chosen,
         )
+        del mesh._arrays_are_ours
+        return mesh
 
     def write_obj(self, path: str | os.PathLike[str]) -> None:
         """Writes the cage's points, faces and uvs as OBJ (creases and corners are not kept)."""
