@@ -176,6 +176,7 @@ def test_creases_uvs_materials_and_shading_survive(
     crease = me.attributes.new("crease_edge", "FLOAT", "EDGE")
     crease.data[0].value = 1.0
     crease.data[3].value = 0.5
+    me.attributes.new("crease_vert", "FLOAT", "POINT").data[6].value = 0.8
     uv = me.uv_layers.new(name="UVMap")
     for i, loop in enumerate(uv.data):
         loop.uv = (0.1 * (i % 4), 0.05 * i)
@@ -198,7 +199,15 @@ def test_creases_uvs_materials_and_shading_survive(
     assert creases is not None and len(creases[0]) == 2
     uvs = np.array([tuple(d.uv) for d in me.uv_layers["UVMap"].data], dtype=np.float32)
     ref = bidegree.subdivide(
-        bidegree.Mesh(points, faces, creases=creases, uvs=uvs), 4, 2
+        bidegree.Mesh(
+            points,
+            faces,
+            creases=creases,
+            corners=(np.array([6]), np.array([10.0 * 0.8**2], dtype=np.float32)),
+            uvs=uvs,
+        ),
+        4,
+        2,
     )
     assert_matches(out, ref)
     smooth = bidegree.subdivide(bidegree.Mesh(points, faces), 4, 2)
