@@ -293,7 +293,10 @@ impl Parser<'_> {
             parse_count(counts[2])?,
         );
         let args: Vec<&str> = tokens.collect();
-        if args.len() != num_ints + num_floats + num_strings {
+        let announced = num_ints
+            .checked_add(num_floats)
+            .and_then(|n| n.checked_add(num_strings));
+        if announced != Some(args.len()) {
             return Err(format!(
                 "tag '{name}' announces {num_ints}/{num_floats}/{num_strings} arguments but has {}",
                 args.len()
@@ -855,6 +858,10 @@ mod tests {
             (
                 "t crease x/1/0 0 1 1\n",
                 "<obj>:1: tag 'crease': bad argument counts 'x/1/0'",
+            ),
+            (
+                "t crease 18446744073709551615/1/0 0 1 1\n",
+                "<obj>:1: tag 'crease' announces 18446744073709551615/1/0 arguments but has 3",
             ),
         ];
         for (text, expected) in cases {

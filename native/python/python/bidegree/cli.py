@@ -136,7 +136,8 @@ def _run_subdivide(args: argparse.Namespace) -> int:
         )
     subdivide_time = time.perf_counter() - start
     for warning in caught:
-        print(f"bidegree: warning: {warning.message}", file=sys.stderr)
+        text = " ".join(str(warning.message).split("\n"))
+        print(f"bidegree: warning: {text}", file=sys.stderr)
     say(
         f"degree {result.degree}, {result.levels} levels, {result.output} output, "
         f"{result.boundary} boundary"
@@ -235,7 +236,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(handler(args) or 0)
     except (bidegree.BidegreeError, CliError, OSError) as exc:
-        print(f"bidegree: error: {exc}", file=sys.stderr)
+        message = " ".join(str(exc).split("\n")) or type(exc).__name__
+        print(f"bidegree: error: {message}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("bidegree: interrupted", file=sys.stderr)
