@@ -86,9 +86,14 @@ rm -f "$DIST"/bidegree-*.zip
 "$PY" "$BLENDER_EXT" build --source-dir "$STAGE/bidegree" --output-dir "$DIST"
 ZIP="$(ls -t "$DIST"/bidegree-*.zip | head -n 1)"
 "$PY" "$BLENDER_EXT" validate "$ZIP"
-if unzip -l "$ZIP" | grep -qi 'numpy'; then
-    log "ERROR: numpy must not be bundled in $ZIP"
-    exit 1
-fi
+# numpy must not be bundled (Blender ships it); the bidegree wheel must be.
+"$PY" - "$ZIP" <<'EOF'
+import sys, zipfile
+names = zipfile.ZipFile(sys.argv[1]).namelist()
+if any("numpy" in n.lower() for n in names):
+    sys.exit(f"{sys.argv[1]}: numpy must not be bundled")
+if not any(n.startswith("wheels/bidegree-") for n in names):
+    sys.exit(f"{sys.argv[1]}: the bidegree wheel is missing")
+EOF
 log "extension: $ZIP"
 echo "$ZIP"
