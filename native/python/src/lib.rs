@@ -157,6 +157,20 @@ where
     outcome.map_err(|error| to_py_err(py, error))
 }
 
+/// Runs a cheap core accessor (no GIL release) with panics caught, so that not even a getter
+/// can let a panic reach Python.
+fn guard<T>(py: Python<'_>, access: impl FnOnce() -> T) -> PyResult<T> {
+    catch_unwind(AssertUnwindSafe(access)).map_err(|payload| {
+        to_py_err(
+            py,
+            Error::Internal(format!(
+                "the core panicked: {}",
+                panic_message(payload.as_ref())
+            )),
+        )
+    })
+}
+
 // ---------------------------------------------------------------------------------------------
 // Array conversion
 
@@ -355,14 +369,14 @@ impl PyCage {
 
     /// Number of cage vertices (including isolated ones).
     #[getter]
-    fn num_vertices(&self) -> usize {
-        self.inner.num_vertices()
+    fn num_vertices(&self, py: Python<'_>) -> PyResult<usize> {
+        guard(py, || self.inner.num_vertices())
     }
 
     /// Number of cage faces.
     #[getter]
-    fn num_faces(&self) -> usize {
-        self.inner.num_faces()
+    fn num_faces(&self, py: Python<'_>) -> PyResult<usize> {
+        guard(py, || self.inner.num_faces())
     }
 
     /// Checks points for subdivision: finite values, no zero-area face.
@@ -459,50 +473,50 @@ impl PyPlan {
 
     /// Degree of the scheme.
     #[getter]
-    fn degree(&self) -> u32 {
-        self.inner.options().degree
+    fn degree(&self, py: Python<'_>) -> PyResult<u32> {
+        guard(py, || self.inner.options().degree)
     }
 
     /// Number of levels.
     #[getter]
-    fn levels(&self) -> u32 {
-        self.inner.options().levels
+    fn levels(&self, py: Python<'_>) -> PyResult<u32> {
+        guard(py, || self.inner.options().levels)
     }
 
     /// `"primal"` or `"dual"`.
     #[getter]
-    fn output(&self) -> &'static str {
-        output_name(self.inner.options().output)
+    fn output(&self, py: Python<'_>) -> PyResult<&'static str> {
+        guard(py, || output_name(self.inner.options().output))
     }
 
     /// `"edge-only"` or `"edge-and-corner"`.
     #[getter]
-    fn boundary(&self) -> &'static str {
-        boundary_name(self.inner.options().boundary)
+    fn boundary(&self, py: Python<'_>) -> PyResult<&'static str> {
+        guard(py, || boundary_name(self.inner.options().boundary))
     }
 
     /// Memory budget the plan was made under, in bytes.
     #[getter]
-    fn memory_budget(&self) -> u64 {
-        self.inner.options().memory_budget
+    fn memory_budget(&self, py: Python<'_>) -> PyResult<u64> {
+        guard(py, || self.inner.options().memory_budget)
     }
 
     /// Number of cage vertices the plan expects values for.
     #[getter]
-    fn num_input_vertices(&self) -> usize {
-        self.inner.num_input_vertices()
+    fn num_input_vertices(&self, py: Python<'_>) -> PyResult<usize> {
+        guard(py, || self.inner.num_input_vertices())
     }
 
     /// Number of output vertices.
     #[getter]
-    fn num_output_vertices(&self) -> usize {
-        self.inner.num_output_vertices()
+    fn num_output_vertices(&self, py: Python<'_>) -> PyResult<usize> {
+        guard(py, || self.inner.num_output_vertices())
     }
 
     /// Number of output faces.
     #[getter]
-    fn num_output_faces(&self) -> usize {
-        self.inner.num_output_faces()
+    fn num_output_faces(&self, py: Python<'_>) -> PyResult<usize> {
+        guard(py, || self.inner.num_output_faces())
     }
 
     /// Cage vertices in no face (dropped from the output), int32.
@@ -559,7 +573,9 @@ impl PyPlan {
         uvs: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         let plan = &self.inner;
-        let (offsets, vertices) = (plan.output_face_offsets(), plan.output_face_vertices());
+        let (offsets, vertices) = guard(py, || {
+            (plan.output_face_offsets(), plan.output_face_vertices())
+        })?;
         write_mesh(py, &path, points, offsets, vertices, uvs)
     }
 }
