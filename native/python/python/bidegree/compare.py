@@ -28,14 +28,24 @@ How distances are measured
     mesh, and every (face-referenced) vertex of the OpenSubdiv mesh to the bidegree mesh.  The
     target surface is the polygon mesh fan-triangulated; the distance is the exact Euclidean
     distance to the nearest triangle (not to the nearest vertex), found with a sparse uniform grid
-    (numpy only; scipy is not required): triangles are binned by bounding box, a query examines
-    its 3x3x3 neighbourhood of cells and is final when the best distance found is at most the cell
-    size (nothing outside that neighbourhood can be closer); unresolved queries are retried on a
-    grid 4x coarser, up to a grid that holds everything.  Reported: max, RMS and mean per
-    direction and symmetric (the max of both directions is the vertex-sampled Hausdorff
-    distance), each also relative to the diagonal of the cage's bounding box.  The distance
-    between the two *vertex sets* (nearest vertex, both ways) is reported too: it is ~0 exactly
-    when the refined points coincide.
+    (numpy only; scipy is not required): triangles are binned into every cell their bounding box
+    overlaps; a query looks at the (at most 2x2x2) cells overlapped by the cube of half-size
+    r = cell/2 around it, prunes candidates with cheap bounds (distance to a vertex, distance to
+    the bounding box), evaluates the exact point-to-triangle distance of the rest, and is final
+    when the best distance is <= r (no triangle outside those cells can be closer).  Unresolved
+    queries are retried on a coarser grid whose r covers their best candidate.  Reported: max,
+    RMS and mean per direction and symmetric (the max of both directions is the vertex-sampled
+    Hausdorff distance), each also relative to the diagonal of the cage's bounding box.  The
+    distance between the two *vertex sets* (nearest vertex, both ways) is reported too: it is ~0
+    exactly when the refined points coincide.  Cost: about 20-30 microseconds per vertex and
+    direction on a small machine (a 262,144-face comparison takes ~15 s); meant for moderate
+    meshes.
+
+Report
+    :func:`write_usd` writes the bidegree USD (see :mod:`bidegree.usd`) with the distances as
+    ``primvars:distance`` on ``/Bidegree/Result`` and the OpenSubdiv surface, with its own
+    distances, as ``/Bidegree/OpenSubdiv``; :func:`write_plot` draws both surfaces, the bidegree
+    surface coloured by distance and a histogram (matplotlib, Agg).
 """
 
 from __future__ import annotations
