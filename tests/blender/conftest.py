@@ -32,9 +32,10 @@ DIST = ROOT / "dist"
 EXTENSION_ID = "bidegree"
 ADDON_MODULE = f"bl_ext.user_default.{EXTENSION_ID}"
 
-#: ``bidegree`` was imported by other tests of this process before the extension was installed
-#: (then the installed wheel's native module cannot be loaded any more; see the docstring).
-BIDEGREE_PREIMPORTED = "bidegree" in sys.modules
+#: Set by the ``addon`` fixture: ``bidegree`` had been imported (by other tests of this process,
+#: from the source tree) before the extension was installed, so the installed wheel's native
+#: module cannot be loaded any more (see the docstring).
+_STATE = {"bidegree_preimported": False}
 
 _USER_DIR = tempfile.mkdtemp(prefix="bidegree-blender-user-")
 os.environ["BLENDER_USER_RESOURCES"] = _USER_DIR
@@ -95,6 +96,7 @@ def extension_zip() -> Path:
 @pytest.fixture(scope="session")
 def addon(extension_zip: Path) -> Iterator[ModuleType]:
     """Install + enable the built extension offline and return its (installed) module."""
+    _STATE["bidegree_preimported"] = "bidegree" in sys.modules
     for name in [
         m
         for m in sys.modules
@@ -115,6 +117,12 @@ def addon(extension_zip: Path) -> Iterator[ModuleType]:
     yield module
     bpy.ops.preferences.addon_disable(module=ADDON_MODULE)
     shutil.rmtree(_USER_DIR, ignore_errors=True)
+
+
+@pytest.fixture(scope="session")
+def bidegree_preimported(addon: ModuleType) -> bool:
+    """Whether ``bidegree`` was imported (from elsewhere) before the extension was installed."""
+    return _STATE["bidegree_preimported"]
 
 
 @pytest.fixture(scope="session")

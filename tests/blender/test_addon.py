@@ -113,14 +113,14 @@ def enable(obj: Any, **settings: Any) -> None:
 # --------------------------------------------------------------------------- tests
 
 
-def test_installed_copy_is_used(addon: ModuleType, user_dir: str) -> None:
+def test_installed_copy_is_used(
+    addon: ModuleType, user_dir: str, bidegree_preimported: bool
+) -> None:
     import bidegree_blender
 
     assert addon.__file__.startswith(user_dir), addon.__file__
     assert bidegree_blender.__file__.startswith(user_dir), bidegree_blender.__file__
-    from conftest import BIDEGREE_PREIMPORTED
-
-    if BIDEGREE_PREIMPORTED:
+    if bidegree_preimported:
         pytest.skip(
             "bidegree was imported before the extension: run `pytest tests/blender` alone"
         )
