@@ -357,6 +357,34 @@ def test_render_levels_swap(addon: ModuleType, scene: Any) -> None:
     assert len(result.data.polygons) == viewport_faces
 
 
+def test_render_uses_render_levels(addon: ModuleType, scene: Any) -> None:
+    obj = cube(scene)
+    enable(obj, levels=1, render_levels=2)
+    result = obj.bidegree.result
+    viewport_faces = len(result.data.polygons)
+    seen: list[int] = []
+
+    def probe(_scene: Any, *_args: Any) -> None:  # runs after the add-on's render_pre
+        seen.append(len(result.data.polygons))
+
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.location = (0.0, -8.0, 0.0)
+    camera.rotation_euler = (1.5708, 0.0, 0.0)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    scene.render.engine = "CYCLES"
+    scene.cycles.samples = 1
+    scene.cycles.device = "CPU"
+    scene.render.resolution_x = scene.render.resolution_y = 16
+    bpy.app.handlers.render_pre.append(probe)
+    try:
+        assert bpy.ops.render.render(write_still=False) == {"FINISHED"}
+    finally:
+        bpy.app.handlers.render_pre.remove(probe)
+    assert seen == [viewport_faces * 4]
+    assert len(result.data.polygons) == viewport_faces
+
+
 def test_apply_and_remove(addon: ModuleType, scene: Any) -> None:
     obj = cube(scene)
     obj.modifiers.new("Bevel", "BEVEL")
