@@ -61,8 +61,16 @@ cp "$WHEEL" "$DIST/"
 log "wheel: $DIST/$WHEEL_NAME"
 
 # --- extension -------------------------------------------------------------
-BLENDER_EXT="$(find "$("$PY" -c 'import os, sysconfig; print(sysconfig.get_paths()["purelib"])')/bpy" \
-    -path '*bl_pkg/cli/blender_ext.py' 2>/dev/null | head -n 1)"
+find_blender_ext() {
+    find "$("$PY" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')/bpy" \
+        -path '*bl_pkg/cli/blender_ext.py' 2>/dev/null | head -n 1
+}
+BLENDER_EXT="$(find_blender_ext)"
+if [ -z "$BLENDER_EXT" ]; then
+    log "installing bpy into $VENV (it carries Blender's extension tool, blender_ext.py)"
+    "$PY" -m pip install --quiet "bpy==5.0.*"
+    BLENDER_EXT="$(find_blender_ext)"
+fi
 [ -n "$BLENDER_EXT" ] || { log "blender_ext.py not found in the bpy package of $VENV"; exit 2; }
 
 STAGE="$DIST/extension-staging"
