@@ -199,7 +199,8 @@ def remove(obj: bpy.types.Object) -> None:
 
 
 def _cleanup_orphans(scene: bpy.types.Scene) -> None:
-    """Delete result objects whose source object was deleted (it unparents its children)."""
+    """Delete result objects whose source object was deleted (it unparents its children),
+    and forget the cached plans of objects that are gone or no longer enabled."""
     for ob in list(scene.objects):
         if not objects.is_result_object(ob) or ob.parent is not None:
             continue
@@ -210,6 +211,13 @@ def _cleanup_orphans(scene: bpy.types.Scene) -> None:
             or scene.objects.get(source.name) is None
         ):
             objects.remove_result_object(None, ob)
+    if len(CACHE):
+        alive = {
+            ob.session_uid
+            for ob in bpy.data.objects
+            if ob.type == "MESH" and ob.users and ob.bidegree.enabled
+        }
+        CACHE.retain(lambda key: key[0] in alive)
 
 
 def _sync_visibility(source: bpy.types.Object, result: bpy.types.Object) -> None:

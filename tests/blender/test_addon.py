@@ -426,9 +426,12 @@ def test_deleting_the_source_deletes_its_result(addon: ModuleType, scene: Any) -
     obj.hide_viewport = True
     bpy.context.view_layer.update()
     assert bpy.data.objects[result_name].hide_viewport
+    key = (obj.session_uid, "viewport")
+    assert addon.CACHE.plan(key) is not None
     bpy.data.objects.remove(obj)
     bpy.context.view_layer.update()
     assert result_name not in bpy.data.objects
+    assert addon.CACHE.plan(key) is None  # the plan's memory is released too
 
 
 def test_export_usd_operator(addon: ModuleType, scene: Any, tmp_path: Path) -> None:

@@ -21,7 +21,7 @@ from __future__ import annotations
 import hashlib
 import time
 import warnings
-from collections.abc import Hashable
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -227,6 +227,17 @@ class LiveCache:
     def clear(self) -> None:
         """Forget every cached plan."""
         self._entries.clear()
+
+    def keys(self) -> list[Hashable]:
+        """The keys with a cached plan."""
+        return list(self._entries)
+
+    def retain(self, keep: Callable[[Hashable], bool]) -> int:
+        """Forget the plans whose key ``keep`` rejects (e.g. deleted objects); returns how many."""
+        gone = [key for key in self._entries if not keep(key)]
+        for key in gone:
+            del self._entries[key]
+        return len(gone)
 
     def invalidate(self, key: Hashable) -> None:
         """Force the next update of ``key`` to rewrite the result (keeps the plan)."""
