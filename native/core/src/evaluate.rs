@@ -490,3 +490,50 @@ impl Plan {
         Ok(self.face_varying_output(current, channels))
     }
 }
+
+impl Plan {
+    /// One step `M_j -> M_{j+1}` (`j >= 1`) applied to arbitrary scalar data of the kind the
+    /// scheme carries at level `j` (per vertex for odd degrees, per face for even ones); the
+    /// analysis builds subdivision matrices from it. Curve 1-D data is read off the 2-D data
+    /// (vertex values, or the value of an edge's face); corners are pinned at zero.
+    pub(crate) fn step_scalar(&self, j: usize, data: &[f64]) -> Vec<f64> {
+        let (levels, steps) = (self.levels(), self.steps());
+        assert!(
+            j >= 1 && j < steps.len(),
+            "step_scalar needs 1 <= j < levels"
+        );
+        let (coarse, previous) = (&levels[j], &steps[j - 1]);
+        let cage = vec![[0.0f64]; levels[0].num_vertices];
+        let values: Vec<[f64; 1]> = data.iter().map(|&x| [x]).collect();
+        let primal = self.options().degree % 2 == 1;
+        let mut run = Run::new(&cage);
+        run.primal = primal;
+        if primal {
+            run.curve = CurveData::Primal(
+                previous
+                    .curve_vertices
+                    .iter()
+                    .map(|cv| values[cv.vertex as usize])
+                    .collect(),
+            );
+            run.vertices = Cow::Owned(values);
+        } else {
+            let face_of_edge = |e: u32| coarse.face_of(coarse.edge_corners[e as usize][0] as usize);
+            run.curve = CurveData::Dual(
+                previous
+                    .curve_edges
+                    .iter()
+                    .map(|ce| values[face_of_edge(ce.edge)])
+                    .collect(),
+            );
+            run.faces = values;
+        }
+        run.step(coarse, &levels[j + 1], &steps[j], self.options().degree);
+        let out = if run.primal {
+            run.vertices.into_owned()
+        } else {
+            run.faces
+        };
+        out.into_iter().map(|[x]| x).collect()
+    }
+}

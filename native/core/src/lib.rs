@@ -24,6 +24,7 @@
 //! assert_eq!(refined.len(), 3 * plan.num_output_vertices());
 //! ```
 
+pub mod analysis;
 pub mod error;
 pub mod evaluate;
 pub mod io;
