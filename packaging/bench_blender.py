@@ -122,9 +122,7 @@ def main() -> None:
     faces_out = len(result_mesh.polygons)
     ev = blender.evaluated_get(bpy.context.evaluated_depsgraph_get())
     blender_faces = len(ev.data.polygons)
-    print(
-        f"cage: Suzanne subdivided twice, {len(cage.polygons)} faces, {len(cage.vertices)} verts"
-    )
+    print(f"cage: Suzanne subdivided twice, {len(cage.polygons)} faces, {len(cage.vertices)} verts")
     print(f"bidegree degree {args.degree} level {args.levels}: {faces_out} faces")
     print(f"Blender Subsurf level {args.levels}: {blender_faces} faces")
     print(f"bidegree cached update : {cached_ms:8.2f} ms (median of {args.repeat})")

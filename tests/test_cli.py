@@ -104,9 +104,7 @@ def test_obj_tags_and_forms_are_read(cube_obj: Path) -> None:
     assert mesh.corners is not None
     np.testing.assert_array_equal(mesh.corners[0], [6])
     assert mesh.boundary == "edge-and-corner"
-    assert (
-        bidegree.Mesh.from_obj(cube_obj, boundary="edge-only").boundary == "edge-only"
-    )
+    assert bidegree.Mesh.from_obj(cube_obj, boundary="edge-only").boundary == "edge-only"
 
 
 def test_subdivide_round_trip(cube_obj: Path, tmp_path: Path) -> None:
@@ -166,9 +164,7 @@ def test_default_boundary_without_tag_is_edge_only(tmp_path: Path) -> None:
     assert "edge-only boundary" in proc.stdout
 
 
-def assert_one_line_error(
-    proc: subprocess.CompletedProcess[str], *needles: str
-) -> None:
+def assert_one_line_error(proc: subprocess.CompletedProcess[str], *needles: str) -> None:
     assert proc.returncode == 2, (proc.stdout, proc.stderr)
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1, proc.stderr
@@ -199,31 +195,19 @@ def test_bad_obj_reports_the_line(tmp_path: Path) -> None:
 def test_bad_obj_variants(tmp_path: Path, text: str, needles: tuple[str, ...]) -> None:
     path = tmp_path / "bad.obj"
     path.write_text(text)
-    assert_one_line_error(
-        run_here("subdivide", path, "-o", tmp_path / "o.obj"), *needles
-    )
+    assert_one_line_error(run_here("subdivide", path, "-o", tmp_path / "o.obj"), *needles)
 
 
 def test_invalid_requests_exit_2(cube_obj: Path, tmp_path: Path) -> None:
     out = tmp_path / "o.obj"
+    assert_one_line_error(run_here("subdivide", cube_obj, "-o", out, "--degree", "0"), "degree 0")
+    assert_one_line_error(run_here("subdivide", cube_obj, "-o", out, "--levels", "17"), "levels 17")
     assert_one_line_error(
-        run_here("subdivide", cube_obj, "-o", out, "--degree", "0"), "degree 0"
-    )
-    assert_one_line_error(
-        run_here("subdivide", cube_obj, "-o", out, "--levels", "17"), "levels 17"
-    )
-    assert_one_line_error(
-        run_here(
-            "subdivide", cube_obj, "-o", out, "--levels", "9", "--memory-budget", "1M"
-        ),
+        run_here("subdivide", cube_obj, "-o", out, "--levels", "9", "--memory-budget", "1M"),
         "memory budget",
     )
-    assert_one_line_error(
-        run_here("subdivide", tmp_path / "missing.obj", "-o", out), "missing.obj"
-    )
-    assert_one_line_error(
-        run_here("subdivide", cube_obj, "-o", tmp_path / "o.ply"), "unsupported"
-    )
+    assert_one_line_error(run_here("subdivide", tmp_path / "missing.obj", "-o", out), "missing.obj")
+    assert_one_line_error(run_here("subdivide", cube_obj, "-o", tmp_path / "o.ply"), "unsupported")
     nonmanifold = tmp_path / "nm.obj"
     nonmanifold.write_text(
         "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n"
@@ -243,16 +227,8 @@ def test_isolated_vertex_warning_on_stderr(tmp_path: Path) -> None:
 def test_usage_errors(cube_obj: Path) -> None:
     assert run_here().returncode == 2
     assert run_here("subdivide", cube_obj).returncode == 2  # -o is required
-    assert (
-        run_here("subdivide", cube_obj, "-o", "x.obj", "--output", "both").returncode
-        == 2
-    )
-    assert (
-        run_here(
-            "subdivide", cube_obj, "-o", "x.obj", "--memory-budget", "lots"
-        ).returncode
-        == 2
-    )
+    assert run_here("subdivide", cube_obj, "-o", "x.obj", "--output", "both").returncode == 2
+    assert run_here("subdivide", cube_obj, "-o", "x.obj", "--memory-budget", "lots").returncode == 2
     version = run("--version")
     assert version.returncode == 0 and bidegree.__version__ in version.stdout
     module = subprocess.run(
@@ -267,8 +243,7 @@ def test_usage_errors(cube_obj: Path) -> None:
 
 
 @pytest.mark.skipif(
-    importlib.util.find_spec("pxr") is None
-    or importlib.util.find_spec("bidegree.usd") is None,
+    importlib.util.find_spec("pxr") is None or importlib.util.find_spec("bidegree.usd") is None,
     reason="needs usd-core and bidegree.usd",
 )
 def test_usd_output(cube_obj: Path, tmp_path: Path) -> None:
@@ -293,12 +268,8 @@ def test_bench_runs_small(tmp_path: Path) -> None:
     )
     assert proc.returncode == 0, proc.stderr
     lines = proc.stdout.splitlines()
-    assert (
-        "valence 3" in lines[0] and "valence 5" in lines[0] and "valence 6" in lines[0]
-    )
-    rows = [
-        line.split() for line in lines if line.split() and line.split()[0].isdigit()
-    ]
+    assert "valence 3" in lines[0] and "valence 5" in lines[0] and "valence 6" in lines[0]
+    rows = [line.split() for line in lines if line.split() and line.split()[0].isdigit()]
     assert [int(row[0]) for row in rows] == [1, 3, 4]
     for row in rows:
         assert row[-1].endswith("x")
@@ -309,9 +280,7 @@ def test_bench_cage_is_closed_with_extraordinary_vertices() -> None:
     from bidegree.bench import make_cage
 
     mesh = make_cage(600)
-    plan = bidegree.Plan(
-        mesh, degree=3, levels=1
-    )  # validates manifoldness and orientation
+    plan = bidegree.Plan(mesh, degree=3, levels=1)  # validates manifoldness and orientation
     e = len(plan.edges)
     assert plan.num_output_vertices - e + plan.num_output_faces == 2
     valence = np.bincount(mesh.face_indices)

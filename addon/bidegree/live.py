@@ -130,9 +130,7 @@ def update(
                 mine = objects.ensure_result_object(obj, result)
                 if mine != result:  # obj is a duplicate: now it has a result of its own
                     props.result = mine
-                report = objects.update_result(
-                    CACHE, obj, mine, settings, depsgraph=depsgraph
-                )
+                report = objects.update_result(CACHE, obj, mine, settings, depsgraph=depsgraph)
         except bidegree.BidegreeError as exc:
             _set_if_changed(props, "last_error", f"{type(exc).__name__}: {exc}")
             if raise_errors:
@@ -205,11 +203,7 @@ def _cleanup_orphans(scene: bpy.types.Scene) -> None:
         if not objects.is_result_object(ob) or ob.parent is not None:
             continue
         source = objects.find_source(ob)
-        if (
-            source is None
-            or source.users == 0
-            or scene.objects.get(source.name) is None
-        ):
+        if source is None or source.users == 0 or scene.objects.get(source.name) is None:
             objects.remove_result_object(None, ob)
     if len(CACHE):
         alive = {
@@ -292,10 +286,7 @@ def on_undo_post(*_args: Any) -> None:
 def render_swap_in(scene: bpy.types.Scene) -> int:
     """Give every enabled object's result its render-level mesh; returns how many were swapped."""
     global _busy
-    if (
-        threading.current_thread() is not threading.main_thread()
-        and not bpy.app.background
-    ):
+    if threading.current_thread() is not threading.main_thread() and not bpy.app.background:
         # Blender data must not be modified from the render thread; the viewport mesh renders.
         return 0
     swapped = 0
@@ -337,10 +328,7 @@ def render_swap_in(scene: bpy.types.Scene) -> int:
 def render_swap_out() -> None:
     """Give every result its viewport mesh back (after rendering)."""
     global _busy
-    if (
-        threading.current_thread() is not threading.main_thread()
-        and not bpy.app.background
-    ):
+    if threading.current_thread() is not threading.main_thread() and not bpy.app.background:
         return
     _busy = True
     try:

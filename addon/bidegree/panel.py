@@ -17,9 +17,7 @@ class BIDEGREE_PT_surface(bpy.types.Panel):
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
         obj = getattr(context, "object", None)
-        return (
-            obj is not None and obj.type == "MESH" and "bidegree_result_of" not in obj
-        )
+        return obj is not None and obj.type == "MESH" and "bidegree_result_of" not in obj
 
     def draw_header(self, context: bpy.types.Context) -> None:
         self.layout.prop(context.object.bidegree, "enabled", text="")
@@ -46,9 +44,7 @@ class BIDEGREE_PT_surface(bpy.types.Panel):
             text=f"Cage: {props.cage_faces:,} faces   Result: {props.result_faces:,} faces"
         )
         if props.last_action:
-            status.label(
-                text=f"Last update: {props.last_update_ms:.1f} ms ({props.last_action})"
-            )
+            status.label(text=f"Last update: {props.last_update_ms:.1f} ms ({props.last_action})")
         if props.last_warning:
             status.label(text=props.last_warning, icon="INFO")
         if props.last_error:

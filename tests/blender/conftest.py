@@ -79,9 +79,7 @@ def _extension_zip() -> Path:
         check=False,
     )
     if proc.returncode != 0:
-        pytest.fail(
-            f"packaging/build.sh failed:\n{proc.stdout[-4000:]}\n{proc.stderr[-4000:]}"
-        )
+        pytest.fail(f"packaging/build.sh failed:\n{proc.stdout[-4000:]}\n{proc.stderr[-4000:]}")
     zips = sorted(DIST.glob(f"{EXTENSION_ID}-*.zip"), key=os.path.getmtime)
     assert zips, "packaging/build.sh produced no extension zip"
     return zips[-1]
@@ -98,9 +96,7 @@ def addon(extension_zip: Path) -> Iterator[ModuleType]:
     """Install + enable the built extension offline and return its (installed) module."""
     _STATE["bidegree_preimported"] = "bidegree" in sys.modules
     for name in [
-        m
-        for m in sys.modules
-        if m == "bidegree_blender" or m.startswith("bidegree_blender.")
+        m for m in sys.modules if m == "bidegree_blender" or m.startswith("bidegree_blender.")
     ]:
         del sys.modules[name]
     result = bpy.ops.extensions.package_install_files(

@@ -35,9 +35,7 @@ ROOT = Path(__file__).resolve().parents[2]
 def make_object(scene: Any, name: str, points: Any, faces: Any, edges: Any = ()) -> Any:
     """A mesh object linked into ``scene`` (built with the plain, slow API on purpose)."""
     mesh = bpy.data.meshes.new(name)
-    mesh.from_pydata(
-        [tuple(map(float, p)) for p in points], list(edges), [list(f) for f in faces]
-    )
+    mesh.from_pydata([tuple(map(float, p)) for p in points], list(edges), [list(f) for f in faces])
     mesh.update()
     obj = bpy.data.objects.new(name, mesh)
     scene.collection.objects.link(obj)
@@ -68,10 +66,7 @@ def evaluated_reference(obj: Any) -> tuple[np.ndarray, list[list[int]], Any]:
         creases = None
         attr = me.attributes.get("crease_edge")
         if attr is not None:
-            pairs = [
-                (e.vertices[0], e.vertices[1], attr.data[e.index].value)
-                for e in me.edges
-            ]
+            pairs = [(e.vertices[0], e.vertices[1], attr.data[e.index].value) for e in me.edges]
             pairs = [p for p in pairs if p[2] > 0]
             if pairs:
                 creases = (
@@ -121,9 +116,7 @@ def test_installed_copy_is_used(
     assert addon.__file__.startswith(user_dir), addon.__file__
     assert bidegree_blender.__file__.startswith(user_dir), bidegree_blender.__file__
     if bidegree_preimported:
-        pytest.skip(
-            "bidegree was imported before the extension: run `pytest tests/blender` alone"
-        )
+        pytest.skip("bidegree was imported before the extension: run `pytest tests/blender` alone")
     assert bidegree.__file__.startswith(user_dir), bidegree.__file__
 
 
@@ -162,15 +155,11 @@ def test_bevelled_cube_matches_subdivide(addon: ModuleType, scene: Any) -> None:
     assert obj.bidegree.result_faces == len(ref.face_sizes)
 
     bpy.context.view_layer.update()
-    np.testing.assert_allclose(
-        np.array(result.matrix_world), np.array(obj.matrix_world)
-    )
+    np.testing.assert_allclose(np.array(result.matrix_world), np.array(obj.matrix_world))
     assert obj.display_type == "WIRE" and obj.hide_render and not result.hide_render
 
 
-def test_creases_uvs_materials_and_shading_survive(
-    addon: ModuleType, scene: Any
-) -> None:
+def test_creases_uvs_materials_and_shading_survive(addon: ModuleType, scene: Any) -> None:
     obj = cube(scene)
     me = obj.data
     crease = me.attributes.new("crease_edge", "FLOAT", "EDGE")
@@ -215,9 +204,7 @@ def test_creases_uvs_materials_and_shading_survive(
 
     # UVs: every map, linearly interpolated (the active one equals Result.uvs).
     assert set(out.uv_layers.keys()) == {"UVMap", "Second"}
-    got_uv = np.array(
-        [tuple(d.uv) for d in out.uv_layers["UVMap"].data], dtype=np.float32
-    )
+    got_uv = np.array([tuple(d.uv) for d in out.uv_layers["UVMap"].data], dtype=np.float32)
     np.testing.assert_allclose(got_uv, np.asarray(ref.uvs), atol=1e-6)
     got_second = np.array([tuple(d.uv) for d in out.uv_layers["Second"].data])
     assert np.allclose(got_second[:, 1], 0.5) and got_second[:, 0].std() > 0.01
@@ -248,9 +235,7 @@ def test_moving_a_vertex_reuses_the_plan(addon: ModuleType, scene: Any) -> None:
     assert stats.plan_builds == builds and stats.plan_reuses == reuses + 1
     assert addon.CACHE.plan((obj.session_uid, "viewport")) is plan
     points, faces, _ = evaluated_reference(obj)
-    assert_matches(
-        obj.bidegree.result.data, bidegree.subdivide(bidegree.Mesh(points, faces), 4, 2)
-    )
+    assert_matches(obj.bidegree.result.data, bidegree.subdivide(bidegree.Mesh(points, faces), 4, 2))
 
     # The depsgraph handler alone picks up an edit (background mode: processed at once).
     obj.data.vertices[7].co = (1.3, 1.0, 1.2)
@@ -258,9 +243,7 @@ def test_moving_a_vertex_reuses_the_plan(addon: ModuleType, scene: Any) -> None:
     bpy.context.view_layer.update()
     assert stats.plan_builds == builds and stats.plan_reuses == reuses + 2
     points, faces, _ = evaluated_reference(obj)
-    assert_matches(
-        obj.bidegree.result.data, bidegree.subdivide(bidegree.Mesh(points, faces), 4, 2)
-    )
+    assert_matches(obj.bidegree.result.data, bidegree.subdivide(bidegree.Mesh(points, faces), 4, 2))
     # ...and our own writes did not trigger further updates (no loop).
     bpy.context.view_layer.update()
     assert stats.plan_reuses == reuses + 2
@@ -271,16 +254,12 @@ def test_moving_a_vertex_reuses_the_plan(addon: ModuleType, scene: Any) -> None:
     addon.update(obj)
     assert stats.plan_builds == builds + 1
     points, faces, _ = evaluated_reference(obj)
-    assert_matches(
-        obj.bidegree.result.data, bidegree.subdivide(bidegree.Mesh(points, faces), 4, 2)
-    )
+    assert_matches(obj.bidegree.result.data, bidegree.subdivide(bidegree.Mesh(points, faces), 4, 2))
 
     # Settings changes rebuild too (degree 3).
     obj.bidegree.degree = 3
     assert stats.plan_builds == builds + 2
-    assert_matches(
-        obj.bidegree.result.data, bidegree.subdivide(bidegree.Mesh(points, faces), 3, 2)
-    )
+    assert_matches(obj.bidegree.result.data, bidegree.subdivide(bidegree.Mesh(points, faces), 3, 2))
 
 
 def _non_manifold(scene: Any) -> Any:
@@ -299,9 +278,7 @@ def _zero_area(scene: Any) -> Any:
 
 
 @pytest.mark.parametrize("make", [_non_manifold, _loose_edges, _zero_area])
-def test_bad_meshes_leave_the_object_unchanged(
-    addon: ModuleType, scene: Any, make: Any
-) -> None:
+def test_bad_meshes_leave_the_object_unchanged(addon: ModuleType, scene: Any, make: Any) -> None:
     obj = make(scene)
     before = snapshot(obj)
     errors = addon.CACHE.stats.errors
@@ -309,11 +286,7 @@ def test_bad_meshes_leave_the_object_unchanged(
     assert obj.bidegree.last_error, "the error must be reported"
     assert obj.bidegree.result is None
     assert not [o for o in bpy.data.objects if o is not obj]
-    assert (
-        snapshot(obj) == before
-        and obj.display_type == "TEXTURED"
-        and not obj.hide_render
-    )
+    assert snapshot(obj) == before and obj.display_type == "TEXTURED" and not obj.hide_render
     assert addon.CACHE.stats.errors == errors + 1
     import bidegree_blender
 
@@ -453,18 +426,14 @@ def test_export_usd_operator(addon: ModuleType, scene: Any, tmp_path: Path) -> N
     assert counts == [p.loop_total for p in obj.bidegree.result.data.polygons]
 
 
-def test_batch_three_files_one_broken(
-    addon: ModuleType, scene: Any, tmp_path: Path
-) -> None:
+def test_batch_three_files_one_broken(addon: ModuleType, scene: Any, tmp_path: Path) -> None:
     good_obj = tmp_path / "good.obj"
     good_obj.write_text(
         "v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\nv -1 1 1\n"
         "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n"
     )
     broken = tmp_path / "broken.obj"  # three faces on one edge: non-manifold
-    broken.write_text(
-        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n"
-    )
+    broken.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n")
     blend = tmp_path / "scene.blend"
     obj = cube(scene, "BlendCube")
     obj.modifiers.new("Bevel", "BEVEL")
