@@ -229,7 +229,7 @@ pub fn validate_geometry<T: Scalar>(cage: &Cage, points: &[T], channels: usize) 
             area[2] += u[0] * v[1] - u[1] * v[0];
         }
         let norm = (area[0] * area[0] + area[1] * area[1] + area[2] * area[2]).sqrt() * 0.5;
-        if !(norm > tolerance) {
+        if norm.is_nan() || norm <= tolerance {
             return Err(Error::DegenerateFace { face });
         }
     }
