@@ -13,32 +13,7 @@ from pathlib import Path
 import bidegree
 import numpy as np
 import pytest
-
-CUBE_POINTS = np.array(
-    [
-        [0, 0, 0],
-        [1, 0, 0],
-        [1, 1, 0],
-        [0, 1, 0],
-        [0, 0, 1],
-        [1, 0, 1],
-        [1, 1, 1],
-        [0, 1, 1],
-    ],
-    dtype=np.float64,
-)
-CUBE_FACES = [
-    [0, 3, 2, 1],
-    [4, 5, 6, 7],
-    [0, 1, 5, 4],
-    [1, 2, 6, 5],
-    [2, 3, 7, 6],
-    [3, 0, 4, 7],
-]
-
-
-def cube(dtype: type = np.float64, **kwargs: object) -> bidegree.Mesh:
-    return bidegree.Mesh(CUBE_POINTS.astype(dtype), CUBE_FACES, **kwargs)
+from cages import CUBE_FACES, CUBE_POINTS, cube
 
 
 def mixed_cage() -> tuple[np.ndarray, np.ndarray, np.ndarray]:

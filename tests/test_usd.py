@@ -8,6 +8,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import bidegree
+import cages
 import numpy as np
 import pytest
 from bidegree import usd
@@ -148,28 +149,7 @@ def test_round_trip_every_attribute(
 
 def test_edge_only_without_uvs_creases_or_distances(tmp_path: Path) -> None:
     """A closed quad cube, edge-only, nothing optional: no optional attribute is authored."""
-    points = np.array(
-        [
-            [0, 0, 0],
-            [1, 0, 0],
-            [1, 1, 0],
-            [0, 1, 0],
-            [0, 0, 1],
-            [1, 0, 1],
-            [1, 1, 1],
-            [0, 1, 1],
-        ],
-        dtype=np.float32,
-    )
-    faces = [
-        [0, 3, 2, 1],
-        [4, 5, 6, 7],
-        [0, 1, 5, 4],
-        [1, 2, 6, 5],
-        [2, 3, 7, 6],
-        [3, 0, 4, 7],
-    ]
-    cube = bidegree.Mesh(points, faces)
+    cube = cages.cube(np.float32)
     res = bidegree.subdivide(cube, degree=4, levels=1)
     path = tmp_path / "cube.usda"
     usd.export(path, cube, res)
