@@ -25,6 +25,7 @@
 //! ```
 
 pub mod analysis;
+pub mod classic;
 pub mod error;
 pub mod evaluate;
 pub mod io;
