@@ -10,9 +10,11 @@ use std::ops::{Add, Mul};
 
 use rayon::prelude::*;
 
+use crate::classic;
+use crate::error::Error;
 use crate::error::Result;
 use crate::mesh::check_values;
-use crate::plan::{CurveVertex, Plan, Step};
+use crate::plan::{CurveVertex, Plan, Rules, Step};
 use crate::topology::{Level, CHUNK, NONE};
 
 /// Floating-point types that points and attributes can be given in: `f32` and `f64`.
@@ -372,10 +374,49 @@ impl Plan {
         want_dual: bool,
     ) -> Final<T, N> {
         let degree = self.options().degree;
-        let mut run = Run::new(cage);
         let levels = self.levels();
+        if let Some(catmark) = self.catmark() {
+            // Classic Catmull-Clark (crate::classic): primal data all the way.
+            let mut points = cage.to_vec();
+            for j in 0..self.steps().len() {
+                points = catmark.step(j, &levels[j], &levels[j + 1], &points);
+            }
+            let Some(last) = self.steps().last().filter(|_| want_dual) else {
+                return Final::Primal(points);
+            };
+            let mut run = Run::new(cage);
+            run.curve = CurveData::Primal(
+                last.curve_vertices
+                    .iter()
+                    .map(|cv| points[cv.vertex as usize])
+                    .collect(),
+            );
+            run.vertices = Cow::Owned(points);
+            run.to_dual(&levels[levels.len() - 1], last);
+            let CurveData::Dual(curve_edges) = run.curve else {
+                unreachable!("dual 1-D data")
+            };
+            return Final::Dual {
+                faces: run.faces,
+                curve_edges,
+            };
+        }
+        let doo_sabin = self.options().rules == Rules::Classic && degree == 2;
+        let mut run = Run::new(cage);
         for (j, step) in self.steps().iter().enumerate() {
-            run.step(&levels[j], &levels[j + 1], step, degree);
+            if doo_sabin {
+                // Classic Doo-Sabin: the averaged faces away from curves are replaced.
+                let before = if run.primal {
+                    run.vertices.to_vec()
+                } else {
+                    run.faces.clone()
+                };
+                let primal = run.primal;
+                run.step(&levels[j], &levels[j + 1], step, degree);
+                run.faces = classic::doo_sabin_step(&levels[j], step, &before, primal, &run.faces);
+            } else {
+                run.step(&levels[j], &levels[j + 1], step, degree);
+            }
         }
         if let Some(last) = self.steps().last() {
             let (coarse, fine) = (&levels[levels.len() - 2], &levels[levels.len() - 1]);
@@ -448,6 +489,81 @@ impl Plan {
             }
         }
         out
+    }
+
+    /// Limit positions (classic degree-3 rules only) at the vertices of the last level, which
+    /// must be at least 1 (a quad level), with the drawing-mesh output: the values are run
+    /// through every level and OpenSubdiv's limit masks applied there. Old vertices keep their
+    /// ids from level to level, so the first values are the limits at the cage vertices.
+    pub fn limit_positions<T: Scalar>(&self, values: &[T], channels: usize) -> Result<Vec<T>> {
+        check_values(values, channels, self.num_input_vertices())?;
+        let Some(catmark) = self.catmark() else {
+            return Err(Error::InvalidInput(
+                "limit positions need classic rules at degree 3".into(),
+            ));
+        };
+        if self.steps().is_empty() || self.wants_dual() {
+            return Err(Error::InvalidInput(
+                "limit positions need at least one level and the primal output".into(),
+            ));
+        }
+        let j = self.levels().len() - 1;
+        let level = &self.levels()[j];
+        let limit = |points: Vec<T>, n: usize| -> Vec<T> {
+            match n {
+                1 => self.limit_n::<T, 1>(catmark, j, level, &points),
+                2 => self.limit_n::<T, 2>(catmark, j, level, &points),
+                3 => self.limit_n::<T, 3>(catmark, j, level, &points),
+                _ => self.limit_n::<T, 4>(catmark, j, level, &points),
+            }
+        };
+        if channels <= 4 {
+            return Ok(limit(values.to_vec(), channels));
+        }
+        // More channels: four at a time, padded.
+        let items = values.len() / channels;
+        let mut out = vec![T::default(); 0];
+        for first in (0..channels).step_by(4) {
+            let width = (channels - first).min(4);
+            let group: Vec<T> = (0..items)
+                .flat_map(|i| (0..4).map(move |k| (i, k)))
+                .map(|(i, k)| {
+                    if k < width {
+                        values[i * channels + first + k]
+                    } else {
+                        T::default()
+                    }
+                })
+                .collect();
+            let result = limit(group, 4);
+            let count = result.len() / 4;
+            if out.is_empty() {
+                out = vec![T::default(); count * channels];
+            }
+            for i in 0..count {
+                out[i * channels + first..i * channels + first + width]
+                    .copy_from_slice(&result[4 * i..4 * i + width]);
+            }
+        }
+        Ok(out)
+    }
+
+    fn limit_n<T: Scalar, const N: usize>(
+        &self,
+        catmark: &classic::Catmark,
+        j: usize,
+        level: &Level,
+        values: &[T],
+    ) -> Vec<T> {
+        let (points, _) = values.as_chunks::<N>();
+        let compact: Cow<[Value<T, N>]> = match self.vertex_map() {
+            None => Cow::Borrowed(points),
+            Some(map) => Cow::Owned(map.iter().map(|&v| points[v as usize]).collect()),
+        };
+        let Final::Primal(last) = self.run(&compact, false) else {
+            unreachable!("primal classic run")
+        };
+        catmark.limit(j, level, &last).into_flattened()
     }
 
     /// Evaluates face-varying values (one per corner of the cage, e.g. UVs) with linear
