@@ -74,10 +74,23 @@ fn main() {
         rayon::current_num_threads()
     );
     println!(
-        "{:>6} {:>6} {:>10} {:>12} {:>12} {:>10} {:>10}",
-        "degree", "levels", "faces", "fresh f/s", "cached f/s", "copy ms", "cached/copy"
+        "{:>6} {:>6} {:>10} {:>12} {:>12} {:>9} {:>9} {:>8} {:>11}",
+        "degree",
+        "levels",
+        "faces",
+        "fresh f/s",
+        "cached f/s",
+        "plan ms",
+        "eval ms",
+        "copy ms",
+        "cached/copy"
     );
-    for degree in 1..=9 {
+    // BIDEGREE_BENCH_DEGREES=3 or 1,3,5 restricts the run (for profiling).
+    let degrees: Vec<u32> = std::env::var("BIDEGREE_BENCH_DEGREES")
+        .ok()
+        .map(|s| s.split(',').filter_map(|d| d.trim().parse().ok()).collect())
+        .unwrap_or_else(|| (1..=9).collect());
+    for degree in degrees {
         let levels = ((target_faces / (4.0 * cage.num_faces() as f64))
             .log(4.0)
             .round() as u32
@@ -93,6 +106,9 @@ fn main() {
         let fresh = best_of(3, || {
             black_box(subdivide(&cage, &points, 3, &options).unwrap());
         });
+        let build = best_of(3, || {
+            black_box(Plan::new(&cage, &options).unwrap());
+        });
         let moved: Vec<f32> = points.iter().map(|x| x * 1.01).collect();
         let cached = best_of(5, || {
             black_box(plan.evaluate(&moved, 3).unwrap());
@@ -104,12 +120,14 @@ fn main() {
             black_box(&dst);
         });
         println!(
-            "{:>6} {:>6} {:>10} {:>12.3e} {:>12.3e} {:>10.2} {:>10.1}",
+            "{:>6} {:>6} {:>10} {:>12.3e} {:>12.3e} {:>9.1} {:>9.1} {:>8.2} {:>11.1}",
             degree,
             levels,
             faces,
             faces / fresh.as_secs_f64(),
             faces / cached.as_secs_f64(),
+            build.as_secs_f64() * 1e3,
+            cached.as_secs_f64() * 1e3,
             copy.as_secs_f64() * 1e3,
             cached.as_secs_f64() / copy.as_secs_f64()
         );

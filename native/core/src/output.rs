@@ -5,7 +5,7 @@
 use crate::error::{Error, Result};
 use crate::evaluate::{Final, Scalar};
 use crate::plan::{OutputKind, Plan};
-use crate::topology::{Level, NONE};
+use crate::topology::{gather_hinted, Level, NONE};
 
 /// The dual mesh of the last level, as a polygon level plus where its data comes from.
 #[derive(Debug, Default)]
@@ -49,10 +49,8 @@ impl OutputMesh {
             let shift = 2 * (depth - 1);
             let cage = &levels[0];
             (
-                (0..=last.num_faces() as u32).map(|f| 4 * f).collect(),
-                (0..last.num_faces())
-                    .map(|f| cage.corner_faces[f >> shift])
-                    .collect(),
+                gather_hinted(last.num_faces() + 1, |f| 4 * f as u32),
+                gather_hinted(last.num_faces(), |f| cage.corner_faces[f >> shift]),
             )
         };
         let dual = if plan.options().output == OutputKind::Dual && depth > 0 {

@@ -6,6 +6,8 @@
 //! Every table of `M_{j+1}` is a gather from `M_j`'s tables, computed in parallel; nothing here
 //! depends on the order in which threads run.
 
+use std::sync::OnceLock;
+
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
@@ -37,10 +39,15 @@ pub struct Level {
     pub edge_verts: Vec<[u32; 2]>,
     /// The corners whose outgoing edge is this edge, one per incident face; `NONE` on a boundary.
     pub edge_corners: Vec<[u32; 2]>,
-    /// Offsets of each vertex's corners in `vert_corners` (length vertices + 1).
+    /// Offsets of each vertex's corners in `vert_corners` (length vertices + 1). This table and
+    /// `vert_corners` are empty on the last level of a plan whose output is the drawing mesh
+    /// (see [`Level::refine_with`]).
     pub vert_corner_offsets: Vec<u32>,
     /// The corners at each vertex, in increasing order of corner.
     pub vert_corners: Vec<u32>,
+    /// `(vert_corner_offsets, vert_corners)` built on first use by [`Level::corners_of_vertex`]
+    /// when the tables above were left out.
+    lazy_vertex_corners: OnceLock<(Vec<u32>, Vec<u32>)>,
 }
 
 impl Level {
@@ -121,11 +128,19 @@ impl Level {
         }
     }
 
-    /// The corners at vertex `v`.
+    /// The corners at vertex `v` (from a table built on first use, in increasing order of
+    /// corner, if the level was refined without its vertex -> corner table).
     #[inline]
     pub fn corners_of_vertex(&self, v: usize) -> &[u32] {
-        &self.vert_corners
-            [self.vert_corner_offsets[v] as usize..self.vert_corner_offsets[v + 1] as usize]
+        let (offsets, corners) = if self.vert_corner_offsets.is_empty() {
+            let (o, c) = self
+                .lazy_vertex_corners
+                .get_or_init(|| vertex_corners(self.num_vertices, &self.corner_verts));
+            (o, c)
+        } else {
+            (&self.vert_corner_offsets, &self.vert_corners)
+        };
+        &corners[offsets[v] as usize..offsets[v + 1] as usize]
     }
 
     /// True if edge `e` has a single face.
@@ -209,20 +224,7 @@ impl Level {
         level.edge_verts = edge_verts;
         level.edge_corners = edge_corners;
 
-        // Vertex -> corners by counting sort (corners in increasing order).
-        let mut offsets = vec![0u32; num_vertices + 1];
-        for &v in &level.corner_verts {
-            offsets[v as usize + 1] += 1;
-        }
-        for v in 0..num_vertices {
-            offsets[v + 1] += offsets[v];
-        }
-        let mut fill = offsets.clone();
-        let mut vert_corners = vec![0u32; num_corners];
-        for (c, &v) in level.corner_verts.iter().enumerate() {
-            vert_corners[fill[v as usize] as usize] = c as u32;
-            fill[v as usize] += 1;
-        }
+        let (offsets, vert_corners) = vertex_corners(num_vertices, &level.corner_verts);
         level.vert_corner_offsets = offsets;
         level.vert_corners = vert_corners;
         Ok(level)
@@ -266,126 +268,122 @@ impl Level {
     /// Child edges: `2e` and `2e + 1` are the halves of edge `e` (containing its first and second
     /// vertex), `2E + c` joins the edge point of `c`'s outgoing edge to the face point.
     pub fn refine(&self) -> Level {
+        self.refine_with(true)
+    }
+
+    /// As [`Level::refine`]; without `vertex_corners` the child's `vert_corner_offsets` and
+    /// `vert_corners` stay empty (the last level of a plan needs them only for the dual output
+    /// and the classic rules; [`Level::corners_of_vertex`] builds them on first use).
+    pub fn refine_with(&self, vertex_corners: bool) -> Level {
         let nv = self.num_vertices as u32;
         let ne = self.num_edges() as u32;
         let nc = self.num_corners();
         let new_vertices = self.num_vertices + self.num_edges() + self.num_faces();
 
-        let mut corner_verts = vec![0u32; 4 * nc];
-        let mut corner_edges = vec![0u32; 4 * nc];
-        corner_verts
-            .par_chunks_mut(4 * CHUNK)
-            .zip(corner_edges.par_chunks_mut(4 * CHUNK))
-            .enumerate()
-            .for_each(|(chunk, (verts, edges))| {
-                let base = chunk * CHUNK;
-                for (i, (qv, qe)) in verts
-                    .chunks_exact_mut(4)
-                    .zip(edges.chunks_exact_mut(4))
-                    .enumerate()
-                {
-                    let c = base + i;
-                    let v = self.corner_verts[c];
-                    let p = self.prev(c);
-                    let e_next = self.corner_edges[c];
-                    let e_prev = self.corner_edges[p];
-                    let f = self.face_of(c) as u32;
-                    qv.copy_from_slice(&[v, nv + e_next, nv + ne + f, nv + e_prev]);
-                    qe.copy_from_slice(&[
+        let mut quad_verts: Vec<[u32; 4]> = with_capacity_hinted(nc);
+        let mut quad_edges: Vec<[u32; 4]> = with_capacity_hinted(nc);
+        (0..nc)
+            .into_par_iter()
+            .with_min_len(CHUNK)
+            .map(|c| {
+                let v = self.corner_verts[c];
+                let p = self.prev(c);
+                let e_next = self.corner_edges[c];
+                let e_prev = self.corner_edges[p];
+                let f = self.face_of(c) as u32;
+                (
+                    [v, nv + e_next, nv + ne + f, nv + e_prev],
+                    [
                         self.child_half(e_next, v),
                         2 * ne + c as u32,
                         2 * ne + p as u32,
                         self.child_half(e_prev, v),
-                    ]);
-                }
-            });
+                    ],
+                )
+            })
+            .unzip_into_vecs(&mut quad_verts, &mut quad_edges);
 
         // Edges: the two halves of every old edge, then one interior edge per old corner.
         let total_edges = 2 * ne as usize + nc;
-        let mut edge_verts = vec![[0u32; 2]; total_edges];
-        let mut edge_corners = vec![[NONE; 2]; total_edges];
-        {
-            let (half_verts, inner_verts) = edge_verts.split_at_mut(2 * ne as usize);
-            let (half_corners, inner_corners) = edge_corners.split_at_mut(2 * ne as usize);
-            half_verts
-                .par_chunks_mut(2 * CHUNK)
-                .zip(half_corners.par_chunks_mut(2 * CHUNK))
-                .enumerate()
-                .for_each(|(chunk, (hv, hc))| {
-                    for (i, (v2, c2)) in hv
-                        .chunks_exact_mut(2)
-                        .zip(hc.chunks_exact_mut(2))
-                        .enumerate()
-                    {
-                        let e = chunk * CHUNK + i;
-                        let [a, b] = self.edge_verts[e];
-                        let mid = nv + e as u32;
-                        v2[0] = [a, mid];
-                        v2[1] = [mid, b];
-                        for (slot, &c) in self.edge_corners[e].iter().enumerate() {
-                            if c == NONE {
-                                continue;
-                            }
+        let mut edge_verts: Vec<[u32; 2]> = with_capacity_hinted(total_edges);
+        let mut edge_corners: Vec<[u32; 2]> = with_capacity_hinted(total_edges);
+        (0..total_edges)
+            .into_par_iter()
+            .with_min_len(CHUNK)
+            .map(|i| {
+                if i < 2 * ne as usize {
+                    let (e, k) = (i >> 1, i & 1);
+                    let [a, b] = self.edge_verts[e];
+                    let mid = nv + e as u32;
+                    let verts = if k == 0 { [a, mid] } else { [mid, b] };
+                    let mut corners = [NONE; 2];
+                    for (slot, &c) in self.edge_corners[e].iter().enumerate() {
+                        if c != NONE {
                             let c = c as usize;
-                            let leaving = 4 * c as u32;
-                            let arriving = 4 * self.next(c) as u32 + 3;
-                            if self.corner_verts[c] == a {
-                                c2[0][slot] = leaving;
-                                c2[1][slot] = arriving;
+                            // The corner leaving `a` starts half 0 and ends half 1.
+                            corners[slot] = if (self.corner_verts[c] == a) == (k == 0) {
+                                4 * c as u32
                             } else {
-                                c2[1][slot] = leaving;
-                                c2[0][slot] = arriving;
-                            }
+                                4 * self.next(c) as u32 + 3
+                            };
                         }
                     }
-                });
-            inner_verts
-                .par_chunks_mut(CHUNK)
-                .zip(inner_corners.par_chunks_mut(CHUNK))
-                .enumerate()
-                .for_each(|(chunk, (iv, ic))| {
-                    for (i, (v2, c2)) in iv.iter_mut().zip(ic.iter_mut()).enumerate() {
-                        let c = chunk * CHUNK + i;
-                        *v2 = [nv + self.corner_edges[c], nv + ne + self.face_of(c) as u32];
-                        *c2 = [4 * c as u32 + 1, 4 * self.next(c) as u32 + 2];
-                    }
-                });
-        }
+                    (verts, corners)
+                } else {
+                    let c = i - 2 * ne as usize;
+                    (
+                        [nv + self.corner_edges[c], nv + ne + self.face_of(c) as u32],
+                        [4 * c as u32 + 1, 4 * self.next(c) as u32 + 2],
+                    )
+                }
+            })
+            .unzip_into_vecs(&mut edge_verts, &mut edge_corners);
 
-        // Vertex -> corners: an old vertex keeps one corner per old corner, an edge point has
-        // two per incident face, a face point one per corner of its face.
-        let count = |w: usize| -> u32 {
-            if w < self.num_vertices {
+        let (offsets, vert_corners) = if vertex_corners {
+            self.child_vertex_corners(new_vertices)
+        } else {
+            (Vec::new(), Vec::new())
+        };
+        Level {
+            num_vertices: new_vertices,
+            face_offsets: Vec::new(),
+            corner_faces: Vec::new(),
+            corner_verts: quad_verts.into_flattened(),
+            corner_edges: quad_edges.into_flattened(),
+            edge_verts,
+            edge_corners,
+            vert_corner_offsets: offsets,
+            vert_corners,
+            lazy_vertex_corners: OnceLock::new(),
+        }
+    }
+
+    /// Vertex -> corners of the child level: an old vertex keeps one corner per old corner, an
+    /// edge point has two per incident face, a face point one per corner of its face.
+    fn child_vertex_corners(&self, new_vertices: usize) -> (Vec<u32>, Vec<u32>) {
+        let (nv, ne) = (self.num_vertices, self.num_edges());
+        let offsets = prefix_offsets(new_vertices, |w| {
+            if w < nv {
                 self.corners_of_vertex(w).len() as u32
-            } else if w < self.num_vertices + ne as usize {
-                let e = w - self.num_vertices;
-                if self.is_boundary_edge(e) {
+            } else if w < nv + ne {
+                if self.is_boundary_edge(w - nv) {
                     2
                 } else {
                     4
                 }
             } else {
-                self.face_corners(w - self.num_vertices - ne as usize).len() as u32
+                self.face_corners(w - nv - ne).len() as u32
             }
-        };
-        let mut offsets = vec![0u32; new_vertices + 1];
-        offsets[1..]
-            .par_iter_mut()
-            .enumerate()
-            .for_each(|(w, o)| *o = count(w));
-        for w in 0..new_vertices {
-            offsets[w + 1] += offsets[w];
-        }
-        let mut vert_corners = vec![0u32; 4 * nc];
+        });
+        let mut vert_corners = zeroed_hinted::<u32>(4 * self.num_corners());
         fill_csr(&offsets, &mut vert_corners, |w, out| {
-            if w < self.num_vertices {
+            if w < nv {
                 for (o, &c) in out.iter_mut().zip(self.corners_of_vertex(w)) {
                     *o = 4 * c;
                 }
-            } else if w < self.num_vertices + ne as usize {
-                let e = w - self.num_vertices;
+            } else if w < nv + ne {
                 let mut k = 0;
-                for &c in &self.edge_corners[e] {
+                for &c in &self.edge_corners[w - nv] {
                     if c != NONE {
                         out[k] = 4 * c + 1;
                         out[k + 1] = 4 * self.next(c as usize) as u32 + 3;
@@ -393,26 +391,124 @@ impl Level {
                     }
                 }
             } else {
-                let f = w - self.num_vertices - ne as usize;
-                for (o, c) in out.iter_mut().zip(self.face_corners(f)) {
+                for (o, c) in out.iter_mut().zip(self.face_corners(w - nv - ne)) {
                     *o = 4 * c as u32 + 2;
                 }
             }
         });
+        (offsets, vert_corners)
+    }
+}
 
-        Level {
-            num_vertices: new_vertices,
-            face_offsets: Vec::new(),
-            corner_faces: Vec::new(),
-            corner_verts,
-            corner_edges,
-            edge_verts,
-            edge_corners,
-            vert_corner_offsets: offsets,
-            vert_corners,
+/// Vertex -> corners by counting sort (corners in increasing order).
+fn vertex_corners(num_vertices: usize, corner_verts: &[u32]) -> (Vec<u32>, Vec<u32>) {
+    let mut offsets = vec![0u32; num_vertices + 1];
+    for &v in corner_verts {
+        offsets[v as usize + 1] += 1;
+    }
+    for v in 0..num_vertices {
+        offsets[v + 1] += offsets[v];
+    }
+    let mut fill = offsets.clone();
+    let mut vert_corners = vec![0u32; corner_verts.len()];
+    for (c, &v) in corner_verts.iter().enumerate() {
+        vert_corners[fill[v as usize] as usize] = c as u32;
+        fill[v as usize] += 1;
+    }
+    (offsets, vert_corners)
+}
+
+/// CSR offsets (length `n + 1`) of items with `count(item)` entries each: counts and the
+/// prefix sum run in fixed chunks in parallel (integer sums, so the order does not matter).
+pub(crate) fn prefix_offsets(n: usize, count: impl Fn(usize) -> u32 + Sync) -> Vec<u32> {
+    let mut offsets = zeroed_hinted::<u32>(n + 1);
+    offsets[1..]
+        .par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(chunk, out)| {
+            let mut sum = 0u32;
+            for (i, o) in out.iter_mut().enumerate() {
+                sum += count(chunk * CHUNK + i);
+                *o = sum;
+            }
+        });
+    // Carry each chunk's total into the following chunks.
+    let chunks = n.div_ceil(CHUNK);
+    let mut carry = Vec::with_capacity(chunks);
+    let mut total = 0u32;
+    for chunk in 0..chunks {
+        carry.push(total);
+        total += offsets[((chunk + 1) * CHUNK).min(n)];
+    }
+    offsets[1..]
+        .par_chunks_mut(CHUNK)
+        .zip(carry)
+        .for_each(|(out, add)| {
+            if add != 0 {
+                for o in out {
+                    *o += add;
+                }
+            }
+        });
+    offsets
+}
+
+/// Allocations from this size on are worth the transparent-huge-page hint.
+const HUGE_HINT_BYTES: usize = 4 << 20;
+
+/// An empty vector with room for `n` items; a large one is advised to use transparent huge
+/// pages, which makes its first touch (the page faults) several times cheaper on Linux.
+pub(crate) fn with_capacity_hinted<T>(n: usize) -> Vec<T> {
+    let v = Vec::with_capacity(n);
+    advise_huge_pages(v.as_ptr() as usize, v.capacity() * std::mem::size_of::<T>());
+    v
+}
+
+/// `out[i] = f(i)` for `i < n`, in parallel chunks, into a hinted allocation.
+pub(crate) fn gather_hinted<V: Send>(n: usize, f: impl Fn(usize) -> V + Sync + Send) -> Vec<V> {
+    let mut v = with_capacity_hinted(n);
+    (0..n)
+        .into_par_iter()
+        .with_min_len(CHUNK)
+        .map(f)
+        .collect_into_vec(&mut v);
+    v
+}
+
+/// `n` zeros (or defaults) in a hinted allocation, written in parallel.
+pub(crate) fn zeroed_hinted<T: Default + Copy + Send + Sync>(n: usize) -> Vec<T> {
+    let mut v = with_capacity_hinted(n);
+    (0..n)
+        .into_par_iter()
+        .with_min_len(4 * CHUNK)
+        .map(|_| T::default())
+        .collect_into_vec(&mut v);
+    v
+}
+
+#[cfg(target_os = "linux")]
+fn advise_huge_pages(start: usize, bytes: usize) {
+    const MADV_HUGEPAGE: i32 = 14;
+    const HUGE: usize = 2 << 20;
+    extern "C" {
+        fn madvise(addr: *mut std::ffi::c_void, len: usize, advice: i32) -> i32;
+    }
+    if bytes < HUGE_HINT_BYTES {
+        return;
+    }
+    let first = (start + HUGE - 1) & !(HUGE - 1);
+    let end = (start + bytes) & !(HUGE - 1);
+    if end > first {
+        // SAFETY: the range lies inside an allocation we own, and MADV_HUGEPAGE is a hint that
+        // changes neither its contents nor its mapping; a failure is harmless and ignored.
+        unsafe {
+            madvise(first as *mut std::ffi::c_void, end - first, MADV_HUGEPAGE);
         }
     }
 }
+
+#[cfg(not(target_os = "linux"))]
+fn advise_huge_pages(_start: usize, _bytes: usize) {}
 
 /// Why a set of polygons is not an oriented 2-manifold along its edges.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
