@@ -3,6 +3,7 @@
 //! refined levels `M_0..M_L`, the curve network of every step (boundaries and creases, their
 //! sharpness schedule, corners) and the output mesh.
 
+use crate::classic::{Catmark, Creasing};
 use crate::error::{Error, Result};
 use crate::mesh::Cage;
 use crate::output::OutputMesh;
@@ -31,6 +32,18 @@ pub enum Boundary {
     EdgeAndCorner,
 }
 
+/// Which rules refine the levels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Rules {
+    /// Repeated averaging (Zorin-Schröder), any degree.
+    #[default]
+    Averaging,
+    /// Classic rule sets (degrees 1 to 3): degree 3 Catmull-Clark exactly as OpenSubdiv's
+    /// `catmark`, degree 2 the original Doo-Sabin weights, degree 1 bilinear (see
+    /// [`crate::classic`]).
+    Classic,
+}
+
 /// Options of a subdivision request.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Options {
@@ -45,6 +58,10 @@ pub struct Options {
     pub boundary: Boundary,
     /// Largest memory, in bytes, a request may need (estimated before any work).
     pub memory_budget: u64,
+    /// Averaging or classic rules.
+    pub rules: Rules,
+    /// How semi-sharp creases decrease with classic degree-3 rules (uniform or Chaikin).
+    pub creasing: Creasing,
 }
 
 impl Default for Options {
@@ -55,6 +72,8 @@ impl Default for Options {
             output: OutputKind::Primal,
             boundary: Boundary::EdgeOnly,
             memory_budget: DEFAULT_MEMORY_BUDGET,
+            rules: Rules::Averaging,
+            creasing: Creasing::Uniform,
         }
     }
 }
@@ -112,6 +131,7 @@ pub struct Plan {
     vertex_map: Option<Vec<u32>>,
     levels: Vec<Level>,
     steps: Vec<Step>,
+    catmark: Option<Catmark>,
     output: OutputMesh,
 }
 
@@ -121,6 +141,12 @@ fn check_options(options: &Options) -> Result<()> {
             degree: options.degree as i64,
             max: MAX_DEGREE,
         });
+    }
+    if options.rules == Rules::Classic && options.degree > 3 {
+        return Err(Error::InvalidInput(format!(
+            "classic rules exist for degrees 1 to 3, not {}",
+            options.degree
+        )));
     }
     if options.levels > MAX_LEVELS {
         return Err(Error::LevelOutOfRange {
@@ -271,6 +297,8 @@ impl Plan {
             parents = next;
         }
 
+        let catmark = (options.rules == Rules::Classic && options.degree == 3)
+            .then(|| Catmark::new(&levels, &sharpness, &tags, options.creasing));
         let mut plan = Plan {
             options: *options,
             num_input_vertices: n,
@@ -278,6 +306,7 @@ impl Plan {
             vertex_map,
             levels,
             steps,
+            catmark,
             output: OutputMesh::default(),
         };
         plan.output = OutputMesh::build(&plan)?;
@@ -307,6 +336,11 @@ impl Plan {
     /// The curve network of each step.
     pub fn steps(&self) -> &[Step] {
         &self.steps
+    }
+
+    /// The classic Catmull-Clark sharpness and rules (classic rules at degree 3).
+    pub fn catmark(&self) -> Option<&Catmark> {
+        self.catmark.as_ref()
     }
 
     /// Map from the plan's vertex ids to the cage's (when isolated vertices were dropped).
