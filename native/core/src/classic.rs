@@ -508,7 +508,11 @@ impl Catmark {
     /// `1/(k(k+5))` on the opposite corners, `4/(k(k+5))` on the edge neighbours, crease
     /// `(1/6, 2/3, 1/6)` along the crease, corners interpolated (OpenSubdiv's limit masks; at a
     /// level where a semi-sharp feature is still sharp, its current rule is used as OpenSubdiv's
-    /// `PrimvarRefiner::Limit` does).
+    /// `PrimvarRefiner::Limit` does). An interior vertex of valence 2 takes the general smooth
+    /// mask (its true limit, which Blender's limit surface gives), where Sdc's limit mask would
+    /// keep the vertex itself. At an infinitely sharp dart the smooth mask is not the limit
+    /// (Sdc uses it anyway; Blender's limit surface is the true limit): there the mask is the
+    /// dominant left eigenvector of the dart's 1-ring subdivision matrix ([`dart_limit_mask`]).
     pub fn limit<T: Scalar, const N: usize>(
         &self,
         j: usize,
@@ -518,12 +522,15 @@ impl Catmark {
         assert!(level.is_quads(), "limit positions need a quad level");
         let this = &self.levels[j];
         gather(level.num_vertices, |v| match this.rule(v) {
+            Rule::Dart
+                if vertex_edges(level, v).any(|e| this.edge(e as usize) >= SHARPNESS_INFINITE) =>
+            {
+                // A dart for good (a semi-sharp dart becomes smooth later: smooth mask).
+                dart_limit(level, this, v, values)
+            }
             Rule::Smooth | Rule::Dart => {
                 let corners = level.corners_of_vertex(v);
                 let k = corners.len();
-                if k == 2 {
-                    return values[v];
-                }
                 let (fw, ew, vw) = if k == 4 {
                     (1.0 / 36.0, 1.0 / 9.0, 4.0 / 9.0)
                 } else {
@@ -561,6 +568,111 @@ impl Catmark {
             Rule::Corner => values[v],
         })
     }
+}
+
+/// The limit of an infinitely sharp dart `v` of a quad level from its 1-ring.
+fn dart_limit<T: Scalar, const N: usize>(
+    level: &Level,
+    this: &LevelSharpness,
+    v: usize,
+    values: &[[T; N]],
+) -> [T; N] {
+    // The ring in rotation order: corner c_i has edge neighbour e_i = next(c_i), opposite
+    // f_i = next(next(c_i)), and face i is (v, e_i, f_i, e_{i+1}).
+    let k = level.corners_of_vertex(v).len();
+    let mut ring = Vec::with_capacity(k);
+    let mut at = level.corners_of_vertex(v)[0] as usize;
+    for _ in 0..k {
+        ring.push(at);
+        let p = level.prev(at);
+        let [x, y] = level.edge_corners[level.corner_edges[p] as usize];
+        at = if x as usize == p { y } else { x } as usize;
+        if at == NONE as usize {
+            // Not a closed ring (cannot happen for a dart): keep the vertex.
+            return values[v];
+        }
+    }
+    let sharp = ring
+        .iter()
+        .position(|&c| is_sharp(this.edge(level.corner_edges[c] as usize)))
+        .unwrap_or(0);
+    let mask = dart_limit_mask(k, sharp);
+    let mut out = scale(values[v], T::from_f64(mask[0]));
+    for (i, &c) in ring.iter().enumerate() {
+        let n = level.next(c);
+        out = mad(
+            out,
+            T::from_f64(mask[1 + i]),
+            values[level.corner_verts[n] as usize],
+        );
+        out = mad(
+            out,
+            T::from_f64(mask[1 + k + i]),
+            values[level.corner_verts[level.next(n)] as usize],
+        );
+    }
+    out
+}
+
+/// Limit mask of an infinitely sharp dart of valence `k` whose sharp edge is edge `sharp` of
+/// its 1-ring: weights on `(v, e_0..e_{k-1}, f_0..f_{k-1})` (edge neighbours and opposite
+/// corners, face `i` being `(v, e_i, f_i, e_{i+1})`), the left eigenvector of eigenvalue 1 of
+/// the 1-ring's Catmull-Clark matrix (smooth vertex rule, midpoint on the sharp edge), found
+/// by power iteration from the smooth limit mask.
+pub fn dart_limit_mask(k: usize, sharp: usize) -> Vec<f64> {
+    let n = 2 * k + 1;
+    let kf = k as f64;
+    // Rows of S: new ring values from old ones.
+    let mut s = vec![0.0f64; n * n];
+    let face = |s: &mut [f64], row: usize, i: usize, w: f64| {
+        // w * F_i, F_i = (v + e_i + f_i + e_{i+1}) / 4.
+        for col in [0, 1 + i, 1 + k + i, 1 + (i + 1) % k] {
+            s[row * n + col] += w / 4.0;
+        }
+    };
+    s[0] = (kf - 2.0) / kf;
+    for i in 0..k {
+        s[1 + i] += 1.0 / (kf * kf);
+        face(&mut s, 0, i, 1.0 / (kf * kf));
+        let row = 1 + i;
+        if i == sharp {
+            s[row * n] += 0.5;
+            s[row * n + 1 + i] += 0.5;
+        } else {
+            s[row * n] += 0.25;
+            s[row * n + 1 + i] += 0.25;
+            face(&mut s, row, (i + k - 1) % k, 0.25);
+            face(&mut s, row, i, 0.25);
+        }
+        face(&mut s, 1 + k + i, i, 1.0);
+    }
+    let f = 1.0 / (kf * (kf + 5.0));
+    let mut l = vec![0.0f64; n];
+    l[0] = 1.0 - kf * 5.0 * f;
+    l[1..=k].fill(4.0 * f);
+    l[k + 1..].fill(f);
+    let mut next = vec![0.0f64; n];
+    for _ in 0..500 {
+        next.fill(0.0);
+        for row in 0..n {
+            for col in 0..n {
+                next[col] += l[row] * s[row * n + col];
+            }
+        }
+        let sum: f64 = next.iter().sum();
+        let change = next
+            .iter()
+            .zip(&l)
+            .map(|(a, b)| (a / sum - b).abs())
+            .fold(0.0, f64::max);
+        for (a, b) in l.iter_mut().zip(&next) {
+            *a = b / sum;
+        }
+        if change < 1e-16 {
+            break;
+        }
+    }
+    l
 }
 
 /// The smooth vertex mask `(k-2)/k v + 1/k^2 sum e_i + 1/k^2 sum f_i` (interior vertex of `k`

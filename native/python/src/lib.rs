@@ -10,7 +10,9 @@
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
 
+use bidegree::classic::Creasing;
 use bidegree::io::{self, ObjMesh};
+use bidegree::plan::Rules;
 use bidegree::{
     Boundary, Cage, Error, Options, OutputKind, Plan, Scalar, DEFAULT_MEMORY_BUDGET, MAX_DEGREE,
     MAX_LEVELS,
@@ -270,6 +272,28 @@ fn output_name(output: OutputKind) -> &'static str {
     }
 }
 
+fn parse_rules(rules: &str, creasing: &str) -> bidegree::Result<(Rules, Creasing)> {
+    let rules = match rules {
+        "averaging" => Rules::Averaging,
+        "classic" => Rules::Classic,
+        other => {
+            return Err(Error::InvalidInput(format!(
+                "rules must be 'averaging' or 'classic', not {other:?}"
+            )))
+        }
+    };
+    let creasing = match creasing {
+        "uniform" => Creasing::Uniform,
+        "chaikin" => Creasing::Chaikin,
+        other => {
+            return Err(Error::InvalidInput(format!(
+                "creasing must be 'uniform' or 'chaikin', not {other:?}"
+            )))
+        }
+    };
+    Ok((rules, creasing))
+}
+
 fn boundary_name(boundary: Boundary) -> &'static str {
     match boundary {
         Boundary::EdgeOnly => "edge-only",
@@ -285,7 +309,10 @@ fn options(
     output: &str,
     boundary: &str,
     memory_budget: Option<u64>,
+    rules: &str,
+    creasing: &str,
 ) -> bidegree::Result<Options> {
+    let (rules, creasing) = parse_rules(rules, creasing)?;
     let degree = u32::try_from(degree).map_err(|_| Error::DegreeOutOfRange {
         degree,
         max: MAX_DEGREE,
@@ -300,6 +327,8 @@ fn options(
         output: parse_output(output)?,
         boundary: parse_boundary(boundary)?,
         memory_budget: memory_budget.unwrap_or(DEFAULT_MEMORY_BUDGET),
+        rules,
+        creasing,
     })
 }
 
@@ -427,7 +456,8 @@ impl PyPlan {
 impl PyPlan {
     /// Builds the plan (topology only; the memory budget is checked first).
     #[new]
-    #[pyo3(signature = (cage, degree, levels, output, boundary, memory_budget=None))]
+    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (cage, degree, levels, output, boundary, memory_budget=None, rules="averaging", creasing="uniform"))]
     fn new(
         py: Python<'_>,
         cage: &Bound<'_, PyCage>,
@@ -436,12 +466,22 @@ impl PyPlan {
         output: &str,
         boundary: &str,
         memory_budget: Option<u64>,
+        rules: &str,
+        creasing: &str,
     ) -> PyResult<Self> {
         let cage = &cage.get().inner;
         let inner = run(py, || {
             Plan::new(
                 cage,
-                &options(degree, levels, output, boundary, memory_budget)?,
+                &options(
+                    degree,
+                    levels,
+                    output,
+                    boundary,
+                    memory_budget,
+                    rules,
+                    creasing,
+                )?,
             )
         })?;
         Ok(PyPlan { inner })
@@ -457,6 +497,43 @@ impl PyPlan {
             Floats::F32(a) => Ok(evaluate(py, &self.inner, &a, false)?.into_any()),
             Floats::F64(a) => Ok(evaluate(py, &self.inner, &a, false)?.into_any()),
         }
+    }
+
+    /// Classic degree-3 rules: limit positions `(N, C)` at the output vertices (the first ones
+    /// are the cage vertices' limits), from per cage vertex values `(V, C)`.
+    fn limit_positions<'py>(
+        &self,
+        py: Python<'py>,
+        values: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        fn limit<'py, T: Scalar + Element>(
+            py: Python<'py>,
+            plan: &Plan,
+            values: &PyReadonlyArray2<'_, T>,
+        ) -> PyResult<Bound<'py, PyArray2<T>>> {
+            let channels = values.shape()[1];
+            let data = slice2(values, "values")?;
+            let out = run(py, || {
+                if channels == 0 {
+                    return Err(invalid("values need at least one channel"));
+                }
+                plan.limit_positions(data, channels)
+            })?;
+            array2(py, out, channels)
+        }
+        match floats(values, "values")? {
+            Floats::F32(a) => Ok(limit(py, &self.inner, &a)?.into_any()),
+            Floats::F64(a) => Ok(limit(py, &self.inner, &a)?.into_any()),
+        }
+    }
+
+    /// `"averaging"` or `"classic"`.
+    #[getter]
+    fn rules(&self, py: Python<'_>) -> PyResult<&'static str> {
+        guard(py, || match self.inner.options().rules {
+            Rules::Averaging => "averaging",
+            Rules::Classic => "classic",
+        })
     }
 
     /// Per cage face corner values `(corners, C)` -> per output face corner values, linearly.
@@ -624,7 +701,7 @@ fn evaluate_fresh<'py, T: Scalar + Element>(
 /// Validates the geometry, builds the plan and evaluates the points in one call.
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (cage, points, degree, levels, output, boundary, memory_budget=None))]
+#[pyo3(signature = (cage, points, degree, levels, output, boundary, memory_budget=None, rules="averaging", creasing="uniform"))]
 fn subdivide<'py>(
     py: Python<'py>,
     cage: &Bound<'py, PyCage>,
@@ -634,10 +711,20 @@ fn subdivide<'py>(
     output: &str,
     boundary: &str,
     memory_budget: Option<u64>,
+    rules: &str,
+    creasing: &str,
 ) -> PyResult<(PyPlan, Bound<'py, PyAny>)> {
     let cage = &cage.get().inner;
-    let options =
-        options(degree, levels, output, boundary, memory_budget).map_err(|e| to_py_err(py, e))?;
+    let options = options(
+        degree,
+        levels,
+        output,
+        boundary,
+        memory_budget,
+        rules,
+        creasing,
+    )
+    .map_err(|e| to_py_err(py, e))?;
     match floats(points, "points")? {
         Floats::F32(a) => evaluate_fresh(py, cage, &a, options),
         Floats::F64(a) => evaluate_fresh(py, cage, &a, options),
@@ -659,7 +746,15 @@ fn estimate(
     let estimate = run(py, || {
         bidegree::estimate(
             cage,
-            &options(degree, levels, output, boundary, Some(u64::MAX))?,
+            &options(
+                degree,
+                levels,
+                output,
+                boundary,
+                Some(u64::MAX),
+                "averaging",
+                "uniform",
+            )?,
         )
     })?;
     Ok((estimate.vertices, estimate.faces, estimate.bytes))

@@ -94,10 +94,14 @@ INFINITELY_SHARP: float = _native.INFINITELY_SHARP
 
 Output = Literal["primal", "dual"]
 Boundary = Literal["edge-only", "edge-and-corner"]
+Rules = Literal["averaging", "classic"]
+Creasing = Literal["uniform", "chaikin"]
 FloatArray = NDArray[np.float32] | NDArray[np.float64]
 
 _OUTPUTS = ("primal", "dual")
 _BOUNDARIES = ("edge-only", "edge-and-corner")
+_RULES = ("averaging", "classic")
+_CREASING = ("uniform", "chaikin")
 _INT64_MIN, _INT64_MAX = -(2**63), 2**63 - 1
 
 
@@ -506,6 +510,10 @@ class Plan:
         levels: refinement levels, ``0..=MAX_LEVELS``; each multiplies the face count by ~4.
         output: ``"primal"`` (the drawing mesh) or ``"dual"`` (the true dual mesh).
         memory_budget: refuse requests estimated to need more bytes (default 4 GiB).
+        rules: ``"averaging"`` (repeated averaging, any degree) or ``"classic"`` (degrees 1..3:
+            3 is Catmull-Clark exactly as OpenSubdiv's catmark, 2 the original Doo-Sabin).
+        creasing: ``"uniform"`` or ``"chaikin"``: how classic degree-3 semi-sharp creases
+            decrease from level to level (OpenSubdiv's creasing method; Blender uses uniform).
 
     Raises:
         NonManifoldEdgeError, InconsistentOrientationError, CreaseNotAnEdgeError: bad topology.
@@ -525,6 +533,8 @@ class Plan:
         levels: int = 2,
         output: Output = "primal",
         memory_budget: int | None = None,
+        rules: Rules = "averaging",
+        creasing: Creasing = "uniform",
     ) -> None:
         if not isinstance(mesh, Mesh):
             raise InvalidInputError(f"mesh must be a bidegree.Mesh, not {type(mesh).__name__}")
@@ -535,6 +545,8 @@ class Plan:
             _choice(output, _OUTPUTS, "output"),
             mesh.boundary,
             _budget(memory_budget),
+            _choice(rules, _RULES, "rules"),
+            _choice(creasing, _CREASING, "creasing"),
         )
         self._init(mesh, native)
         _warn_isolated(self.isolated_vertices, stacklevel=2)
@@ -556,6 +568,18 @@ class Plan:
         """
         values, flat = _values_2d(points, self._mesh.num_vertices, "points", "vertices")
         out = self._native_plan.evaluate(values)
+        return out.reshape(-1) if flat else out
+
+    def limit_positions(self, points: ArrayLike | None = None) -> FloatArray:
+        """Limit positions at the output vertices (classic rules, degree 3, primal output,
+        ``levels >= 1``): (V, C) -> (N, C); the first V' rows (V' cage vertices in faces) are the
+        limits of the cage vertices. Default: the cage's own points."""
+        if points is None:
+            values: FloatArray = self._mesh.points
+            flat = False
+        else:
+            values, flat = _values_2d(points, self._mesh.num_vertices, "points", "vertices")
+        out = self._native_plan.limit_positions(values)
         return out.reshape(-1) if flat else out
 
     def evaluate_face_varying(self, values: ArrayLike) -> FloatArray:
@@ -600,6 +624,11 @@ class Plan:
     def boundary(self) -> Boundary:
         """``"edge-only"`` or ``"edge-and-corner"`` (from the mesh)."""
         return self._native_plan.boundary  # type: ignore[no-any-return]
+
+    @property
+    def rules(self) -> Rules:
+        """``"averaging"`` or ``"classic"``."""
+        return self._native_plan.rules  # type: ignore[no-any-return]
 
     @property
     def num_output_vertices(self) -> int:
@@ -752,6 +781,8 @@ def subdivide(
     levels: int = 2,
     output: Output = "primal",
     memory_budget: int | None = None,
+    rules: Rules = "averaging",
+    creasing: Creasing = "uniform",
 ) -> Result:
     """Subdivides ``mesh``: validates its geometry (finite points, no zero-area face), builds
     the plan and evaluates it, in one call into the core. Options as in :class:`Plan`; the
@@ -775,6 +806,8 @@ def subdivide(
         _choice(output, _OUTPUTS, "output"),
         mesh.boundary,
         _budget(memory_budget),
+        _choice(rules, _RULES, "rules"),
+        _choice(creasing, _CREASING, "creasing"),
     )
     plan = Plan._wrap(mesh, native)
     _warn_isolated(plan.isolated_vertices, stacklevel=2)

@@ -47,8 +47,11 @@ class Plan:
         output: str,
         boundary: str,
         memory_budget: int | None = None,
+        rules: str = "averaging",
+        creasing: str = "uniform",
     ) -> None: ...
     def evaluate(self, values: _Float) -> Any: ...
+    def limit_positions(self, values: _Float) -> Any: ...
     def evaluate_face_varying(self, values: _Float) -> Any: ...
     @property
     def degree(self) -> int: ...
@@ -58,6 +61,8 @@ class Plan:
     def output(self) -> _Output: ...
     @property
     def boundary(self) -> _Boundary: ...
+    @property
+    def rules(self) -> str: ...
     @property
     def memory_budget(self) -> int: ...
     @property
@@ -96,6 +101,8 @@ def subdivide(
     output: str,
     boundary: str,
     memory_budget: int | None = None,
+    rules: str = "averaging",
+    creasing: str = "uniform",
 ) -> tuple[Plan, Any]: ...
 def estimate(
     cage: Cage, degree: int, levels: int, output: str = "primal", boundary: str = "edge-only"
@@ -109,3 +116,17 @@ def write_obj(
     uvs: _Float | None = None,
 ) -> None: ...
 def _panic_for_tests() -> None: ...
+
+# Analysis (the paper's §4): subdivision matrix, Fourier blocks, C1 report.
+def analyze(degree: int, valence: int, steps: int = 4) -> dict[str, Any]:
+    """Subdivision matrix (``matrix``, ``labels``), spectrum (``eigenvalues`` complex, ``modes``),
+    Fourier ``blocks`` and ``block_eigenvalues``; with ``steps > 0`` also the report (``text``,
+    ``c1``, ``dominant``, ``subdominant``, ``third``, ``jacobian_min``/``max``, ``winding``, ...)
+    and the characteristic map (``map_points`` (k, rows, columns, 2), ``map_params``,
+    ``map_cell_jacobian``, ``map_in_ring``, ``map_spacing``, ``map_steps``)."""
+
+def basis_function(
+    degree: int, valence: int, steps: int = 3, label: tuple[int, int, int] = (0, 0, 0)
+) -> dict[str, Any]:
+    """A level-1 unit impulse refined by ``steps`` engine steps: ``params`` (rows, columns, 2),
+    ``values`` (k, rows, columns), ``spacing``, ``primal``."""

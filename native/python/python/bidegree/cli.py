@@ -90,6 +90,12 @@ def _add_subdivide(parser: argparse.ArgumentParser) -> None:
         help="boundary rule (default: the OBJ's 't interpolateboundary' tag, else edge-only)",
     )
     parser.add_argument(
+        "--rules",
+        choices=("averaging", "classic"),
+        default="averaging",
+        help="averaging (default, any degree) or classic (3: OpenSubdiv catmark, 2: Doo-Sabin)",
+    )
+    parser.add_argument(
         "--memory-budget",
         type=parse_size,
         default=None,
@@ -133,6 +139,7 @@ def _run_subdivide(args: argparse.Namespace) -> int:
             levels=args.levels,
             output=args.output,
             memory_budget=args.memory_budget,
+            rules=args.rules,
         )
     subdivide_time = time.perf_counter() - start
     for warning in caught:
