@@ -130,17 +130,3 @@ def basis_function(
 ) -> dict[str, Any]:
     """A level-1 unit impulse refined by ``steps`` engine steps: ``params`` (rows, columns, 2),
     ``values`` (k, rows, columns), ``spacing``, ``primal``."""
-
-# Analysis (the paper's §4): subdivision matrix, Fourier blocks, C1 report.
-def analyze(degree: int, valence: int, steps: int = 4) -> dict[str, Any]:
-    """Subdivision matrix (``matrix``, ``labels``), spectrum (``eigenvalues`` complex, ``modes``),
-    Fourier ``blocks`` and ``block_eigenvalues``; with ``steps > 0`` also the report (``text``,
-    ``c1``, ``dominant``, ``subdominant``, ``third``, ``jacobian_min``/``max``, ``winding``, ...)
-    and the characteristic map (``map_points`` (k, rows, columns, 2), ``map_params``,
-    ``map_cell_jacobian``, ``map_in_ring``, ``map_spacing``, ``map_steps``)."""
-
-def basis_function(
-    degree: int, valence: int, steps: int = 3, label: tuple[int, int, int] = (0, 0, 0)
-) -> dict[str, Any]:
-    """A level-1 unit impulse refined by ``steps`` engine steps: ``params`` (rows, columns, 2),
-    ``values`` (k, rows, columns), ``spacing``, ``primal``."""
