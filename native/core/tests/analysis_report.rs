@@ -192,3 +192,29 @@ fn degrees_two_to_nine_are_c1() {
     println!("degree valence lambda1 |lambda3| J_min J_max\n{table}");
     println!("took {:?}", started.elapsed());
 }
+
+/// The refined net is the characteristic map: one more engine step scales it by `lambda1`
+/// (`Phi(y / 2) = lambda1 Phi(y)`: the same grid index one level finer is half the parameter).
+#[test]
+fn the_characteristic_map_scales_by_the_subdominant_eigenvalue() {
+    use bidegree::analysis::characteristic_map;
+    for (degree, k) in [(2, 7), (3, 5), (4, 3), (7, 9)] {
+        let coarse = characteristic_map(degree, k, 3).unwrap();
+        let fine = characteristic_map(degree, k, 4).unwrap();
+        let lambda = coarse.lambda;
+        assert!((fine.lambda - lambda).abs() < 1e-14);
+        let mut worst: f64 = 0.0;
+        for s in 0..k {
+            for r in 0..coarse.rows {
+                for c in 0..coarse.columns {
+                    let a = coarse.points[s][r * coarse.columns + c];
+                    let b = fine.points[s][r * fine.columns + c];
+                    worst = worst.max((b[0] - lambda * a[0]).hypot(b[1] - lambda * a[1]));
+                }
+            }
+        }
+        assert!(worst < 1e-12, "degree {degree} k {k}: {worst}");
+        // Normalised: the first level-1 point at distance one.
+        assert!(coarse.jacobian_min > 0.0 && coarse.winding == 1);
+    }
+}
