@@ -522,7 +522,7 @@ impl Plan {
         }
         // More channels: four at a time, padded.
         let items = values.len() / channels;
-        let mut out = vec![T::default(); 0];
+        let mut out: Vec<T> = Vec::new();
         for first in (0..channels).step_by(4) {
             let width = (channels - first).min(4);
             let group: Vec<T> = (0..items)
