@@ -601,7 +601,7 @@ impl std::fmt::Display for Report {
             if self.c2_excluded {
                 "no"
             } else {
-                "not excluded"
+                "not excluded by this test"
             },
             self.third.norm(),
             if self.c2_excluded { ">" } else { "<=" },

@@ -255,7 +255,14 @@ def plot_characteristic_map(path: str, result: dict[str, Any], plt: Any) -> None
     cells = PolyCollection(quads, array=np.array(colors), cmap="viridis", edgecolors="white")
     cells.set_linewidth(0.4)
     ax.add_collection(cells)
-    fig.colorbar(cells, ax=ax, shrink=0.8, label="Jacobian (smallest corner value per cell)")
+    fig.colorbar(
+        cells,
+        ax=ax,
+        orientation="horizontal",
+        shrink=0.7,
+        pad=0.1,
+        label="Jacobian (smallest corner value per cell)",
+    )
     ax.plot([0], [0], "k+", ms=12, mew=1.5)
     ax.autoscale_view()
     ax.set_aspect("equal")
@@ -300,7 +307,12 @@ def plot_jacobian(path: str, result: dict[str, Any], sweep: list[dict[str, Any]]
     ax.plot(ks, lo, "-o", ms=3, color="tab:green", label="smallest")
     ax.axhline(0, color="0.3", lw=0.8)
     if min(lo) > 0:
+        from matplotlib.ticker import FuncFormatter
+
         ax.set_yscale("log")
+        plain = FuncFormatter(lambda y, _: f"{y:g}")
+        ax.yaxis.set_major_formatter(plain)
+        ax.yaxis.set_minor_formatter(plain)
     else:
         ax.set_yscale("symlog", linthresh=0.05)
     ax.set_xlabel("valence k")
