@@ -470,6 +470,25 @@ fn limit_positions() {
     for i in 0..3 * 9 {
         assert!((one[i] - three[i]).abs() < 1e-12);
     }
+    // An infinitely sharp dart (one sharp edge into a bipyramid apex): its limit mask is the
+    // left eigenvector of the 1-ring matrix, so again a fixed point of refinement, and it differs
+    // from the smooth mask.
+    let dart = b.clone().with_creases(&[(0, 2, 10.0)]).unwrap();
+    let one = Plan::new(&dart, &classic(3, 1))
+        .unwrap()
+        .limit_positions(&bf, 3)
+        .unwrap();
+    let three = Plan::new(&dart, &classic(3, 3))
+        .unwrap()
+        .limit_positions(&bf, 3)
+        .unwrap();
+    for i in 0..3 * 9 {
+        assert!((one[i] - three[i]).abs() < 1e-12, "{i}");
+    }
+    let mask = bidegree::classic::dart_limit_mask(7, 0);
+    assert!((mask.iter().sum::<f64>() - 1.0).abs() < 1e-14);
+    let f = 1.0 / (7.0 * 12.0);
+    assert!((mask[0] - (1.0 - 35.0 * f)).abs() > 1e-3);
     let averaging = Plan::new(
         &b,
         &Options {
