@@ -218,3 +218,16 @@ fn the_characteristic_map_scales_by_the_subdominant_eigenvalue() {
         assert!(coarse.jacobian_min > 0.0 && coarse.winding == 1);
     }
 }
+
+/// Larger valences (about 35 s in release mode, so not run by default:
+/// `cargo test --release --test analysis_report -- --ignored`).
+#[test]
+#[ignore]
+fn degrees_two_to_nine_are_c1_at_large_valences() {
+    for k in [20, 30, 40] {
+        for degree in 2..=9 {
+            let r = subdivision_matrix(degree, k).unwrap().report(4).unwrap();
+            assert!(r.c1 && r.c2_excluded, "degree {degree} k {k}:\n{r}");
+        }
+    }
+}
