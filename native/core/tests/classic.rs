@@ -501,3 +501,66 @@ fn limit_positions() {
     assert!(averaging.limit_positions(&bf, 3).is_err());
     assert!(Plan::new(&b, &classic(4, 1)).is_err());
 }
+
+#[test]
+fn doo_sabin_keeps_the_averaging_boundary_and_outputs_work() {
+    // An open disk around a valence-5 vertex: classic degree 2 replaces the faces around
+    // interior vertices only; at boundary vertices (curve vertices) it keeps the averaging
+    // scheme's values, so the boundary curve is the same.
+    let (disk, mut flat) = common::polar_grid(5, 3);
+    let mut r = Random(5);
+    for z in flat.iter_mut().skip(2).step_by(3) {
+        *z = 0.3 * r.next();
+    }
+    // The first step starts from primal data (the cage's quads, where the Doo-Sabin weights are
+    // the averaging ones); the second is dual, around the vertices of M_1.
+    let options = |rules| Options {
+        degree: 2,
+        levels: 2,
+        output: OutputKind::Dual,
+        rules,
+        ..Options::default()
+    };
+    let a = Plan::new(&disk, &options(Rules::Averaging)).unwrap();
+    let b = Plan::new(&disk, &options(Rules::Classic)).unwrap();
+    let (pa, pb) = (
+        pts(&a.evaluate(&flat, 3).unwrap()),
+        pts(&b.evaluate(&flat, 3).unwrap()),
+    );
+    assert_eq!(pa.len(), pb.len());
+    let l0 = &a.levels()[1];
+    let step = &a.steps()[1];
+    let on_curve = |v: u32| step.curve_vertices.iter().any(|cv| cv.vertex == v);
+    let mut differ = 0;
+    for c in 0..l0.num_corners() {
+        if on_curve(l0.corner_verts[c]) {
+            assert!(close(pa[c], pb[c]), "corner {c} at a boundary vertex");
+        } else if !close(pa[c], pb[c]) {
+            differ += 1;
+        }
+    }
+    // Only the five corners at the valence-5 vertex change.
+    assert_eq!(differ, 5);
+    // The boundary points of the dual mesh are the same.
+    assert!(pa[l0.num_corners()..]
+        .iter()
+        .zip(&pb[l0.num_corners()..])
+        .all(|(x, y)| close(*x, *y)));
+    // Classic degree 3 with the dual output and degree 2 with the drawing mesh run too.
+    for (degree, output) in [(3, OutputKind::Dual), (2, OutputKind::Primal)] {
+        let plan = Plan::new(
+            &disk,
+            &Options {
+                degree,
+                levels: 2,
+                output,
+                rules: Rules::Classic,
+                ..Options::default()
+            },
+        )
+        .unwrap();
+        let out = plan.evaluate(&flat, 3).unwrap();
+        assert_eq!(out.len(), 3 * plan.num_output_vertices());
+        assert!(out.iter().all(|x| x.is_finite()));
+    }
+}
