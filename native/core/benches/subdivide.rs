@@ -106,6 +106,17 @@ fn main() {
         let fresh = best_of(3, || {
             black_box(subdivide(&cage, &points, 3, &options).unwrap());
         });
+        // BIDEGREE_BENCH_LOOP=n: only n cached evaluations (for profiling them).
+        if let Some(n) = std::env::var("BIDEGREE_BENCH_LOOP")
+            .ok()
+            .and_then(|s| s.parse::<usize>().ok())
+        {
+            let moved: Vec<f32> = points.iter().map(|x| x * 1.01).collect();
+            for _ in 0..n {
+                black_box(plan.evaluate(&moved, 3).unwrap());
+            }
+            continue;
+        }
         let build = best_of(3, || {
             black_box(Plan::new(&cage, &options).unwrap());
         });

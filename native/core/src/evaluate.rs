@@ -4,9 +4,11 @@
 //! Every pass is a parallel gather in a fixed order, so the output is bitwise the same whatever
 //! the number of threads.
 
+use std::any::Any;
 use std::borrow::Cow;
 use std::fmt::Debug;
 use std::ops::{Add, Mul};
+use std::sync::Mutex;
 
 use rayon::prelude::*;
 
@@ -15,7 +17,7 @@ use crate::error::Error;
 use crate::error::Result;
 use crate::mesh::check_values;
 use crate::plan::{CurveVertex, Plan, Rules, Step};
-use crate::topology::{Level, CHUNK, NONE};
+use crate::topology::{with_capacity_hinted, Level, CHUNK, NONE};
 
 /// Floating-point types that points and attributes can be given in: `f32` and `f64`.
 pub trait Scalar:
@@ -98,6 +100,55 @@ enum CurveData<T: Scalar, const N: usize> {
     Dual(Vec<Value<T, N>>),
 }
 
+/// Buffers that evaluations through a plan leave behind for the next ones (so that a cached
+/// re-evaluation does not pay page faults for its intermediate data): a few vectors of any
+/// value type, behind a mutex that is held only to take or give one.
+#[derive(Default)]
+pub(crate) struct Scratch(Mutex<Vec<Box<dyn Any + Send>>>);
+
+/// Buffers kept at most (the oldest go first).
+const SCRATCH_BUFFERS: usize = 2;
+
+impl Debug for Scratch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Scratch")
+    }
+}
+
+impl Scratch {
+    /// An empty vector with room for `capacity` items: a kept one if it is large enough.
+    fn take<V: Send + 'static>(&self, capacity: usize) -> Vec<V> {
+        let kept = {
+            let mut pool = self.0.lock().unwrap_or_else(|e| e.into_inner());
+            pool.iter()
+                .position(|b| {
+                    b.downcast_ref::<Vec<V>>()
+                        .is_some_and(|v| v.capacity() >= capacity)
+                })
+                .map(|i| pool.remove(i))
+        };
+        match kept.and_then(|b| b.downcast::<Vec<V>>().ok()) {
+            Some(mut v) => {
+                v.clear();
+                *v
+            }
+            None => with_capacity_hinted(capacity),
+        }
+    }
+
+    /// Keeps `v` for later evaluations.
+    fn give<V: Send + 'static>(&self, v: Vec<V>) {
+        if v.capacity() == 0 {
+            return;
+        }
+        let mut pool = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        if pool.len() >= SCRATCH_BUFFERS {
+            pool.remove(0);
+        }
+        pool.push(Box::new(v));
+    }
+}
+
 /// The state of one evaluation while it runs through the levels. Two buffers carry the 2-D
 /// data (per vertex and per face of the current level) and are reused from pass to pass.
 struct Run<'a, T: Scalar, const N: usize> {
@@ -109,6 +160,8 @@ struct Run<'a, T: Scalar, const N: usize> {
     faces: Vec<Value<T, N>>,
     primal: bool,
     curve: CurveData<T, N>,
+    /// Where new buffers come from (with room for the largest level), when given.
+    scratch: Option<(&'a Scratch, usize)>,
 }
 
 impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
@@ -119,6 +172,15 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
             faces: Vec::new(),
             primal: true,
             curve: CurveData::Cage,
+            scratch: None,
+        }
+    }
+
+    /// A buffer for a new array of values.
+    fn fresh(&self) -> Vec<Value<T, N>> {
+        match self.scratch {
+            Some((scratch, capacity)) => scratch.take(capacity),
+            None => Vec::new(),
         }
     }
 
@@ -170,7 +232,7 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
     fn take_vertices(&mut self) -> Vec<Value<T, N>> {
         match std::mem::replace(&mut self.vertices, Cow::Borrowed(&[])) {
             Cow::Owned(v) => v,
-            Cow::Borrowed(_) => Vec::new(),
+            Cow::Borrowed(_) => self.fresh(),
         }
     }
 
@@ -183,27 +245,32 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
         self.replicate_curves(step);
         let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
         let mut out = if self.primal {
-            std::mem::take(&mut self.faces)
+            match std::mem::take(&mut self.faces) {
+                f if f.capacity() == 0 => self.fresh(),
+                f => f,
+            }
         } else {
             self.take_vertices()
         };
         if self.primal {
             let v = &self.vertices;
             let half = T::from_f64(0.5);
-            gather_into(&mut out, fine.num_vertices, |w| {
-                if w < nv {
-                    v[w]
-                } else if w < nv + ne {
-                    let [a, b] = coarse.edge_verts[w - nv];
+            gather_sections(
+                &mut out,
+                [nv, ne, fine.num_vertices - nv - ne],
+                |w| v[w],
+                |e| {
+                    let [a, b] = coarse.edge_verts[e];
                     scale(add(v[a as usize], v[b as usize]), half)
-                } else {
-                    let corners = coarse.face_corners(w - nv - ne);
+                },
+                |f| {
+                    let corners = coarse.face_corners(f);
                     let k = corners.len();
                     let sum =
                         corners.fold(zero(), |s, c| add(s, v[coarse.corner_verts[c] as usize]));
                     scale(sum, reciprocal(k))
-                }
-            });
+                },
+            );
             // The coarse primal buffer is free now: keep it for later passes.
             if let Cow::Owned(old) = std::mem::replace(&mut self.vertices, Cow::Borrowed(&[])) {
                 self.faces = old;
@@ -211,25 +278,25 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
         } else {
             let f = &self.faces;
             let half = T::from_f64(0.5);
-            gather_into(&mut out, fine.num_vertices, |w| {
-                if w < nv {
+            gather_sections(
+                &mut out,
+                [nv, ne, fine.num_vertices - nv - ne],
+                |w| {
                     let corners = coarse.corners_of_vertex(w);
                     let sum = corners
                         .iter()
                         .fold(zero(), |s, &c| add(s, f[coarse.face_of(c as usize)]));
                     scale(sum, reciprocal(corners.len()))
-                } else if w < nv + ne {
-                    match coarse.edge_corners[w - nv] {
-                        [c, NONE] => f[coarse.face_of(c as usize)],
-                        [c, d] => scale(
-                            add(f[coarse.face_of(c as usize)], f[coarse.face_of(d as usize)]),
-                            half,
-                        ),
-                    }
-                } else {
-                    f[w - nv - ne]
-                }
-            });
+                },
+                |e| match coarse.edge_corners[e] {
+                    [c, NONE] => f[coarse.face_of(c as usize)],
+                    [c, d] => scale(
+                        add(f[coarse.face_of(c as usize)], f[coarse.face_of(d as usize)]),
+                        half,
+                    ),
+                },
+                |face| f[face],
+            );
         }
         self.finish_primal(out, step);
     }
@@ -238,43 +305,48 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
     /// `fine` is corner `c` of `coarse`, so an old vertex's faces are its coarse corners, an edge
     /// point's faces the corners on its edge and their successors, a face point's faces the
     /// corners of its face.
-    fn to_primal(&mut self, coarse: &Level, fine: &Level, step: &Step) {
+    fn average_to_primal(&mut self, coarse: &Level, fine: &Level, step: &Step) {
         let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
         let mut out = self.take_vertices();
         let f = &self.faces;
         let quarter = T::from_f64(0.25);
         let half = T::from_f64(0.5);
-        gather_into(&mut out, fine.num_vertices, |w| {
-            if w < nv {
+        gather_sections(
+            &mut out,
+            [nv, ne, fine.num_vertices - nv - ne],
+            |w| {
                 let corners = coarse.corners_of_vertex(w);
                 let sum = corners.iter().fold(zero(), |s, &c| add(s, f[c as usize]));
                 scale(sum, reciprocal(corners.len()))
-            } else if w < nv + ne {
-                match coarse.edge_corners[w - nv] {
-                    [c, NONE] => scale(add(f[c as usize], f[coarse.next(c as usize)]), half),
-                    [c, d] => {
-                        let (c, d) = (c as usize, d as usize);
-                        let s = add(add(f[c], f[coarse.next(c)]), add(f[d], f[coarse.next(d)]));
-                        scale(s, quarter)
-                    }
+            },
+            |e| match coarse.edge_corners[e] {
+                [c, NONE] => scale(add(f[c as usize], f[coarse.next(c as usize)]), half),
+                [c, d] => {
+                    let (c, d) = (c as usize, d as usize);
+                    let s = add(add(f[c], f[coarse.next(c)]), add(f[d], f[coarse.next(d)]));
+                    scale(s, quarter)
                 }
-            } else {
-                let corners = coarse.face_corners(w - nv - ne);
+            },
+            |face| {
+                let corners = coarse.face_corners(face);
                 let k = corners.len();
                 let sum = f[corners].iter().fold(zero(), |s, &x| add(s, x));
                 scale(sum, reciprocal(k))
-            }
-        });
+            },
+        );
         self.finish_primal(out, step);
     }
 
     /// Primal -> dual average on `fine`: each face takes the centroid of its four corners, each
     /// curve edge the midpoint of its two ends.
-    fn to_dual(&mut self, fine: &Level, step: &Step) {
+    fn average_to_dual(&mut self, fine: &Level, step: &Step) {
         let CurveData::Primal(curve) = &self.curve else {
             unreachable!("1-D data out of step")
         };
         let quarter = T::from_f64(0.25);
+        if self.faces.capacity() == 0 {
+            self.faces = self.fresh();
+        }
         let v = &self.vertices;
         gather_into(&mut self.faces, fine.num_faces(), |f| {
             let q = &fine.corner_verts[4 * f..4 * f + 4];
@@ -304,9 +376,9 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
         self.first_average(coarse, fine, step);
         for a in 2..=degree {
             if a % 2 == 1 {
-                self.to_primal(coarse, fine, step);
+                self.average_to_primal(coarse, fine, step);
             } else {
-                self.to_dual(fine, step);
+                self.average_to_dual(fine, step);
             }
         }
     }
@@ -347,10 +419,34 @@ pub(crate) fn gather_into<V: Send, F: Fn(usize) -> V + Sync + Send>(
     n: usize,
     f: F,
 ) {
+    if out.capacity() < n {
+        *out = with_capacity_hinted(n);
+    }
     (0..n)
         .into_par_iter()
         .with_min_len(CHUNK)
         .map(f)
+        .collect_into_vec(out);
+}
+
+/// As [`gather_into`] for data on the vertices of a child level, whose three sections (old
+/// vertices, edge points, face points, of the given sizes) each get their own function.
+fn gather_sections<V: Send>(
+    out: &mut Vec<V>,
+    sizes: [usize; 3],
+    old: impl Fn(usize) -> V + Sync + Send,
+    edge: impl Fn(usize) -> V + Sync + Send,
+    face: impl Fn(usize) -> V + Sync + Send,
+) {
+    let n = sizes.iter().sum();
+    if out.capacity() < n {
+        *out = with_capacity_hinted(n);
+    }
+    let section = |len: usize| (0..len).into_par_iter().with_min_len(CHUNK);
+    section(sizes[0])
+        .map(old)
+        .chain(section(sizes[1]).map(edge))
+        .chain(section(sizes[2]).map(face))
         .collect_into_vec(out);
 }
 
@@ -392,7 +488,7 @@ impl Plan {
                     .collect(),
             );
             run.vertices = Cow::Owned(points);
-            run.to_dual(&levels[levels.len() - 1], last);
+            run.average_to_dual(&levels[levels.len() - 1], last);
             let CurveData::Dual(curve_edges) = run.curve else {
                 unreachable!("dual 1-D data")
             };
@@ -403,6 +499,11 @@ impl Plan {
         }
         let doo_sabin = self.options().rules == Rules::Classic && degree == 2;
         let mut run = Run::new(cage);
+        if let Some(last) = levels.last().filter(|_| levels.len() > 1) {
+            let curve = self.steps().last().map_or(0, |s| s.curve_edges.len());
+            let capacity = last.num_vertices.max(last.num_faces() + curve);
+            run.scratch = Some((self.scratch(), capacity));
+        }
         for (j, step) in self.steps().iter().enumerate() {
             if doo_sabin {
                 // Classic Doo-Sabin: the averaged faces away from curves are replaced.
@@ -421,13 +522,17 @@ impl Plan {
         if let Some(last) = self.steps().last() {
             let (coarse, fine) = (&levels[levels.len() - 2], &levels[levels.len() - 1]);
             match (run.primal, want_dual) {
-                (true, true) => run.to_dual(fine, last),
-                (false, false) => run.to_primal(coarse, fine, last),
+                (true, true) => run.average_to_dual(fine, last),
+                (false, false) => run.average_to_primal(coarse, fine, last),
                 _ => {}
             }
         }
         if run.primal {
+            self.scratch().give(std::mem::take(&mut run.faces));
             return Final::Primal(run.vertices.into_owned());
+        }
+        if let Cow::Owned(v) = std::mem::replace(&mut run.vertices, Cow::Borrowed(&[])) {
+            self.scratch().give(v);
         }
         let CurveData::Dual(curve_edges) = run.curve else {
             unreachable!("dual 1-D data")

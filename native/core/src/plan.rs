@@ -5,6 +5,7 @@
 
 use crate::classic::{Catmark, Creasing};
 use crate::error::{Error, Result};
+use crate::evaluate::Scratch;
 use crate::mesh::Cage;
 use crate::output::OutputMesh;
 use crate::topology::{Level, NONE};
@@ -133,6 +134,7 @@ pub struct Plan {
     steps: Vec<Step>,
     catmark: Option<Catmark>,
     output: OutputMesh,
+    scratch: Scratch,
 }
 
 fn check_options(options: &Options) -> Result<()> {
@@ -224,12 +226,15 @@ impl Plan {
         let level0 = Level::from_cage(cage, num_vertices, corner_verts)?;
 
         // Curve edges of the cage: boundaries (infinitely sharp) and creases.
-        let mut sharpness = vec![0.0f32; level0.num_edges()];
-        for e in 0..level0.num_edges() {
-            if level0.is_boundary_edge(e) {
-                sharpness[e] = f32::INFINITY;
-            }
-        }
+        let mut sharpness: Vec<f32> = (0..level0.num_edges())
+            .map(|e| {
+                if level0.is_boundary_edge(e) {
+                    f32::INFINITY
+                } else {
+                    0.0
+                }
+            })
+            .collect();
         if !cage.creases().is_empty() {
             let mut keys: Vec<(u64, u32)> = level0
                 .edge_verts
@@ -308,6 +313,7 @@ impl Plan {
             steps,
             catmark,
             output: OutputMesh::default(),
+            scratch: Scratch::default(),
         };
         plan.output = OutputMesh::build(&plan)?;
         Ok(plan)
@@ -346,6 +352,11 @@ impl Plan {
     /// Map from the plan's vertex ids to the cage's (when isolated vertices were dropped).
     pub(crate) fn vertex_map(&self) -> Option<&[u32]> {
         self.vertex_map.as_deref()
+    }
+
+    /// Buffers kept between evaluations.
+    pub(crate) fn scratch(&self) -> &Scratch {
+        &self.scratch
     }
 
     /// The output mesh (topology only).
