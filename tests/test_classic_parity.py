@@ -150,6 +150,18 @@ def _cases() -> dict[str, bidegree.Mesh]:
         "semi-sharp-dart": _mesh(*TORUS, _torus_loop(1.0)[:4]),
         "corners": _mesh(CUBE, CUBE_FACES, corners=[(0, INF), (6, 2.3), (3, 0.5)]),
         "corner-on-crease": _mesh(*TORUS, _torus_loop(1.0), [(0, 0.5), (T_ID * 5, INF)]),
+        "grid-boundary-corners": _mesh(
+            *_grid_with_holes(), corners=[(3, 0.5), (8 * 7 + 2, 2.3), (8 * 3 + 3, 1.0)]
+        ),
+        "grid-crease-to-boundary-edge-and-corner": _mesh(
+            *_grid_with_holes(),
+            [(8 * a + 5, 8 * (a + 1) + 5, 1.7) for a in range(3)],
+            [(0, 0.5)],
+            boundary="edge-and-corner",
+        ),
+        "triangles-pentagon-creases": _mesh(
+            *_tri_pent(), [(5, 6, 0.7), (6, 7, 3.0), (0, 1, INF), (7, 10, 1.5)], [(10, 1.2)]
+        ),
     }
     for k in range(3, 13):
         cases[f"valence-{k}"] = _mesh(*_fan(k))
