@@ -188,7 +188,7 @@ fn doo_sabin_weights() {
     .unwrap();
     let out = pts(&plan.evaluate(&flat, 3).unwrap());
     let l0 = &plan.levels()[0];
-    for c in 0..l0.num_corners() {
+    for (c, &child) in out[..l0.num_corners()].iter().enumerate() {
         let f = l0.face_of(c);
         let r = l0.face_corners(f);
         let n = r.len();
@@ -198,7 +198,7 @@ fn doo_sabin_weights() {
                 (doo_sabin_weight(i, n), p[l0.corner_verts[at] as usize])
             })
             .collect();
-        assert!(close(out[c], comb(&terms)), "corner {c}");
+        assert!(close(child, comb(&terms)), "corner {c}");
     }
     // Second level: dual data, the faces around each vertex (valence 3 everywhere).
     let plan2 = Plan::new(
@@ -211,7 +211,7 @@ fn doo_sabin_weights() {
     .unwrap();
     let out2 = pts(&plan2.evaluate(&flat, 3).unwrap());
     let l1 = &plan2.levels()[1];
-    for c in 0..l1.num_corners() {
+    for (c, &child) in out2[..l1.num_corners()].iter().enumerate() {
         let v = l1.corner_verts[c] as usize;
         let ring = l1.corners_of_vertex(v);
         let k = ring.len();
@@ -224,7 +224,7 @@ fn doo_sabin_weights() {
             let [x, y] = l1.edge_corners[l1.corner_edges[prev] as usize];
             at = if x as usize == prev { y } else { x } as usize;
         }
-        assert!(close(out2[c], comb(&terms)), "level 2 corner {c}");
+        assert!(close(child, comb(&terms)), "level 2 corner {c}");
     }
     // On a regular mesh classic degree 2 is biquadratic, as the averaging scheme of degree 2.
     let t = torus(5, 6);

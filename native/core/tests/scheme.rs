@@ -146,16 +146,15 @@ fn doo_sabin_weights_on_a_k_gon() {
             let mut impulse = vec![0.0f64; 2 * k];
             impulse[i] = 1.0;
             let out = plan.evaluate(&impulse, 1).unwrap();
-            for l in 0..k {
-                // Child face l of face 0 is corner l of the cage (the corner at vertex l).
+            // Child face l of face 0 is corner l of the cage (the corner at vertex l).
+            for (l, &weight) in out[..k].iter().enumerate() {
                 let d = (i + k - l) % k;
                 let expected = 1.0 / (4.0 * k as f64)
                     + if d == 0 { 0.5 } else { 0.0 }
                     + if d == 1 || d == k - 1 { 0.125 } else { 0.0 };
                 assert!(
-                    (out[l] - expected).abs() < 1e-15,
-                    "k {k}: weight of p{i} in child {l} is {}, expected {expected}",
-                    out[l]
+                    (weight - expected).abs() < 1e-15,
+                    "k {k}: weight of p{i} in child {l} is {weight}, expected {expected}"
                 );
             }
         }
