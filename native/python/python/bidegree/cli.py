@@ -29,7 +29,7 @@ import bidegree
 #: Modules ``bidegree.<name>`` registered as subcommands when they import (with help text).
 OPTIONAL_SUBCOMMANDS: dict[str, str] = {
     "compare": "compare with OpenSubdiv's Catmull-Clark surface of the same cage",
-    "analyze": "analyse a subdivided surface",
+    "analyze": "the paper's §4 analysis of a scheme at one valence (eigenvalues, C1 check, plots)",
 }
 
 _USD_EXTENSIONS = (".usda", ".usdc", ".usd")
