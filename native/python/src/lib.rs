@@ -17,9 +17,10 @@ use bidegree::{
     Boundary, Cage, Error, Options, OutputKind, Plan, Scalar, DEFAULT_MEMORY_BUDGET, MAX_DEGREE,
     MAX_LEVELS,
 };
+use numpy::ndarray::Dimension;
 use numpy::{
-    Element, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2,
-    PyUntypedArrayMethods,
+    Element, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray, PyReadonlyArray1,
+    PyReadonlyArray2, PyUntypedArrayMethods,
 };
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
@@ -176,23 +177,12 @@ fn guard<T>(py: Python<'_>, access: impl FnOnce() -> T) -> PyResult<T> {
 // ---------------------------------------------------------------------------------------------
 // Array conversion
 
-/// The contiguous data of a 1-D array; refuses other layouts (the Python layer always passes
-/// C-contiguous arrays, so this is a guard, not a path users hit).
-fn slice1<'a, T: Element>(array: &'a PyReadonlyArray1<'_, T>, what: &str) -> PyResult<&'a [T]> {
-    if !array.is_c_contiguous() {
-        return Err(to_py_err(
-            array.py(),
-            invalid(format!("{what} must be C-contiguous")),
-        ));
-    }
-    array
-        .as_slice()
-        .map_err(|_| to_py_err(array.py(), invalid(format!("{what} is not contiguous"))))
-}
-
-/// The C-contiguous data of a 2-D array (`as_slice` alone would also accept, and misread,
-/// Fortran order).
-fn slice2<'a, T: Element>(array: &'a PyReadonlyArray2<'_, T>, what: &str) -> PyResult<&'a [T]> {
+/// The data of a C-contiguous array. `as_slice` alone would also accept, and misread, Fortran
+/// order; the Python layer always passes C-contiguous arrays, so this is a guard.
+fn contiguous<'a, T: Element, D: Dimension>(
+    array: &'a PyReadonlyArray<'_, T, D>,
+    what: &str,
+) -> PyResult<&'a [T]> {
     if !array.is_c_contiguous() {
         return Err(to_py_err(
             array.py(),
@@ -358,12 +348,12 @@ impl PyCage {
         corner_vertices: PyReadonlyArray1<'_, i64>,
         corner_sharpness: PyReadonlyArray1<'_, f32>,
     ) -> PyResult<Self> {
-        let sizes = slice1(&face_sizes, "face_sizes")?;
-        let indices = slice1(&face_indices, "face_indices")?;
-        let crease_edges = slice1(&crease_edges, "crease edges")?;
-        let crease_sharpness = slice1(&crease_sharpness, "crease sharpness")?;
-        let corner_vertices = slice1(&corner_vertices, "corner vertices")?;
-        let corner_sharpness = slice1(&corner_sharpness, "corner sharpness")?;
+        let sizes = contiguous(&face_sizes, "face_sizes")?;
+        let indices = contiguous(&face_indices, "face_indices")?;
+        let crease_edges = contiguous(&crease_edges, "crease edges")?;
+        let crease_sharpness = contiguous(&crease_sharpness, "crease sharpness")?;
+        let corner_vertices = contiguous(&corner_vertices, "corner vertices")?;
+        let corner_sharpness = contiguous(&corner_sharpness, "corner sharpness")?;
         let inner = run(py, || {
             if crease_edges.len() != 2 * crease_sharpness.len() {
                 return Err(invalid(format!(
@@ -424,7 +414,7 @@ fn validate<T: Scalar + Element>(
     points: &PyReadonlyArray2<'_, T>,
 ) -> PyResult<()> {
     let channels = points.shape()[1];
-    let data = slice2(points, "points")?;
+    let data = contiguous(points, "points")?;
     run(py, || {
         bidegree::mesh::validate_geometry(cage, data, channels)
     })
@@ -512,7 +502,7 @@ impl PyPlan {
             values: &PyReadonlyArray2<'_, T>,
         ) -> PyResult<Bound<'py, PyArray2<T>>> {
             let channels = values.shape()[1];
-            let data = slice2(values, "values")?;
+            let data = contiguous(values, "values")?;
             let out = run(py, || {
                 if channels == 0 {
                     return Err(invalid("values need at least one channel"));
@@ -664,7 +654,7 @@ fn evaluate<'py, T: Scalar + Element>(
     face_varying: bool,
 ) -> PyResult<Bound<'py, PyArray2<T>>> {
     let channels = values.shape()[1];
-    let data = slice2(values, "values")?;
+    let data = contiguous(values, "values")?;
     let out = run(py, || {
         if channels == 0 {
             return Err(invalid("values need at least one channel"));
@@ -685,7 +675,7 @@ fn evaluate_fresh<'py, T: Scalar + Element>(
     options: Options,
 ) -> PyResult<(PyPlan, Bound<'py, PyAny>)> {
     let channels = points.shape()[1];
-    let data = slice2(points, "points")?;
+    let data = contiguous(points, "points")?;
     let (plan, out) = run(py, || {
         if channels == 0 {
             return Err(invalid("points need at least one channel"));
@@ -802,8 +792,8 @@ fn write_obj(
     face_indices: PyReadonlyArray1<'_, u32>,
     uvs: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<()> {
-    let offsets = slice1(&face_offsets, "face_offsets")?;
-    let vertices = slice1(&face_indices, "face_indices")?;
+    let offsets = contiguous(&face_offsets, "face_offsets")?;
+    let vertices = contiguous(&face_indices, "face_indices")?;
     write_mesh(py, &path, points, offsets, vertices, uvs)
 }
 
@@ -862,13 +852,13 @@ fn write_typed<T: Element + Sync>(
             )),
         ));
     }
-    let data = slice2(points, "points")?;
+    let data = contiguous(points, "points")?;
     let uv = match uvs {
         Some(u) => {
             if u.shape()[1] != 2 {
                 return Err(to_py_err(py, invalid("uvs must have shape (corners, 2)")));
             }
-            Some(slice2(u, "uvs")?)
+            Some(contiguous(u, "uvs")?)
         }
         None => None,
     };
