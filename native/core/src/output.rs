@@ -2,6 +2,8 @@
 //! vertex, its corners the points of the faces around it, closed along boundaries by the 1-D
 //! points of the boundary curve), with edges, corner edges and the cage face of every face.
 
+use std::sync::OnceLock;
+
 use crate::error::{Error, Result};
 use crate::evaluate::{Final, Scalar};
 use crate::plan::{OutputKind, Plan};
@@ -24,45 +26,60 @@ pub(crate) struct DualMesh {
 /// Output topology that is not a table of the last level itself.
 #[derive(Debug, Default)]
 pub(crate) struct OutputMesh {
-    /// Face offsets of the drawing mesh.
-    pub face_offsets: Vec<u32>,
-    /// Cage face of each face of the drawing mesh.
-    pub face_origin: Vec<u32>,
+    /// Face offsets of the drawing mesh, built on first use.
+    face_offsets: OnceLock<Vec<u32>>,
+    /// Cage face of each face of the drawing mesh, built on first use.
+    face_origin: OnceLock<Vec<u32>>,
     /// The dual mesh, when asked for.
     pub dual: Option<DualMesh>,
 }
 
 impl OutputMesh {
-    /// Builds the output topology of a plan whose levels and steps are laid out.
+    /// Builds the output topology of a plan whose levels and steps are laid out (the drawing
+    /// mesh's own tables wait for their first use: evaluation does not need them).
     pub fn build(plan: &Plan) -> Result<OutputMesh> {
-        let levels = plan.levels();
-        let last = levels.last().expect("at least one level");
-        let depth = levels.len() - 1;
-        let (face_offsets, face_origin): (Vec<u32>, Vec<u32>) = if depth == 0 {
-            (
-                last.face_offsets.clone(),
-                (0..last.num_faces() as u32).collect(),
-            )
+        if plan.options().output == OutputKind::Dual && plan.levels().len() > 1 {
+            let origin = face_origin(plan);
+            let dual = dual_mesh(plan, &origin)?;
+            return Ok(OutputMesh {
+                face_origin: OnceLock::from(origin),
+                dual: Some(dual),
+                ..OutputMesh::default()
+            });
+        }
+        Ok(OutputMesh::default())
+    }
+}
+
+/// Face offsets of the drawing mesh (`M_L`).
+fn primal_face_offsets(plan: &Plan) -> &[u32] {
+    plan.output().face_offsets.get_or_init(|| {
+        let last = plan.levels().last().expect("at least one level");
+        if last.is_quads() {
+            gather_hinted(last.num_faces() + 1, |f| 4 * f as u32)
         } else {
-            // Face f of M_L is corner f of M_{L-1}, inside face f/4 of M_{L-1} (for L-1 >= 1),
-            // down to a corner of the cage.
-            let shift = 2 * (depth - 1);
-            let cage = &levels[0];
-            (
-                gather_hinted(last.num_faces() + 1, |f| 4 * f as u32),
-                gather_hinted(last.num_faces(), |f| cage.corner_faces[f >> shift]),
-            )
-        };
-        let dual = if plan.options().output == OutputKind::Dual && depth > 0 {
-            Some(dual_mesh(plan, &face_origin)?)
-        } else {
-            None
-        };
-        Ok(OutputMesh {
-            face_offsets,
-            face_origin,
-            dual,
-        })
+            last.face_offsets.clone()
+        }
+    })
+}
+
+/// The cage face of every face of the drawing mesh.
+fn primal_face_origin(plan: &Plan) -> &[u32] {
+    plan.output().face_origin.get_or_init(|| face_origin(plan))
+}
+
+/// Face f of M_L is corner f of M_{L-1}, inside face f/4 of M_{L-1} (for L-1 >= 1), down to a
+/// corner of the cage.
+fn face_origin(plan: &Plan) -> Vec<u32> {
+    let levels = plan.levels();
+    let last = levels.last().expect("at least one level");
+    let depth = levels.len() - 1;
+    if depth == 0 {
+        (0..last.num_faces() as u32).collect()
+    } else {
+        let shift = 2 * (depth - 1);
+        let cage = &levels[0];
+        gather_hinted(last.num_faces(), |f| cage.corner_faces[f >> shift])
     }
 }
 
@@ -166,7 +183,10 @@ impl Plan {
 
     /// Number of output faces.
     pub fn num_output_faces(&self) -> usize {
-        self.output_face_offsets().len() - 1
+        match &self.output().dual {
+            Some(d) => d.level.num_faces(),
+            None => self.levels().last().expect("a level").num_faces(),
+        }
     }
 
     fn output_level(&self) -> &Level {
@@ -180,7 +200,7 @@ impl Plan {
     pub fn output_face_offsets(&self) -> &[u32] {
         match &self.output().dual {
             Some(d) => &d.level.face_offsets,
-            None => &self.output().face_offsets,
+            None => primal_face_offsets(self),
         }
     }
 
@@ -193,7 +213,7 @@ impl Plan {
     pub fn output_face_origin(&self) -> &[u32] {
         match &self.output().dual {
             Some(d) => &d.face_origin,
-            None => &self.output().face_origin,
+            None => primal_face_origin(self),
         }
     }
 
