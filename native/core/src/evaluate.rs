@@ -301,6 +301,109 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
         self.finish_primal(out, step);
     }
 
+    /// Replication, the first dual -> primal and the first primal -> dual average of a step whose
+    /// data is primal on a quad level, in one pass over the coarse faces: each computes the
+    /// nine child points of its face in closed form (as [`Run::first_average`], never stored)
+    /// and the centroids of its four child faces. Faces next to curve vertices use the blended
+    /// points. The result is bitwise that of the separate passes.
+    fn first_average_to_dual(&mut self, coarse: &Level, fine: &Level, step: &Step) {
+        debug_assert!(self.primal && coarse.is_quads());
+        self.replicate_curves(step);
+        let curve = self.curve_to_primal(step);
+        let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
+        // Coarse faces whose child faces have a curve vertex among their corners.
+        let mut touched = vec![
+            false;
+            if curve.is_empty() {
+                0
+            } else {
+                coarse.num_faces()
+            }
+        ];
+        for cv in &step.curve_vertices {
+            let w = cv.vertex as usize;
+            if w < nv {
+                for &c in coarse.corners_of_vertex(w) {
+                    touched[coarse.face_of(c as usize)] = true;
+                }
+            } else if w < nv + ne {
+                for &c in &coarse.edge_corners[w - nv] {
+                    if c != NONE {
+                        touched[coarse.face_of(c as usize)] = true;
+                    }
+                }
+            } else {
+                touched[w - nv - ne] = true;
+            }
+        }
+        let n = fine.num_faces();
+        let mut out = match std::mem::take(&mut self.faces) {
+            f if f.capacity() == 0 => self.fresh(),
+            f => f,
+        };
+        if out.len() < n {
+            // Written in parallel, so that a new buffer's pages are touched by both threads.
+            gather_into(&mut out, n, |_| zero());
+        }
+        out.truncate(n);
+        let v = &self.vertices;
+        let half = T::from_f64(0.5);
+        let quarter = T::from_f64(0.25);
+        let blended = |w: usize, mut p: Value<T, N>| -> Value<T, N> {
+            if let Ok(i) = step
+                .curve_vertices
+                .binary_search_by_key(&(w as u32), |cv| cv.vertex)
+            {
+                blend(&mut p, curve[i], &step.curve_vertices[i]);
+            }
+            p
+        };
+        out.par_chunks_mut(4 * CHUNK)
+            .enumerate()
+            .for_each(|(chunk, faces)| {
+                for (i, quad) in faces.chunks_exact_mut(4).enumerate() {
+                    let f = chunk * CHUNK + i;
+                    let q = &coarse.corner_verts[4 * f..4 * f + 4];
+                    let mut p = [
+                        v[q[0] as usize],
+                        v[q[1] as usize],
+                        v[q[2] as usize],
+                        v[q[3] as usize],
+                    ];
+                    let centre = scale(p.iter().fold(zero(), |s, &x| add(s, x)), reciprocal(4));
+                    // m[k]: the edge point of corner k's outgoing edge.
+                    let mut m: [Value<T, N>; 4] =
+                        std::array::from_fn(|k| scale(add(p[k], p[(k + 1) & 3]), half));
+                    let mut centre = centre;
+                    if touched.get(f).copied().unwrap_or(false) {
+                        for k in 0..4 {
+                            p[k] = blended(q[k] as usize, p[k]);
+                            let e = coarse.corner_edges[4 * f + k] as usize;
+                            m[k] = blended(nv + e, m[k]);
+                        }
+                        centre = blended(nv + ne + f, centre);
+                    }
+                    for (k, out) in quad.iter_mut().enumerate() {
+                        let s = add(add(p[k], m[k]), add(centre, m[(k + 3) & 3]));
+                        *out = scale(s, quarter);
+                    }
+                }
+            });
+        self.faces = out;
+        let edges = step
+            .curve_edges
+            .iter()
+            .map(|e| {
+                scale(
+                    add(curve[e.ends[0] as usize], curve[e.ends[1] as usize]),
+                    half,
+                )
+            })
+            .collect();
+        self.curve = CurveData::Dual(edges);
+        self.primal = false;
+    }
+
     /// Dual -> primal average on `fine`, gathered through the coarse level's tables: face `c` of
     /// `fine` is corner `c` of `coarse`, so an old vertex's faces are its coarse corners, an edge
     /// point's faces the corners on its edge and their successors, a face point's faces the
@@ -373,8 +476,14 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
 
     /// One full step `coarse -> fine` of the given degree: replicate, then `degree` averages.
     fn step(&mut self, coarse: &Level, fine: &Level, step: &Step, degree: u32) {
-        self.first_average(coarse, fine, step);
-        for a in 2..=degree {
+        let first = if self.primal && degree >= 2 && coarse.is_quads() {
+            self.first_average_to_dual(coarse, fine, step);
+            3
+        } else {
+            self.first_average(coarse, fine, step);
+            2
+        };
+        for a in first..=degree {
             if a % 2 == 1 {
                 self.average_to_primal(coarse, fine, step);
             } else {
