@@ -488,11 +488,7 @@ pub(crate) fn zeroed_hinted<T: Default + Copy + Send + Sync>(n: usize) -> Vec<T>
 
 #[cfg(target_os = "linux")]
 fn advise_huge_pages(start: usize, bytes: usize) {
-    const MADV_HUGEPAGE: i32 = 14;
     const HUGE: usize = 2 << 20;
-    extern "C" {
-        fn madvise(addr: *mut std::ffi::c_void, len: usize, advice: i32) -> i32;
-    }
     if bytes < HUGE_HINT_BYTES {
         return;
     }
@@ -502,7 +498,7 @@ fn advise_huge_pages(start: usize, bytes: usize) {
         // SAFETY: the range lies inside an allocation we own, and MADV_HUGEPAGE is a hint that
         // changes neither its contents nor its mapping; a failure is harmless and ignored.
         unsafe {
-            madvise(first as *mut std::ffi::c_void, end - first, MADV_HUGEPAGE);
+            libc::madvise(first as *mut libc::c_void, end - first, libc::MADV_HUGEPAGE);
         }
     }
 }
