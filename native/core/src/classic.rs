@@ -19,7 +19,7 @@
 //! Sharpness follows OpenSubdiv: 0 is smooth, [`SHARPNESS_INFINITE`] (10) and above infinitely
 //! sharp; boundary edges are infinitely sharp.
 
-use crate::evaluate::{gather, Scalar};
+use crate::evaluate::{add, gather, scale, Scalar};
 use crate::plan::Step;
 use crate::topology::{Level, NONE};
 
@@ -316,16 +316,6 @@ fn zero<T: Scalar, const N: usize>() -> [T; N] {
 #[inline(always)]
 fn mad<T: Scalar, const N: usize>(acc: [T; N], w: T, x: [T; N]) -> [T; N] {
     std::array::from_fn(|k| acc[k] + w * x[k])
-}
-
-#[inline(always)]
-fn add<T: Scalar, const N: usize>(a: [T; N], b: [T; N]) -> [T; N] {
-    std::array::from_fn(|k| a[k] + b[k])
-}
-
-#[inline(always)]
-fn scale<T: Scalar, const N: usize>(a: [T; N], s: T) -> [T; N] {
-    std::array::from_fn(|k| a[k] * s)
 }
 
 /// `p * a + (1 - p) * b`.

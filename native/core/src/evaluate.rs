@@ -79,13 +79,15 @@ impl Scalar for f64 {
 /// A value carried by the scheme: `N` channels of one scalar type.
 type Value<T, const N: usize> = [T; N];
 
+/// `a + b`, channel by channel.
 #[inline(always)]
-fn add<T: Scalar, const N: usize>(a: [T; N], b: [T; N]) -> [T; N] {
+pub(crate) fn add<T: Scalar, const N: usize>(a: [T; N], b: [T; N]) -> [T; N] {
     std::array::from_fn(|k| a[k] + b[k])
 }
 
+/// `s * a`, channel by channel.
 #[inline(always)]
-fn scale<T: Scalar, const N: usize>(a: [T; N], s: T) -> [T; N] {
+pub(crate) fn scale<T: Scalar, const N: usize>(a: [T; N], s: T) -> [T; N] {
     std::array::from_fn(|k| a[k] * s)
 }
 
@@ -402,17 +404,7 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
                 }
             });
         self.faces = out;
-        let edges = step
-            .curve_edges
-            .iter()
-            .map(|e| {
-                scale(
-                    add(curve[e.ends[0] as usize], curve[e.ends[1] as usize]),
-                    half,
-                )
-            })
-            .collect();
-        self.curve = CurveData::Dual(edges);
+        self.curve = CurveData::Dual(curve_to_dual(step, &curve));
         self.primal = false;
     }
 
@@ -471,18 +463,7 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
             );
             scale(s, quarter)
         });
-        let half = T::from_f64(0.5);
-        let edges = step
-            .curve_edges
-            .iter()
-            .map(|e| {
-                scale(
-                    add(curve[e.ends[0] as usize], curve[e.ends[1] as usize]),
-                    half,
-                )
-            })
-            .collect();
-        self.curve = CurveData::Dual(edges);
+        self.curve = CurveData::Dual(curve_to_dual(step, curve));
         self.primal = false;
     }
 
@@ -508,6 +489,23 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
 #[inline(always)]
 fn zero<T: Scalar, const N: usize>() -> Value<T, N> {
     [T::default(); N]
+}
+
+/// The 1-D half of a primal -> dual average: each curve edge takes the midpoint of its ends.
+fn curve_to_dual<T: Scalar, const N: usize>(
+    step: &Step,
+    curve: &[Value<T, N>],
+) -> Vec<Value<T, N>> {
+    let half = T::from_f64(0.5);
+    step.curve_edges
+        .iter()
+        .map(|e| {
+            scale(
+                add(curve[e.ends[0] as usize], curve[e.ends[1] as usize]),
+                half,
+            )
+        })
+        .collect()
 }
 
 /// Sets a vertex to `w * curve + (1 - w) * centroid` (exactly the curve value when w = 1).

@@ -34,10 +34,11 @@ pub mod output;
 pub mod plan;
 pub mod topology;
 
+pub use classic::Creasing;
 pub use error::{Error, Result};
 pub use evaluate::Scalar;
 pub use mesh::{Cage, Corner, Crease};
-pub use plan::{estimate, Boundary, Estimate, Options, OutputKind, Plan};
+pub use plan::{estimate, Boundary, Estimate, Options, OutputKind, Plan, Rules};
 
 /// Highest supported degree (number of averaging steps per level).
 pub const MAX_DEGREE: u32 = 31;
