@@ -491,6 +491,41 @@ fn zero<T: Scalar, const N: usize>() -> Value<T, N> {
     [T::default(); N]
 }
 
+/// Runs `per_four` (interleaved values of 4 channels in, the same out) on the channels of
+/// `values` four at a time (the last group padded with zeros) and interleaves the results back.
+fn in_groups_of_four<T: Scalar>(
+    values: &[T],
+    channels: usize,
+    per_four: impl Fn(Vec<T>) -> Vec<T>,
+) -> Vec<T> {
+    let items = values.len() / channels;
+    let mut out: Vec<T> = Vec::new();
+    for first in (0..channels).step_by(4) {
+        let width = (channels - first).min(4);
+        let group: Vec<T> = (0..items)
+            .flat_map(|i| {
+                (0..4).map(move |k| {
+                    if k < width {
+                        values[i * channels + first + k]
+                    } else {
+                        T::default()
+                    }
+                })
+            })
+            .collect();
+        let result = per_four(group);
+        let count = result.len() / 4;
+        if out.is_empty() {
+            out = vec![T::default(); count * channels];
+        }
+        for i in 0..count {
+            out[i * channels + first..i * channels + first + width]
+                .copy_from_slice(&result[4 * i..4 * i + width]);
+        }
+    }
+    out
+}
+
 /// The 1-D half of a primal -> dual average: each curve edge takes the midpoint of its ends.
 fn curve_to_dual<T: Scalar, const N: usize>(
     step: &Step,
@@ -677,7 +712,7 @@ impl Plan {
             2 => self.evaluate_n::<T, 2>(values),
             3 => self.evaluate_n::<T, 3>(values),
             4 => self.evaluate_n::<T, 4>(values),
-            _ => self.evaluate_grouped(values, channels),
+            _ => in_groups_of_four(values, channels, |group| self.evaluate_n::<T, 4>(&group)),
         })
     }
 
@@ -689,36 +724,6 @@ impl Plan {
         };
         self.finish(self.run(&compact, self.wants_dual()))
             .into_flattened()
-    }
-
-    /// More than four channels: evaluated four at a time and interleaved back.
-    fn evaluate_grouped<T: Scalar>(&self, values: &[T], channels: usize) -> Vec<T> {
-        let items = values.len() / channels;
-        let mut out: Vec<T> = Vec::new();
-        for first in (0..channels).step_by(4) {
-            let width = (channels - first).min(4);
-            let group: Vec<T> = (0..items)
-                .flat_map(|i| {
-                    (0..4).map(move |k| {
-                        if k < width {
-                            values[i * channels + first + k]
-                        } else {
-                            T::default()
-                        }
-                    })
-                })
-                .collect();
-            let result = self.evaluate_n::<T, 4>(&group);
-            let count = result.len() / 4;
-            if out.is_empty() {
-                out = vec![T::default(); count * channels];
-            }
-            for i in 0..count {
-                out[i * channels + first..i * channels + first + width]
-                    .copy_from_slice(&result[4 * i..4 * i + width]);
-            }
-        }
-        out
     }
 
     /// Limit positions (classic degree-3 rules only) at the vertices of the last level, which
@@ -750,32 +755,7 @@ impl Plan {
         if channels <= 4 {
             return Ok(limit(values.to_vec(), channels));
         }
-        // More channels: four at a time, padded.
-        let items = values.len() / channels;
-        let mut out: Vec<T> = Vec::new();
-        for first in (0..channels).step_by(4) {
-            let width = (channels - first).min(4);
-            let group: Vec<T> = (0..items)
-                .flat_map(|i| (0..4).map(move |k| (i, k)))
-                .map(|(i, k)| {
-                    if k < width {
-                        values[i * channels + first + k]
-                    } else {
-                        T::default()
-                    }
-                })
-                .collect();
-            let result = limit(group, 4);
-            let count = result.len() / 4;
-            if out.is_empty() {
-                out = vec![T::default(); count * channels];
-            }
-            for i in 0..count {
-                out[i * channels + first..i * channels + first + width]
-                    .copy_from_slice(&result[4 * i..4 * i + width]);
-            }
-        }
-        Ok(out)
+        Ok(in_groups_of_four(values, channels, |group| limit(group, 4)))
     }
 
     fn limit_n<T: Scalar, const N: usize>(
