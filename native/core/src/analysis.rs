@@ -87,85 +87,101 @@ pub fn polar_cage(valence: usize, rings: usize) -> Result<Cage> {
     Cage::from_indices(1 + valence * r * (r + 1), &vec![4; valence * r * r], &faces)
 }
 
-/// Walks the quad grid around vertex `centre` of a quad level: `frames(s, i, j)` is the corner
-/// at grid vertex `(i, j)` of the face `(i, j)` of sector `s`, oriented so that its next corner
-/// is `(i+1, j)` and its previous `(i, j+1)`.
-struct SectorGrid<'a> {
+/// Walks the quad grid around a vertex of a quad level: `frame(s, i, j)` is the corner at grid
+/// vertex `(i, j)` of the face `(i, j)` of sector `s`, oriented so that its next corner is
+/// `(i+1, j)` and its previous `(i, j+1)`. Walks that would cross a boundary give `None`; the
+/// grid is a true polar grid only where every vertex passed is interior of valence 4, which
+/// callers check (see [`crate::limit`]).
+pub(crate) struct SectorGrid<'a> {
     level: &'a Level,
     starts: Vec<usize>,
 }
 
 impl<'a> SectorGrid<'a> {
-    /// Sectors counter-clockwise from `first`, a corner at the centre.
-    fn new(level: &'a Level, first: usize) -> SectorGrid<'a> {
+    /// Sectors counter-clockwise from `first`, a corner at the centre; `None` at a boundary.
+    pub(crate) fn new(level: &'a Level, first: usize) -> Option<SectorGrid<'a>> {
         let mut starts = vec![first];
         loop {
-            let last = *starts.last().expect("a sector");
+            let last = *starts.last()?;
             // The next sector lies across the incoming edge of this sector's corner.
-            let next = other_corner(
-                level,
-                level.corner_edges[level.prev(last)] as usize,
-                level.prev(last),
-            );
+            let p = level.prev(last);
+            let next = other_corner(level, level.corner_edges[p] as usize, p)?;
             if next == first {
                 break;
             }
             starts.push(next);
         }
-        SectorGrid { level, starts }
+        Some(SectorGrid { level, starts })
     }
 
-    fn frame(&self, s: usize, i: usize, j: usize) -> usize {
+    /// Number of sectors (the valence of the centre).
+    pub(crate) fn valence(&self) -> usize {
+        self.starts.len()
+    }
+
+    pub(crate) fn frame(&self, s: usize, i: usize, j: usize) -> Option<usize> {
         let l = self.level;
         let mut o = self.starts[s];
         for _ in 0..i {
             let n = l.next(o);
-            o = l.next(other_corner(l, l.corner_edges[n] as usize, n));
+            o = l.next(other_corner(l, l.corner_edges[n] as usize, n)?);
         }
         for _ in 0..j {
             let n2 = l.next(l.next(o));
-            o = other_corner(l, l.corner_edges[n2] as usize, n2);
+            o = other_corner(l, l.corner_edges[n2] as usize, n2)?;
         }
-        o
+        Some(o)
     }
 }
 
-/// The corner on the other side of edge `e` from corner `c`.
-fn other_corner(level: &Level, e: usize, c: usize) -> usize {
+/// The corner on the other side of edge `e` from corner `c`; `None` on a boundary.
+fn other_corner(level: &Level, e: usize, c: usize) -> Option<usize> {
     let [a, b] = level.edge_corners[e];
     let other = if a as usize == c { b } else { a };
-    assert!(
-        other != NONE,
-        "the analysis cage is large enough to have no boundary nearby"
-    );
-    other as usize
+    (other != NONE).then_some(other as usize)
 }
 
-/// Labels and level indices of the neighbourhood around vertex 0 of `level`, whose first corner
-/// at the centre is `first`.
-fn neighbourhood(level: &Level, first: usize, degree: u32) -> Vec<((usize, usize, usize), usize)> {
-    let n = neighbourhood_size(degree);
-    let grid = SectorGrid::new(level, first);
+/// A neighbourhood item: its label `(sector, i, j)` and its index in the level.
+pub(crate) type Labelled = ((usize, usize, usize), usize);
+
+/// Labels and level indices of the neighbourhood of `rings` rings around the vertex of corner
+/// `first` (the ordering of the module documentation): faces `(s, i, j)`, `0 <= i, j < rings`,
+/// for even degrees; the centre and vertices `(s, i, j)`, `1 <= i <= rings`, `0 <= j <= rings`,
+/// for odd ones. `rings = N + 1` is the complete neighbourhood, `N` the minimal one. `None`
+/// when the walk meets a boundary.
+pub(crate) fn neighbourhood(
+    level: &Level,
+    first: usize,
+    degree: u32,
+    rings: usize,
+) -> Option<Vec<Labelled>> {
+    let grid = SectorGrid::new(level, first)?;
     let mut items = Vec::new();
     if degree.is_multiple_of(2) {
-        for s in 0..grid.starts.len() {
-            for i in 0..=n {
-                for j in 0..=n {
-                    items.push(((s, i, j), level.face_of(grid.frame(s, i, j))));
+        for s in 0..grid.valence() {
+            for i in 0..rings {
+                for j in 0..rings {
+                    items.push(((s, i, j), level.face_of(grid.frame(s, i, j)?)));
                 }
             }
         }
     } else {
         items.push(((0, 0, 0), level.corner_verts[first] as usize));
-        for s in 0..grid.starts.len() {
-            for i in 1..=n + 1 {
-                for j in 0..=n + 1 {
-                    items.push(((s, i, j), level.corner_verts[grid.frame(s, i, j)] as usize));
+        for s in 0..grid.valence() {
+            for i in 1..=rings {
+                for j in 0..=rings {
+                    items.push(((s, i, j), level.corner_verts[grid.frame(s, i, j)?] as usize));
                 }
             }
         }
     }
-    items
+    Some(items)
+}
+
+/// The complete neighbourhood of the polar cages built here, which have no boundary nearby.
+fn complete_neighbourhood(level: &Level, first: usize, degree: u32) -> Vec<Labelled> {
+    neighbourhood(level, first, degree, neighbourhood_size(degree) + 1)
+        .expect("the analysis cage is large enough to have no boundary nearby")
 }
 
 /// The subdivision matrix of degree `degree` around an irregular vertex or face of valence
@@ -188,8 +204,8 @@ pub fn subdivision_matrix(degree: u32, valence: usize) -> Result<SubdivisionMatr
     let (coarse, fine) = (&plan.levels()[1], &plan.levels()[2]);
     // The centre keeps id 0 at every level; its child corners are 4c for its coarse corners c.
     let first = coarse.corners_of_vertex(0)[0] as usize;
-    let columns = neighbourhood(coarse, first, degree);
-    let rows = neighbourhood(fine, 4 * first, degree);
+    let columns = complete_neighbourhood(coarse, first, degree);
+    let rows = complete_neighbourhood(fine, 4 * first, degree);
     let size = if degree.is_multiple_of(2) {
         coarse.num_faces()
     } else {
@@ -668,7 +684,7 @@ pub fn refine(
     )?;
     let level1 = &plan.levels()[1];
     let first = level1.corners_of_vertex(0)[0] as usize;
-    let items = neighbourhood(level1, first, degree);
+    let items = complete_neighbourhood(level1, first, degree);
     let size = if primal {
         level1.num_vertices
     } else {
@@ -676,7 +692,8 @@ pub fn refine(
     };
     let last = &plan.levels()[steps + 1];
     let first_last = first * 4usize.pow(steps as u32);
-    let grid = SectorGrid::new(last, first_last);
+    let grid = SectorGrid::new(last, first_last).expect("no boundary near the centre");
+    let frame = |s, i, j| grid.frame(s, i, j).expect("no boundary near the centre");
     let spacing = 0.5f64.powi(steps as i32);
     let m = (extent / spacing).ceil() as usize;
     let (rows, columns) = if primal { (m + 1, m + 1) } else { (m + 1, m) };
@@ -691,12 +708,12 @@ pub fn refine(
             }
             for (s, at) in at.iter_mut().enumerate() {
                 let item = if primal {
-                    last.corner_verts[grid.frame(s, r, c)] as usize
+                    last.corner_verts[frame(s, r, c)] as usize
                 } else if r == 0 {
                     // Face (s, -1, c) is face (s + 1, c, 0).
-                    last.face_of(grid.frame((s + 1) % valence, c, 0))
+                    last.face_of(frame((s + 1) % valence, c, 0))
                 } else {
-                    last.face_of(grid.frame(s, r - 1, c))
+                    last.face_of(frame(s, r - 1, c))
                 };
                 at.push(item);
             }

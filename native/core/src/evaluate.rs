@@ -20,7 +20,6 @@ use std::sync::Mutex;
 use rayon::prelude::*;
 
 use crate::classic;
-use crate::error::Error;
 use crate::error::Result;
 use crate::mesh::check_values;
 use crate::plan::{CurveVertex, Plan, Rules, Step};
@@ -493,7 +492,7 @@ fn zero<T: Scalar, const N: usize>() -> Value<T, N> {
 
 /// Runs `per_four` (interleaved values of 4 channels in, the same out) on the channels of
 /// `values` four at a time (the last group padded with zeros) and interleaves the results back.
-fn in_groups_of_four<T: Scalar>(
+pub(crate) fn in_groups_of_four<T: Scalar>(
     values: &[T],
     channels: usize,
     per_four: impl Fn(Vec<T>) -> Vec<T>,
@@ -724,56 +723,6 @@ impl Plan {
         };
         self.finish(self.run(&compact, self.wants_dual()))
             .into_flattened()
-    }
-
-    /// Limit positions (classic degree-3 rules only) at the vertices of the last level, which
-    /// must be at least 1 (a quad level), with the drawing-mesh output: the values are run
-    /// through every level and OpenSubdiv's limit masks applied there. Old vertices keep their
-    /// ids from level to level, so the first values are the limits at the cage vertices.
-    pub fn limit_positions<T: Scalar>(&self, values: &[T], channels: usize) -> Result<Vec<T>> {
-        check_values(values, channels, self.num_input_vertices())?;
-        let Some(catmark) = self.catmark() else {
-            return Err(Error::InvalidInput(
-                "limit positions need classic rules at degree 3".into(),
-            ));
-        };
-        if self.steps().is_empty() || self.wants_dual() {
-            return Err(Error::InvalidInput(
-                "limit positions need at least one level and the primal output".into(),
-            ));
-        }
-        let j = self.levels().len() - 1;
-        let level = &self.levels()[j];
-        let limit = |points: Vec<T>, n: usize| -> Vec<T> {
-            match n {
-                1 => self.limit_n::<T, 1>(catmark, j, level, &points),
-                2 => self.limit_n::<T, 2>(catmark, j, level, &points),
-                3 => self.limit_n::<T, 3>(catmark, j, level, &points),
-                _ => self.limit_n::<T, 4>(catmark, j, level, &points),
-            }
-        };
-        if channels <= 4 {
-            return Ok(limit(values.to_vec(), channels));
-        }
-        Ok(in_groups_of_four(values, channels, |group| limit(group, 4)))
-    }
-
-    fn limit_n<T: Scalar, const N: usize>(
-        &self,
-        catmark: &classic::Catmark,
-        j: usize,
-        level: &Level,
-        values: &[T],
-    ) -> Vec<T> {
-        let (points, _) = values.as_chunks::<N>();
-        let compact: Cow<[Value<T, N>]> = match self.vertex_map() {
-            None => Cow::Borrowed(points),
-            Some(map) => Cow::Owned(map.iter().map(|&v| points[v as usize]).collect()),
-        };
-        let Final::Primal(last) = self.run(&compact, false) else {
-            unreachable!("primal classic run")
-        };
-        catmark.limit(j, level, &last).into_flattened()
     }
 
     /// Evaluates face-varying values (one per corner of the cage, e.g. UVs) with linear

@@ -12,6 +12,9 @@
 //! - [`plan`]: everything that depends only on topology and options (levels, curve networks);
 //! - [`evaluate`]: running points and attributes through a plan (parallel gathers);
 //! - [`output`]: output meshes (drawing mesh, true dual mesh, edges, face origins);
+//! - [`limit`]: limit positions and normals at the output vertices, every degree;
+//! - [`classic`]: OpenSubdiv's Catmull-Clark and the original Doo-Sabin rules;
+//! - [`analysis`]: subdivision matrices, their spectra and the C1 report (the paper's §4);
 //! - [`io`]: OBJ reading and writing.
 //!
 //! ```
@@ -29,6 +32,7 @@ pub mod classic;
 pub mod error;
 pub mod evaluate;
 pub mod io;
+pub mod limit;
 pub mod mesh;
 pub mod output;
 pub mod plan;

@@ -3,9 +3,12 @@
 //! refined levels `M_0..M_L`, the curve network of every step (boundaries and creases, their
 //! sharpness schedule, corners) and the output mesh.
 
+use std::sync::{Arc, Mutex};
+
 use crate::classic::{Catmark, Creasing};
 use crate::error::{Error, Result};
 use crate::evaluate::Scratch;
+use crate::limit;
 use crate::mesh::Cage;
 use crate::output::OutputMesh;
 use crate::topology::{Level, NONE};
@@ -135,6 +138,10 @@ pub struct Plan {
     catmark: Option<Catmark>,
     output: OutputMesh,
     scratch: Scratch,
+    /// The cage (the limit extends the plan by further levels from it).
+    cage: Cage,
+    /// Limit stencils, built on first use (crate::limit).
+    limit: Mutex<Option<Arc<limit::Stencils>>>,
 }
 
 fn check_options(options: &Options) -> Result<()> {
@@ -316,6 +323,8 @@ impl Plan {
             catmark,
             output: OutputMesh::default(),
             scratch: Scratch::default(),
+            cage: cage.clone(),
+            limit: Mutex::default(),
         };
         plan.output = OutputMesh::build(&plan)?;
         Ok(plan)
@@ -362,6 +371,14 @@ impl Plan {
     }
 
     /// The output mesh (topology only).
+    pub(crate) fn cage(&self) -> &Cage {
+        &self.cage
+    }
+
+    pub(crate) fn limit_cache(&self) -> &Mutex<Option<Arc<limit::Stencils>>> {
+        &self.limit
+    }
+
     pub(crate) fn output(&self) -> &OutputMesh {
         &self.output
     }
