@@ -264,8 +264,9 @@ def test_classic_rules_api() -> None:
         bidegree.Plan(mesh, degree=4, levels=1, rules="classic")
     with pytest.raises(bidegree.InvalidInputError):
         bidegree.Plan(mesh, degree=3, levels=1, rules="loop")
+    # The classic limit masks only apply to the classic rules; Doo-Sabin has none.
     with pytest.raises(bidegree.InvalidInputError):
-        bidegree.Plan(mesh, degree=3, levels=1).limit_positions()
+        bidegree.Plan(mesh, degree=2, levels=1, rules="classic").limit_positions()
     # Doo-Sabin: degree 2 classic differs from the averaging degree 2 at valence 3.
     a = bidegree.subdivide(mesh, degree=2, levels=2).points
     b = bidegree.subdivide(mesh, degree=2, levels=2, rules="classic").points

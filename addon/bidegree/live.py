@@ -46,6 +46,9 @@ def settings_of(obj: bpy.types.Object, *, render: bool = False) -> Settings:
         output=str(p.output),
         boundary=str(p.boundary),
         use_creases=bool(p.use_creases),
+        rules=str(p.rules),
+        limit=bool(p.use_limit),
+        normals=bool(p.use_limit_normals),
     )
 
 

@@ -30,6 +30,7 @@ class BIDEGREE_PT_surface(bpy.types.Panel):
         col = layout.column()
         col.active = props.enabled
         col.prop(props, "degree")
+        col.prop(props, "rules")
         sub = col.column(align=True)
         sub.prop(props, "levels", text="Levels Viewport")
         sub.prop(props, "render_levels", text="Render")
@@ -37,6 +38,9 @@ class BIDEGREE_PT_surface(bpy.types.Panel):
         col.prop(props, "boundary")
         col.prop(props, "use_creases")
         col.prop(props, "uv_mode")
+        sub = col.column(heading="Limit Surface", align=True)
+        sub.prop(props, "use_limit", text="Positions")
+        sub.prop(props, "use_limit_normals", text="Normals")
 
         box = layout.box()
         status = box.column(align=True)

@@ -97,6 +97,33 @@ class BidegreeObjectSettings(bpy.types.PropertyGroup):
         default="edge-only",
         update=_settings_changed,
     )
+    rules: EnumProperty(  # type: ignore[valid-type]
+        name="Rules",
+        description="Rule set of the scheme",
+        items=[
+            ("averaging", "Averaging", "Repeated averaging: any degree (Zorin-Schroeder)"),
+            (
+                "classic",
+                "Classic",
+                "Degree 3: Catmull-Clark exactly as OpenSubdiv (Blender's Subdivision Surface); "
+                "degree 2: the original Doo-Sabin",
+            ),
+        ],
+        default="averaging",
+        update=_settings_changed,
+    )
+    use_limit: BoolProperty(  # type: ignore[valid-type]
+        name="Limit Positions",
+        description="Place the result's vertices on the limit surface",
+        default=False,
+        update=_settings_changed,
+    )
+    use_limit_normals: BoolProperty(  # type: ignore[valid-type]
+        name="Limit Normals",
+        description="Shade with the limit surface's normals (custom normals, split at creases)",
+        default=False,
+        update=_settings_changed,
+    )
     use_creases: BoolProperty(  # type: ignore[valid-type]
         name="Use Creases",
         description="Use edge and vertex creases (sharpness 10 * crease^2, as OpenSubdiv)",

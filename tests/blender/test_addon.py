@@ -475,3 +475,42 @@ def test_batch_three_files_one_broken(addon: ModuleType, scene: Any, tmp_path: P
         "scene.bidegree.blend",
     ]
     assert len(list(out.glob("*.usd*"))) == 2
+
+
+def test_limit_positions_and_normals(addon: ModuleType, scene: Any) -> None:
+    obj = cube(scene)
+    enable(obj, use_limit=True, use_limit_normals=True, degree=4, levels=2)
+    assert obj.bidegree.last_error == ""
+    points, faces, _ = evaluated_reference(obj)
+    ref = bidegree.subdivide(
+        bidegree.Mesh(points, faces), degree=4, levels=2, limit=True, normals=True
+    )
+    result = obj.bidegree.result.data
+    assert_matches(result, ref)
+    # The limit normals are the result's corner normals (custom normals).
+    corner = np.zeros(3 * len(result.loops), dtype=np.float32)
+    result.corner_normals.foreach_get("vector", corner)
+    np.testing.assert_allclose(corner.reshape(-1, 3), ref.normals, atol=1e-5)
+    # Moving a vertex re-evaluates both through the cached plan.
+    obj.data.vertices[0].co = (-1.4, -1.1, -1.2)
+    obj.data.update()
+    assert addon.update(obj) == "reused"
+    points, faces, _ = evaluated_reference(obj)
+    ref = bidegree.subdivide(
+        bidegree.Mesh(points, faces), degree=4, levels=2, limit=True, normals=True
+    )
+    assert_matches(result, ref)
+    result.corner_normals.foreach_get("vector", corner)
+    np.testing.assert_allclose(corner.reshape(-1, 3), ref.normals, atol=1e-5)
+    # Turning the normals off removes the custom normals.
+    obj.bidegree.use_limit_normals = False
+    assert "custom_normal" not in obj.bidegree.result.data.attributes
+
+
+def test_classic_rules_setting_matches_subdivide(addon: ModuleType, scene: Any) -> None:
+    obj = cube(scene)
+    enable(obj, rules="classic", degree=3, levels=2)
+    assert obj.bidegree.last_error == ""
+    points, faces, _ = evaluated_reference(obj)
+    ref = bidegree.subdivide(bidegree.Mesh(points, faces), degree=3, levels=2, rules="classic")
+    assert_matches(obj.bidegree.result.data, ref)

@@ -489,8 +489,9 @@ impl PyPlan {
         }
     }
 
-    /// Classic degree-3 rules: limit positions `(N, C)` at the output vertices (the first ones
-    /// are the cage vertices' limits), from per cage vertex values `(V, C)`.
+    /// Limit positions `(N, C)` at the output vertices (the first ones are the cage vertices'
+    /// limits), from per cage vertex values `(V, C)`: every degree of the averaging rules,
+    /// degree 3 of the classic ones.
     fn limit_positions<'py>(
         &self,
         py: Python<'py>,
@@ -515,6 +516,44 @@ impl PyPlan {
             Floats::F32(a) => Ok(limit(py, &self.inner, &a)?.into_any()),
             Floats::F64(a) => Ok(limit(py, &self.inner, &a)?.into_any()),
         }
+    }
+
+    /// Limit positions `(N, 3)` and unit limit normals `(output corners, 3)` of points `(V, 3)`.
+    fn limit_surface<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+        type Pair<'py> = (Bound<'py, PyAny>, Bound<'py, PyAny>);
+        fn surface<'py, T: Scalar + Element>(
+            py: Python<'py>,
+            plan: &Plan,
+            points: &PyReadonlyArray2<'_, T>,
+        ) -> PyResult<Pair<'py>> {
+            if points.shape()[1] != 3 {
+                let shape = points.shape();
+                return Err(to_py_err(
+                    py,
+                    invalid(format!("points must have shape (V, 3), not {shape:?}")),
+                ));
+            }
+            let data = contiguous(points, "points")?;
+            let (positions, normals) = run(py, || plan.limit_surface(data))?;
+            Ok((
+                array2(py, positions, 3)?.into_any(),
+                array2(py, normals, 3)?.into_any(),
+            ))
+        }
+        match floats(points, "points")? {
+            Floats::F32(a) => surface(py, &self.inner, &a),
+            Floats::F64(a) => surface(py, &self.inner, &a),
+        }
+    }
+
+    /// Levels the limit evaluation adds to the plan (0 when every output vertex is clean).
+    #[getter]
+    fn limit_extra_levels(&self, py: Python<'_>) -> PyResult<u32> {
+        run(py, || self.inner.limit_extra_levels())
     }
 
     /// `"averaging"` or `"classic"`.

@@ -571,9 +571,20 @@ class Plan:
         return out.reshape(-1) if flat else out
 
     def limit_positions(self, points: ArrayLike | None = None) -> FloatArray:
-        """Limit positions at the output vertices (classic rules, degree 3, primal output,
-        ``levels >= 1``): (V, C) -> (N, C); the first V' rows (V' cage vertices in faces) are the
-        limits of the cage vertices. Default: the cage's own points."""
+        """Exact limit positions at the output vertices: (V, C) -> (N, C) for any per-vertex
+        attribute; the first V' rows (V' cage vertices in faces) are the limits of the cage
+        vertices. Default: the cage's own points.
+
+        Every degree of the averaging rules (eigenvector masks of the paper's §4 at interior
+        vertices, the B-spline of the curve on boundaries and creases; vertices near irregular
+        points or creases are refined a few levels further first, see
+        :attr:`limit_extra_levels`), and classic degree 3 (OpenSubdiv's limit masks). Needs the
+        primal output.
+
+        Raises:
+            InvalidInputError: dual output, classic rules at degree 2, wrong shapes.
+            MemoryBudgetError: the extra levels would not fit the memory budget.
+        """
         if points is None:
             values: FloatArray = self._mesh.points
             flat = False
@@ -582,6 +593,31 @@ class Plan:
         out = self._native_plan.limit_positions(values)
         return out.reshape(-1) if flat else out
 
+    def limit_surface(self, points: ArrayLike | None = None) -> tuple[FloatArray, FloatArray]:
+        """Limit positions (N, 3) and unit limit normals (output corners, 3), in the order of
+        :attr:`face_indices` (face-varying, like Blender's custom split normals and USD's
+        ``faceVarying`` normals): smooth vertices have one normal at all their corners; at
+        boundaries, creases and corners each side has its own. Averaging rules only.
+
+        Interior normals are exact (subdominant eigenvectors); normals at curve vertices are
+        one-sided estimates from the finer level the limit is computed on (first-order in its
+        spacing). Degree 1 gives each face's bilinear normal. Degenerate geometry gives zeros.
+        """
+        if points is None:
+            values: FloatArray = self._mesh.points
+        else:
+            values, _ = _values_2d(points, self._mesh.num_vertices, "points", "vertices")
+            if values.shape[1] != 3:
+                raise InvalidInputError(f"points must have shape (V, 3), not {values.shape}")
+        positions, normals = self._native_plan.limit_surface(values)
+        return positions, normals
+
+    @property
+    def limit_extra_levels(self) -> int:
+        """Levels the limit evaluation refines beyond :attr:`levels` so that every output
+        vertex has a clean neighbourhood (0 on regular meshes); built on first use."""
+        return int(self._native_plan.limit_extra_levels)
+
     def evaluate_face_varying(self, values: ArrayLike) -> FloatArray:
         """Interpolates per-face-corner values (e.g. UVs) linearly: (corners, C) -> (output
         corners, C), in the order of :attr:`face_indices`."""
@@ -589,16 +625,20 @@ class Plan:
         out = self._native_plan.evaluate_face_varying(array)
         return out.reshape(-1) if flat else out
 
-    def result(self, points: ArrayLike | None = None) -> Result:
+    def result(
+        self, points: ArrayLike | None = None, *, limit: bool = False, normals: bool = False
+    ) -> Result:
         """A :class:`Result` for ``points`` (default: the cage's own points), with uvs when the
-        cage has them."""
+        cage has them. ``limit``: the points are pushed to the limit surface
+        (:meth:`limit_positions`); ``normals``: the result carries the limit normals
+        (:meth:`limit_surface`)."""
         if points is None:
             values: FloatArray = self._mesh.points
         else:
             values, _ = _values_2d(points, self._mesh.num_vertices, "points", "vertices")
             if values.shape[1] != 3:
                 raise InvalidInputError(f"points must have shape (V, 3), not {values.shape}")
-        return Result(self, self._native_plan.evaluate(values))
+        return _result(self, values, None, limit, normals)
 
     @property
     def mesh(self) -> Mesh:
@@ -679,15 +719,19 @@ class Plan:
 
 
 class Result:
-    """A subdivided mesh: ``points`` (N, 3) in the dtype of the input, the polygons
-    (``face_sizes``, ``face_indices``, int32), ``face_origin`` (cage face of each face),
-    ``edges`` (E, 2), ``corner_edges``, and ``uvs`` (output corners, 2) when the cage has uvs.
+    """A subdivided mesh: ``points`` (N, 3) in the dtype of the input (refined points, or limit
+    positions with ``limit=True``), the polygons (``face_sizes``, ``face_indices``, int32),
+    ``face_origin`` (cage face of each face), ``edges`` (E, 2), ``corner_edges``, ``uvs``
+    (output corners, 2) when the cage has uvs and ``normals`` (output corners, 3) with
+    ``normals=True``.
     Topology arrays are shared with the :class:`Plan` and read-only; ``points`` is yours.
     """
 
-    def __init__(self, plan: Plan, points: FloatArray) -> None:
+    def __init__(self, plan: Plan, points: FloatArray, normals: FloatArray | None = None) -> None:
         self._plan = plan
         self.points: FloatArray = points
+        #: (output corners, 3) unit limit normals, one per face corner, when asked for.
+        self.normals: FloatArray | None = normals
         mesh_uvs = plan.mesh.uvs
         self.uvs: FloatArray | None = (
             plan.evaluate_face_varying(mesh_uvs) if mesh_uvs is not None else None
@@ -783,10 +827,18 @@ def subdivide(
     memory_budget: int | None = None,
     rules: Rules = "averaging",
     creasing: Creasing = "uniform",
+    *,
+    limit: bool = False,
+    normals: bool = False,
 ) -> Result:
     """Subdivides ``mesh``: validates its geometry (finite points, no zero-area face), builds
     the plan and evaluates it, in one call into the core. Options as in :class:`Plan`; the
     result's :attr:`Result.plan` can evaluate further point sets.
+
+    ``limit=True`` puts the output vertices on the limit surface (:meth:`Plan.limit_positions`);
+    ``normals=True`` adds the unit limit normals per face corner as :attr:`Result.normals`
+    (:meth:`Plan.limit_surface`). Both need the primal output and the averaging rules (classic
+    degree 3 has limit positions, not normals).
 
     Raises:
         NonFiniteError, DegenerateFaceError: bad geometry.
@@ -811,7 +863,23 @@ def subdivide(
     )
     plan = Plan._wrap(mesh, native)
     _warn_isolated(plan.isolated_vertices, stacklevel=2)
-    return Result(plan, points)
+    return _result(plan, mesh.points, points, limit, normals)
+
+
+def _result(
+    plan: Plan, values: FloatArray, refined: FloatArray | None, limit: bool, normals: bool
+) -> Result:
+    """The :class:`Result` of ``values`` through ``plan`` (``refined``: already evaluated)."""
+    native = plan._native_plan
+    if normals:
+        positions, corner_normals = native.limit_surface(values)
+        if limit:
+            return Result(plan, positions, corner_normals)
+        points = refined if refined is not None else native.evaluate(values)
+        return Result(plan, points, corner_normals)
+    if limit:
+        return Result(plan, native.limit_positions(values))
+    return Result(plan, refined if refined is not None else native.evaluate(values))
 
 
 def estimate(mesh: Mesh, degree: int, levels: int, output: Output = "primal") -> dict[str, int]:

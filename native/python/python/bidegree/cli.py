@@ -102,6 +102,16 @@ def _add_subdivide(parser: argparse.ArgumentParser) -> None:
         metavar="BYTES",
         help="refuse requests estimated above this size (e.g. 8G; default 4G)",
     )
+    parser.add_argument(
+        "--limit",
+        action="store_true",
+        help="put the output vertices on the limit surface (exact limit positions)",
+    )
+    parser.add_argument(
+        "--normals",
+        action="store_true",
+        help="write the limit normals (face-varying, split at creases; USD outputs only)",
+    )
     parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
 
 
@@ -120,6 +130,11 @@ def _run_subdivide(args: argparse.Namespace) -> int:
     out_ext = os.path.splitext(args.out)[1].lower()
     if out_ext != ".obj" and out_ext not in _USD_EXTENSIONS:
         raise CliError(f"{args.out}: unsupported output format (use .obj, .usda, .usdc or .usd)")
+    if args.normals and out_ext == ".obj":
+        raise CliError(
+            f"{args.out}: --normals is written to USD outputs (.usda, .usdc, .usd); "
+            "OBJ output carries positions only"
+        )
     say: Callable[[str], None] = (lambda _: None) if args.quiet else print
 
     start = time.perf_counter()
@@ -140,14 +155,18 @@ def _run_subdivide(args: argparse.Namespace) -> int:
             output=args.output,
             memory_budget=args.memory_budget,
             rules=args.rules,
+            limit=args.limit,
+            normals=args.normals,
         )
     subdivide_time = time.perf_counter() - start
     for warning in caught:
         text = " ".join(str(warning.message).split("\n"))
         print(f"bidegree: warning: {text}", file=sys.stderr)
+    surface = ", limit positions" if args.limit else ""
+    surface += ", limit normals" if args.normals else ""
     say(
         f"degree {result.degree}, {result.levels} levels, {result.output} output, "
-        f"{result.boundary} boundary"
+        f"{result.boundary} boundary{surface}"
     )
     say(
         f"output: {result.num_vertices} vertices, {result.num_faces} faces (subdivided in "

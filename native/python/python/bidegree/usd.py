@@ -6,7 +6,7 @@ The stage written by :func:`export` looks like this::
     /Bidegree/Cage         Mesh: the input cage, subdivisionScheme = catmullClark, with the cage's
                            creases, corners and boundary rule, so that any USD renderer draws the
                            Catmull-Clark surface of the same cage (for comparison)
-    /Bidegree/Result       Mesh: the bidegree surface, subdivisionScheme = none, vertex normals,
+    /Bidegree/Result       Mesh: the bidegree surface, subdivisionScheme = none, normals,
                            primvars:st (when the cage has UVs), primvars:distance (optional,
                            with a matching primvars:displayColor ramp for viewing),
                            extent and the custom attributes bidegree:degree, bidegree:levels,
@@ -18,9 +18,11 @@ Conventions:
 
 - Points are written as ``point3f[]`` (float32), whatever the input precision.
 - Winding is counter-clockwise (``orientation = rightHanded``), as in OBJ and in bidegree.
-- Normals of the result are *area-weighted vertex normals* (``vertex`` interpolation): each face
-  contributes its vector area (Newell's formula, exact for planar faces) to each of its vertices
-  and the sums are normalised.  A vertex whose sum vanishes gets a zero normal.
+- Normals of the result are its limit normals when it has them (``Result.normals``, from
+  ``normals=True``: ``faceVarying`` interpolation, one per face corner, split at creases), else
+  *area-weighted vertex normals* (``vertex`` interpolation): each face contributes its vector
+  area (Newell's formula, exact for planar faces) to each of its vertices and the sums are
+  normalised.  A vertex whose sum vanishes gets a zero normal.
 - UVs are face-varying ``primvars:st`` (``texCoord2f[]``), one value per face corner, on both the
   cage and the result.  bidegree interpolates UVs linearly, so the cage also says
   ``faceVaryingLinearInterpolation = all`` and a renderer subdividing it gets the same UV layout.
@@ -221,19 +223,23 @@ def _pair(value: Any, what: str) -> tuple[np.ndarray, np.ndarray] | None:
     return a, s
 
 
-def _face_varying(value: Any, num_corners: int, what: str) -> np.ndarray | None:
+def _face_varying(
+    value: Any, num_corners: int, what: str, name: str = "uvs", width: int = 2
+) -> np.ndarray | None:
     if value is None:
         return None
     uv = np.asarray(value)
-    if uv.ndim != 2 or uv.shape[1] != 2:
-        raise InvalidInputError(f"{what}: uvs must have shape (corners, 2), got {uv.shape}")
+    if uv.ndim != 2 or uv.shape[1] != width:
+        raise InvalidInputError(
+            f"{what}: {name} must have shape (corners, {width}), got {uv.shape}"
+        )
     if uv.shape[0] != num_corners:
         raise InvalidInputError(
-            f"{what}: {uv.shape[0]} uvs but the mesh has {num_corners} face corners "
-            "(uvs are face-varying: one per face corner)"
+            f"{what}: {uv.shape[0]} {name} but the mesh has {num_corners} face corners "
+            f"({name} are face-varying: one per face corner)"
         )
     if not np.all(np.isfinite(uv)):
-        raise InvalidInputError(f"{what}: uvs contain NaN or infinite values")
+        raise InvalidInputError(f"{what}: {name} contain NaN or infinite values")
     return uv
 
 
@@ -263,11 +269,13 @@ def _define_polymesh(
     path: str,
     topo: _Topology,
     *,
-    normals: bool,
+    normals: bool | np.ndarray,
     uvs: np.ndarray | None = None,
     distances: np.ndarray | None = None,
 ) -> Any:
-    """Define a plain polygon mesh (subdivisionScheme = none) at ``path``."""
+    """Define a plain polygon mesh (subdivisionScheme = none) at ``path``. ``normals``: an
+    array (corners, 3) is written face-varying (limit normals), ``True`` computes vertex
+    normals."""
     UsdGeom, Sdf = pxr.UsdGeom, pxr.Sdf
     mesh = UsdGeom.Mesh.Define(stage, path)
     mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
@@ -276,7 +284,10 @@ def _define_polymesh(
     mesh.CreateFaceVertexCountsAttr(_ints(pxr, topo.face_sizes))
     mesh.CreateFaceVertexIndicesAttr(_ints(pxr, topo.face_indices))
     mesh.CreateExtentAttr(_extent(pxr, topo.points))
-    if normals:
+    if isinstance(normals, np.ndarray):
+        mesh.CreateNormalsAttr(_vec3f(pxr, normals))
+        mesh.SetNormalsInterpolation(UsdGeom.Tokens.faceVarying)
+    elif normals:
         mesh.CreateNormalsAttr(
             _vec3f(pxr, vertex_normals(topo.points, topo.face_sizes, topo.face_indices))
         )
@@ -351,6 +362,9 @@ def _build_stage(
     res_topo = _Topology("result", result.points, result.face_sizes, result.face_indices)
     cage_uvs = _face_varying(getattr(cage, "uvs", None), cage_topo.num_corners, "cage")
     res_uvs = _face_varying(getattr(result, "uvs", None), res_topo.num_corners, "result")
+    res_normals = _face_varying(
+        getattr(result, "normals", None), res_topo.num_corners, "result", "normals", 3
+    )
     dist = _check_distances(distances, res_topo.num_points, "result")
 
     boundary = str(getattr(cage, "boundary", None) or getattr(result, "boundary", "edge-only"))
@@ -435,7 +449,7 @@ def _build_stage(
         stage,
         "/Bidegree/Result",
         res_topo,
-        normals=True,
+        normals=res_normals if res_normals is not None else True,
         uvs=res_uvs,
         distances=dist,
     )

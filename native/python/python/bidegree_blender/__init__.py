@@ -15,7 +15,14 @@ from typing import TYPE_CHECKING, Any
 import bidegree
 
 from . import mesh_io
-from .live import LiveCache, Settings, build_plan, check_geometry, write_full
+from .live import (
+    LiveCache,
+    Settings,
+    build_plan,
+    check_geometry,
+    evaluate_surface,
+    write_full,
+)
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import bpy
@@ -73,13 +80,18 @@ def subdivide_object(
     *,
     name: str | None = None,
     memory_budget: int | None = None,
+    rules: str = "averaging",
+    limit: bool = False,
+    normals: bool = False,
 ) -> bpy.types.Mesh:
     """Subdivide ``obj``'s evaluated mesh and return a new mesh datablock.
 
     Modifiers of ``obj`` are honoured (the evaluated mesh is used).  Materials,
     per-face material indices, flat/smooth shading (through ``face_origin``)
     and every UV map (linear interpolation) carry over; edge and vertex
-    creases shape the surface (sharpness ``10 * c**2``).
+    creases shape the surface (sharpness ``10 * c**2``).  ``limit`` puts the
+    vertices on the limit surface, ``normals`` writes its limit normals as
+    custom normals.
 
     Raises:
         bidegree.BidegreeError: a subclass describing bad input (non-manifold
@@ -95,14 +107,17 @@ def subdivide_object(
         boundary=str(boundary),
         use_creases=bool(use_creases),
         memory_budget=memory_budget,
+        rules=str(rules),
+        limit=bool(limit),
+        normals=bool(normals),
     )
     cage = evaluated_cage(obj, depsgraph=depsgraph, use_creases=settings.use_creases)
     check_geometry(cage)
     plan, _notes = build_plan(cage, settings)
-    points = plan.evaluate(cage.points)
+    points, corner_normals = evaluate_surface(plan, cage.points, settings)
     mesh = bpy.data.meshes.new(name or f"{obj.name}_bidegree")
     try:
-        write_full(mesh, plan, points, cage, object_materials(obj))
+        write_full(mesh, plan, points, cage, object_materials(obj), corner_normals)
     except BaseException:
         bpy.data.meshes.remove(mesh)
         raise

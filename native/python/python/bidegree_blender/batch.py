@@ -25,7 +25,7 @@ import bidegree
 
 from . import evaluated_cage, object_materials
 from .export import bidegree_usd, export_cage_usd
-from .live import Settings, build_plan, check_geometry, write_full
+from .live import Settings, build_plan, check_geometry, evaluate_surface, write_full
 from .objects import is_result_object
 
 
@@ -87,7 +87,8 @@ def process_file(path: str, out_dir: str, settings: Settings, *, usd: str | None
             check_geometry(cage)
             plan, _ = build_plan(cage, settings)
             mesh = bpy.data.meshes.new(f"{ob.name}.bidegree")
-            write_full(mesh, plan, plan.evaluate(cage.points), cage, object_materials(ob))
+            points, normals = evaluate_surface(plan, cage.points, settings)
+            write_full(mesh, plan, points, cage, object_materials(ob), normals)
         except bidegree.BidegreeError as exc:
             raise type(exc)(f"object {ob.name!r}: {exc}") from exc
         faces += len(mesh.polygons)
@@ -180,6 +181,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--output", choices=("primal", "dual"), default="primal")
     parser.add_argument("--boundary", choices=("edge-only", "edge-and-corner"), default="edge-only")
     parser.add_argument("--no-creases", action="store_true", help="ignore edge/vertex creases")
+    parser.add_argument(
+        "--rules", choices=("averaging", "classic"), default="averaging", help="rule set"
+    )
+    parser.add_argument("--limit", action="store_true", help="vertices on the limit surface")
+    parser.add_argument("--normals", action="store_true", help="limit normals (custom normals)")
     parser.add_argument("--out", required=True, help="output directory")
     parser.add_argument("--usd", action="store_true", help="also write USD (.usdc)")
     parser.add_argument("--usda", action="store_true", help="also write USD as text (.usda)")
@@ -191,6 +197,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         output=args.output,
         boundary=args.boundary,
         use_creases=not args.no_creases,
+        rules=args.rules,
+        limit=args.limit,
+        normals=args.normals,
     )
     usd = "usda" if args.usda else ("usdc" if args.usd else None)
     reports = run(args.inputs, args.out, settings, usd=usd)

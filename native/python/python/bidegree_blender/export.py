@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import bidegree
 
 from . import evaluated_cage, mesh_io, object_materials
-from .live import Settings, build_plan, check_geometry, write_full
+from .live import Settings, build_plan, check_geometry, evaluate_surface, write_full
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import bpy
@@ -44,6 +44,9 @@ def export_cage_usd(cage: mesh_io.CageArrays, path: str, settings: Settings) -> 
         levels=settings.levels,
         output=settings.output,
         memory_budget=settings.memory_budget,
+        rules=settings.rules,
+        limit=settings.limit,
+        normals=settings.normals,
     )
     usd.export(path, bmesh, result, up_axis="Z")
 
@@ -57,7 +60,8 @@ def export_blender_usd(
     check_geometry(cage)
     plan, _ = build_plan(cage, settings)
     mesh = bpy.data.meshes.new(f"{obj.name}_bidegree")
-    write_full(mesh, plan, plan.evaluate(cage.points), cage, object_materials(obj))
+    points, normals = evaluate_surface(plan, cage.points, settings)
+    write_full(mesh, plan, points, cage, object_materials(obj), normals)
     tmp = bpy.data.objects.new(f"{obj.name}_bidegree", mesh)
     tmp.matrix_world = obj.matrix_world
     scene = bpy.context.scene

@@ -50,6 +50,11 @@ class Settings:
     boundary: str = "edge-only"
     use_creases: bool = True
     memory_budget: int | None = None
+    rules: str = "averaging"
+    #: Output vertices on the limit surface (exact limit positions).
+    limit: bool = False
+    #: Limit normals as the result's custom normals (split at creases).
+    normals: bool = False
 
 
 @dataclass
@@ -165,8 +170,22 @@ def build_plan(cage: mesh_io.CageArrays, settings: Settings) -> tuple[Any, list[
             levels=settings.levels,
             output=settings.output,
             memory_budget=settings.memory_budget,
+            rules=settings.rules,
         )
     return plan, [str(w.message) for w in caught]
+
+
+def evaluate_surface(
+    plan: Any, points: np.ndarray, settings: Settings
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """The result's points (refined, or limit positions with ``settings.limit``) and, with
+    ``settings.normals``, its limit normals per face corner."""
+    if settings.normals:
+        positions, normals = plan.limit_surface(points)
+        return (positions if settings.limit else plan.evaluate(points)), normals
+    if settings.limit:
+        return plan.limit_positions(points), None
+    return plan.evaluate(points), None
 
 
 def evaluate_uvs(plan: Any, cage: mesh_io.CageArrays) -> dict[str, np.ndarray]:
@@ -185,8 +204,10 @@ def write_full(
     points: np.ndarray,
     cage: mesh_io.CageArrays,
     materials: list[Any] | None,
+    normals: np.ndarray | None = None,
 ) -> None:
-    """Write the full result (topology, positions, UVs, per-face data) into ``mesh``."""
+    """Write the full result (topology, positions, UVs, per-face data, custom normals) into
+    ``mesh``."""
     mesh_io.write_mesh(
         mesh,
         points=points,
@@ -199,6 +220,7 @@ def write_full(
         uv_maps=evaluate_uvs(plan, cage),
         active_uv=cage.active_uv,
         materials=materials,
+        normals=normals,
     )
 
 
@@ -292,29 +314,29 @@ class LiveCache:
                 self.stats.skips += 1
                 return self._report(UNCHANGED, t0, cage, entry)
             entry.check(cage.points)
-            points = entry.plan.evaluate(cage.points)
+            points, normals = evaluate_surface(entry.plan, cage.points, settings)
             self.stats.plan_reuses += 1
             if entry.face_data == face_data:
-                mesh_io.write_positions(mesh, points)
+                mesh_io.write_positions(mesh, points, normals)
                 action = REUSED
             else:
-                write_full(mesh, entry.plan, points, cage, materials)
+                write_full(mesh, entry.plan, points, cage, materials, normals)
                 self.stats.rewrites += 1
                 action = REWRITTEN
         elif entry is not None and entry.topology == topology:
             # Same plan, but the result mesh was replaced or emptied behind our back.
             entry.check(cage.points)
-            points = entry.plan.evaluate(cage.points)
+            points, normals = evaluate_surface(entry.plan, cage.points, settings)
             self.stats.plan_reuses += 1
-            write_full(mesh, entry.plan, points, cage, materials)
+            write_full(mesh, entry.plan, points, cage, materials, normals)
             self.stats.rewrites += 1
             action = REWRITTEN
         else:
             check = GeometryCheck(cage.face_sizes, cage.corner_verts)
             check(cage.points)
             plan, notes = build_plan(cage, settings)
-            points = plan.evaluate(cage.points)
-            write_full(mesh, plan, points, cage, materials)
+            points, normals = evaluate_surface(plan, cage.points, settings)
+            write_full(mesh, plan, points, cage, materials, normals)
             self.stats.plan_builds += 1
             entry = _Entry(
                 plan=plan,

@@ -268,11 +268,13 @@ def write_mesh(
     uv_maps: dict[str, np.ndarray] | None = None,
     active_uv: str | None = None,
     materials: list[Any] | None = None,
+    normals: np.ndarray | None = None,
 ) -> bpy.types.Mesh:
     """Replace the geometry of ``mesh`` with the given arrays (fast path, no ``calc_edges``).
 
     Per-face data of the cage (``material_index``, ``sharp_face``) is carried over
-    through ``face_origin``; ``uv_maps`` (name -> ``(C, 2)``) become UV maps.
+    through ``face_origin``; ``uv_maps`` (name -> ``(C, 2)``) become UV maps;
+    ``normals`` (one per face corner) become custom normals (:func:`write_normals`).
 
     Returns:
         ``mesh`` itself.
@@ -328,6 +330,7 @@ def write_mesh(
         mesh.uv_layers.active = mesh.uv_layers[active_uv]
         mesh.uv_layers[active_uv].active_render = True
 
+    _set_normals(mesh, normals)
     mesh.update(calc_edges=False)
     return mesh
 
@@ -342,7 +345,8 @@ def write_result(
     active_uv: str | None = None,
     materials: list[Any] | None = None,
 ) -> bpy.types.Mesh:
-    """Write a :class:`bidegree.Result` (optionally with other ``points``) into ``mesh``."""
+    """Write a :class:`bidegree.Result` (optionally with other ``points``) into ``mesh``; its
+    limit normals, when it has them, become custom normals."""
     return write_mesh(
         mesh,
         points=result.points if points is None else points,
@@ -355,6 +359,7 @@ def write_result(
         uv_maps=uv_maps,
         active_uv=active_uv,
         materials=materials,
+        normals=getattr(result, "normals", None),
     )
 
 
@@ -363,7 +368,33 @@ def read_positions(mesh: bpy.types.Mesh) -> np.ndarray:
     return _get(mesh.attributes["position"].data, "vector", len(mesh.vertices), np.float32, 3)
 
 
-def write_positions(mesh: bpy.types.Mesh, points: np.ndarray) -> None:
-    """Overwrite the vertex positions of ``mesh`` (same vertex count) and tag it for redraw."""
+def write_positions(
+    mesh: bpy.types.Mesh, points: np.ndarray, normals: np.ndarray | None = None
+) -> None:
+    """Overwrite the vertex positions of ``mesh`` (same vertex count) and its custom normals
+    (:func:`write_normals`; ``None`` removes them) and tag it for redraw."""
     _set(mesh.attributes["position"].data, "vector", points, np.float32)
+    _set_normals(mesh, normals)
     mesh.update(calc_edges=False)
+
+
+#: The corner attribute Blender reads custom normals from (a float vector per corner is the
+#: "free" storage of Blender 5: written directly, no encoding into normal spaces).
+CUSTOM_NORMAL = "custom_normal"
+
+
+def _set_normals(mesh: bpy.types.Mesh, normals: np.ndarray | None) -> None:
+    """Custom normals per face corner (``None``: none, the shading comes from the faces)."""
+    existing = mesh.attributes.get(CUSTOM_NORMAL)
+    if normals is None:
+        if existing is not None:
+            mesh.attributes.remove(existing)
+        return
+    if existing is not None and (
+        existing.domain != "CORNER" or existing.data_type != "FLOAT_VECTOR"
+    ):
+        mesh.attributes.remove(existing)
+        existing = None
+    if existing is None:
+        existing = mesh.attributes.new(CUSTOM_NORMAL, "FLOAT_VECTOR", "CORNER")
+    _set(existing.data, "vector", normals, np.float32)

@@ -1,0 +1,103 @@
+"""Limit positions and normals through the Python API, the CLI and USD (issue 6)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import bidegree
+import numpy as np
+import pytest
+from cages import cube, torus
+from test_cli import assert_one_line_error, run_here
+
+
+def bspline(n: int, t: np.ndarray) -> np.ndarray:
+    """The centred cardinal B-spline of degree n at t (Cox-de Boor, vectorised)."""
+    x = np.asarray(t, dtype=np.float64) + (n + 1) / 2
+    values = [((x - i >= 0) & (x - i < 1)).astype(np.float64) for i in range(n + 1)]
+    for d in range(1, n + 1):
+        for i in range(n + 1 - d):
+            y = x - i
+            values[i] = (y * values[i] + (d + 1 - y) * values[i + 1]) / d
+    return values[0]
+
+
+@pytest.mark.parametrize("degree", [2, 3, 4, 7])
+def test_torus_limit_is_the_tensor_bspline_of_the_cage(degree: int) -> None:
+    n, m = 12, 8
+    mesh = torus(n, m)
+    limit = bidegree.Plan(mesh, degree=degree, levels=1).limit_positions()
+    offsets = np.arange(-8, 9)
+    w = bspline(degree, offsets.astype(np.float64))
+    grid = mesh.points.reshape(n, m, 3)
+    for i in range(n):
+        for j in range(m):
+            rows = (i + offsets) % n
+            cols = (j + offsets) % m
+            expected = np.einsum("a,b,abk->k", w, w, grid[np.ix_(rows, cols)])
+            np.testing.assert_allclose(limit[i * m + j], expected, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("degree", [2, 3, 4, 5, 9])
+def test_subdivide_limit_and_normals(degree: int) -> None:
+    mesh = cube()
+    result = bidegree.subdivide(mesh, degree=degree, levels=2, limit=True, normals=True)
+    plan = result.plan
+    np.testing.assert_array_equal(result.points, plan.limit_positions())
+    assert result.normals is not None
+    assert result.normals.shape == (len(result.face_indices), 3)
+    np.testing.assert_allclose(np.linalg.norm(result.normals, axis=1), 1.0, atol=1e-12)
+    # Outward on the cube: the normal points away from its centre.
+    at = result.points[result.face_indices] - 0.5
+    assert (np.einsum("ij,ij->i", at, result.normals) > 0).all()
+    # The limit at a vertex does not depend on the level it is asked at.
+    coarse = bidegree.Plan(mesh, degree=degree, levels=1).limit_positions()
+    np.testing.assert_allclose(result.points[: len(coarse)], coarse, rtol=0, atol=1e-12)
+    # The limit lies off the refined points, which normals=True alone keeps; except at degree
+    # 2, whose drawing points (centroids of a vertex's k dual points) are exactly its limits.
+    refined = bidegree.subdivide(mesh, degree=degree, levels=2, normals=True)
+    gap = np.abs(refined.points - result.points).max()
+    assert gap < 1e-12 if degree == 2 else gap > 1e-4
+    np.testing.assert_array_equal(refined.normals, result.normals)
+
+
+def test_limit_refusals() -> None:
+    mesh = cube()
+    with pytest.raises(bidegree.InvalidInputError, match="primal"):
+        bidegree.subdivide(mesh, degree=4, levels=1, output="dual", limit=True)
+    with pytest.raises(bidegree.InvalidInputError, match="classic"):
+        bidegree.subdivide(mesh, degree=3, levels=1, rules="classic", normals=True)
+    with pytest.raises(bidegree.InvalidInputError):
+        bidegree.Plan(mesh, degree=4, levels=1).limit_surface(np.zeros((8, 2)))
+    assert bidegree.Plan(mesh, degree=4, levels=1).limit_extra_levels >= 1
+    assert bidegree.Plan(torus(), degree=4, levels=1).limit_extra_levels == 0
+
+
+def test_usd_carries_face_varying_limit_normals(tmp_path: Path) -> None:
+    pxr = pytest.importorskip("pxr")
+    from bidegree import usd
+
+    mesh = cube()
+    result = bidegree.subdivide(mesh, degree=4, levels=2, limit=True, normals=True)
+    path = tmp_path / "limit.usda"
+    usd.export(path, mesh, result)
+    assert usd.validate(path) == []
+    stage = pxr.Usd.Stage.Open(str(path))
+    prim = pxr.UsdGeom.Mesh(stage.GetPrimAtPath("/Bidegree/Result"))
+    assert prim.GetNormalsInterpolation() == pxr.UsdGeom.Tokens.faceVarying
+    normals = np.array(prim.GetNormalsAttr().Get())
+    np.testing.assert_allclose(normals, result.normals, atol=1e-6)
+
+
+def test_cli_limit_and_normals(tmp_path: Path) -> None:
+    cage = tmp_path / "cube.obj"
+    lines = [f"v {x} {y} {z}" for x, y, z in cube().points]
+    lines += ["f " + " ".join(str(v + 1) for v in f) for f in cube().face_indices.reshape(-1, 4)]
+    cage.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "cube.usda"
+    proc = run_here("subdivide", cage, "-o", out, "--limit", "--normals", "--levels", "1")
+    assert proc.returncode == 0, proc.stderr
+    assert "limit positions, limit normals" in proc.stdout
+    assert out.exists()
+    proc = run_here("subdivide", cage, "-o", tmp_path / "cube.obj", "--normals")
+    assert_one_line_error(proc, "--normals", "USD")
