@@ -5,8 +5,11 @@
 //! the scheme's data (per vertex for odd degrees, per face for even ones) on `v`'s minimal
 //! invariant neighbourhood (`N` rings, `N` as in [`crate::analysis::neighbourhood_size`]),
 //! *provided* that the subdivision matrix of that neighbourhood is the polar one of
-//! [`crate::analysis::subdivision_matrix`] for `v`'s valence: every other vertex within `N + 1`
-//! rings is interior, of valence 4 and on no crease. Then
+//! [`crate::analysis::subdivision_matrix`] for `v`'s valence: every other vertex within `N`
+//! rings is interior, of valence 4 and on no crease. (Working back through the `n` averages of
+//! a step, the valences that enter the new values on the neighbourhood are those of the old
+//! vertices within `N - 1/2` rings, and the 1-D rules those of curve vertices within `N`; the
+//! walk that labels the neighbourhood is sound under the same condition.) Then
 //! - the limit position is the dominant left eigenvector (eigenvalue 1, summing to 1), and
 //! - two tangents are the real and imaginary parts of the subdominant left eigenvector of the
 //!   Fourier mode 1 (eigenvalue `lambda1`); their cross product is the limit normal.
@@ -397,9 +400,9 @@ fn build_stencils(
             sorted.dedup();
             return (sorted.len() == items.len()).then_some((Rule::Curve, items));
         }
-        // Interior: the vertex ring up to N + 1 must be clean.
+        // Interior: the vertices up to N rings away must be clean.
         let first = last.corners_of_vertex(v)[0] as usize;
-        let ring = neighbourhood(last, first, VERTEX_ENUMERATION, n + 1)?;
+        let ring = neighbourhood(last, first, VERTEX_ENUMERATION, n)?;
         let mut ids: Vec<usize> = Vec::with_capacity(ring.len());
         for &(label, w) in &ring {
             if label != (0, 0, 0) && (last.corners_of_vertex(w).len() != 4 || curve_of(w).is_some())
@@ -572,8 +575,8 @@ impl Plan {
         let first = (finite.ceil() as u32)
             .saturating_sub(levels)
             .max(u32::from(levels == 0));
-        // Enough doubling to put N + 1 rings between a vertex and its nearest neighbour.
-        let clean = (1..).find(|&m| (1u32 << m) > n + 1).unwrap_or(1);
+        // Enough doubling to put N rings between a vertex and its nearest neighbour.
+        let clean = (1..).find(|&m| (1u32 << m) > n).unwrap_or(1);
         let mut candidates = vec![first, first.max(clean)];
         candidates.extend((1..=MAX_EXTRA_LEVELS).map(|i| first.max(clean) + i));
         candidates.dedup();
