@@ -1,6 +1,8 @@
 //! `cargo bench -p bidegree`: output faces per second for degrees 1..9 at about 4M output faces,
 //! fresh (plan + evaluate) and through a cached plan, next to a plain memory copy of the same
 //! output size measured in the same run. The ratio to the copy is the figure that matters.
+//! A second table times limit positions and normals (`Plan::limit_surface`) at about 250k
+//! output faces against an evaluation through the same plan (`BIDEGREE_BENCH_LIMIT=0` skips it).
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
@@ -141,6 +143,47 @@ fn main() {
             cached.as_secs_f64() * 1e3,
             copy.as_secs_f64() * 1e3,
             cached.as_secs_f64() / copy.as_secs_f64()
+        );
+    }
+    if std::env::var("BIDEGREE_BENCH_LIMIT").as_deref() != Ok("0") {
+        limit_table(&cage, &points);
+    }
+}
+
+/// Limit positions and normals next to a cached evaluation of the same plan.
+fn limit_table(cage: &Cage, points: &[f32]) {
+    println!(
+        "\nlimit surface (positions and normals) vs evaluate, same plan\n{:>6} {:>6} {:>10} {:>6} {:>10} {:>10} {:>9} {:>6}",
+        "degree", "levels", "faces", "extra", "first ms", "cached ms", "eval ms", "ratio"
+    );
+    let levels = ((2.5e5 / (4.0 * cage.num_faces() as f64)).log(4.0).round() as u32 + 1).max(1);
+    for degree in [2u32, 3, 4, 5, 9] {
+        let options = Options {
+            degree,
+            levels,
+            ..Options::default()
+        };
+        let plan = Plan::new(cage, &options).unwrap();
+        let t = Instant::now();
+        black_box(plan.limit_surface(points).unwrap());
+        let first = t.elapsed();
+        let extra = plan.limit_extra_levels().unwrap();
+        let cached = best_of(5, || {
+            black_box(plan.limit_surface(points).unwrap());
+        });
+        let eval = best_of(5, || {
+            black_box(plan.evaluate(points, 3).unwrap());
+        });
+        println!(
+            "{:>6} {:>6} {:>10} {:>6} {:>10.1} {:>10.1} {:>9.1} {:>6.1}",
+            degree,
+            levels,
+            plan.num_output_faces(),
+            extra,
+            first.as_secs_f64() * 1e3,
+            cached.as_secs_f64() * 1e3,
+            eval.as_secs_f64() * 1e3,
+            cached.as_secs_f64() / eval.as_secs_f64()
         );
     }
 }

@@ -144,6 +144,38 @@ fn other_corner(level: &Level, e: usize, c: usize) -> Option<usize> {
 /// A neighbourhood item: its label `(sector, i, j)` and its index in the level.
 pub(crate) type Labelled = ((usize, usize, usize), usize);
 
+/// The frames `(s, i, j)` of [`SectorGrid::frame`] for `0 <= i, j <= last`, sector by sector
+/// and row by row (index `s (last+1)^2 + i (last+1) + j`), walked incrementally (one step per
+/// frame); `None` when the walk meets a boundary.
+pub(crate) fn sector_frames(level: &Level, first: usize, last: usize) -> Option<Vec<usize>> {
+    let grid = SectorGrid::new(level, first)?;
+    let l = level;
+    let step_i = |o: usize| -> Option<usize> {
+        let n = l.next(o);
+        Some(l.next(other_corner(l, l.corner_edges[n] as usize, n)?))
+    };
+    let step_j = |o: usize| -> Option<usize> {
+        let n2 = l.next(l.next(o));
+        other_corner(l, l.corner_edges[n2] as usize, n2)
+    };
+    let mut frames = Vec::with_capacity(grid.valence() * (last + 1) * (last + 1));
+    for &start in &grid.starts {
+        let mut row = start;
+        for i in 0..=last {
+            if i > 0 {
+                row = step_i(row)?;
+            }
+            let mut o = row;
+            frames.push(o);
+            for _ in 0..last {
+                o = step_j(o)?;
+                frames.push(o);
+            }
+        }
+    }
+    Some(frames)
+}
+
 /// Labels and level indices of the neighbourhood of `rings` rings around the vertex of corner
 /// `first` (the ordering of the module documentation): faces `(s, i, j)`, `0 <= i, j < rings`,
 /// for even degrees; the centre and vertices `(s, i, j)`, `1 <= i <= rings`, `0 <= j <= rings`,
@@ -155,27 +187,44 @@ pub(crate) fn neighbourhood(
     degree: u32,
     rings: usize,
 ) -> Option<Vec<Labelled>> {
-    let grid = SectorGrid::new(level, first)?;
+    let even = degree.is_multiple_of(2);
+    let last = if even { rings.max(1) - 1 } else { rings };
+    let frames = sector_frames(level, first, last)?;
+    Some(frame_items(level, &frames, last, rings, even))
+}
+
+/// The items of [`neighbourhood`] read off the frames of [`sector_frames`] (walked up to
+/// `last`): faces of `rings` rings (`even`) or the centre and the vertices of `rings` rings.
+pub(crate) fn frame_items(
+    level: &Level,
+    frames: &[usize],
+    last: usize,
+    rings: usize,
+    even: bool,
+) -> Vec<Labelled> {
+    let side = last + 1;
+    let sectors = frames.len() / (side * side);
+    let frame = |s: usize, i: usize, j: usize| frames[s * side * side + i * side + j];
     let mut items = Vec::new();
-    if degree.is_multiple_of(2) {
-        for s in 0..grid.valence() {
+    if even {
+        for s in 0..sectors {
             for i in 0..rings {
                 for j in 0..rings {
-                    items.push(((s, i, j), level.face_of(grid.frame(s, i, j)?)));
+                    items.push(((s, i, j), level.face_of(frame(s, i, j))));
                 }
             }
         }
     } else {
-        items.push(((0, 0, 0), level.corner_verts[first] as usize));
-        for s in 0..grid.valence() {
+        items.push(((0, 0, 0), level.corner_verts[frame(0, 0, 0)] as usize));
+        for s in 0..sectors {
             for i in 1..=rings {
                 for j in 0..=rings {
-                    items.push(((s, i, j), level.corner_verts[grid.frame(s, i, j)?] as usize));
+                    items.push(((s, i, j), level.corner_verts[frame(s, i, j)] as usize));
                 }
             }
         }
     }
-    Some(items)
+    items
 }
 
 /// The complete neighbourhood of the polar cages built here, which have no boundary nearby.

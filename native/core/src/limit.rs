@@ -39,16 +39,13 @@ use std::sync::{Arc, Mutex, OnceLock};
 use glam::DVec3;
 use nalgebra::DMatrix;
 
-use crate::analysis::{self, neighbourhood, neighbourhood_size, C64};
+use crate::analysis::{self, frame_items, neighbourhood_size, sector_frames, C64};
 use crate::error::{Error, Result};
 use crate::evaluate::{gather, in_groups_of_four, Final, Scalar};
 use crate::mesh::check_values;
 use crate::plan::{Options, OutputKind, Plan, Rules};
 use crate::topology::{Level, NONE};
 use crate::INFINITELY_SHARP;
-
-/// A degree whose neighbourhoods enumerate vertices (any odd one), for the cleanliness check.
-const VERTEX_ENUMERATION: u32 = 1;
 
 /// Extra levels tried at most beyond the first guess before giving up.
 const MAX_EXTRA_LEVELS: u32 = 8;
@@ -84,7 +81,7 @@ pub fn cardinal_bspline_derivative(n: u32, t: f64) -> f64 {
 }
 
 /// Limit masks of one degree at an interior vertex of one valence, over the minimal
-/// neighbourhood in the order of [`neighbourhood`] with `rings = N`.
+/// neighbourhood in the order of [`crate::analysis`]'s neighbourhoods with `rings = N`.
 #[derive(Debug, Clone)]
 pub struct VertexMasks {
     /// Degree of the scheme.
@@ -402,7 +399,8 @@ fn build_stencils(
         }
         // Interior: the vertices up to N rings away must be clean.
         let first = last.corners_of_vertex(v)[0] as usize;
-        let ring = neighbourhood(last, first, VERTEX_ENUMERATION, n)?;
+        let frames = sector_frames(last, first, n)?;
+        let ring = frame_items(last, &frames, n, n, false);
         let mut ids: Vec<usize> = Vec::with_capacity(ring.len());
         for &(label, w) in &ring {
             if label != (0, 0, 0) && (last.corners_of_vertex(w).len() != 4 || curve_of(w).is_some())
@@ -416,8 +414,12 @@ fn build_stencils(
         if ids.len() != ring.len() {
             return None;
         }
-        let items = neighbourhood(last, first, degree, n)?;
-        let valence = last.corners_of_vertex(v).len();
+        let items = if primal {
+            ring
+        } else {
+            frame_items(last, &frames, n, n, true)
+        };
+        let valence = frames.len() / ((n + 1) * (n + 1));
         Some((
             Rule::Interior(valence as u32),
             items.iter().map(|&(_, i)| i as u32).collect(),
