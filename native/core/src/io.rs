@@ -6,7 +6,7 @@
 //!   with 1-based or negative (relative) indices), and the tag lines of OpenSubdiv's test shapes
 //!   (`t crease`, `t corner`, `t interpolateboundary`). Normals, groups, objects, smoothing groups,
 //!   materials, comments and statements it does not know are skipped.
-//! - [`write_obj`] / [`write_obj_f32`] write a polygon mesh (with optional face-varying UVs),
+//! - [`write_obj`] / [`write_obj_f32`] write a polygon mesh (with optional face-varying UVs and normals),
 //!   formatting in parallel into large buffers.
 //!
 //! Malformed input is refused with [`Error::Io`] carrying `"path:LINE: message"`. The parser
@@ -454,8 +454,9 @@ impl ObjFloat for f32 {}
 impl ObjFloat for f64 {}
 
 /// Writes a polygon mesh as OBJ: `points` has 3 values per vertex, face `f` uses
-/// `face_vertices[face_offsets[f]..face_offsets[f + 1]]`, and `uvs`, if given, is
-/// `(values, indices)` with 2 values per UV and one index per face corner (face-varying).
+/// `face_vertices[face_offsets[f]..face_offsets[f + 1]]`, `uvs`, if given, is
+/// `(values, indices)` with 2 values per UV and one index per face corner (face-varying), and
+/// `normals`, if given, has 3 values per face corner (written as one `vn` per corner).
 /// Numbers are written in their shortest exact form; the text is formatted in parallel.
 pub fn write_obj(
     path: &Path,
@@ -463,8 +464,9 @@ pub fn write_obj(
     face_offsets: &[u32],
     face_vertices: &[u32],
     uvs: Option<(&[f64], &[u32])>,
+    normals: Option<&[f64]>,
 ) -> Result<()> {
-    write_obj_generic(path, points, face_offsets, face_vertices, uvs)
+    write_obj_generic(path, points, face_offsets, face_vertices, uvs, normals)
 }
 
 /// [`write_obj`] for single-precision data (numbers are printed in their shortest `f32` form,
@@ -475,8 +477,9 @@ pub fn write_obj_f32(
     face_offsets: &[u32],
     face_vertices: &[u32],
     uvs: Option<(&[f32], &[u32])>,
+    normals: Option<&[f32]>,
 ) -> Result<()> {
-    write_obj_generic(path, points, face_offsets, face_vertices, uvs)
+    write_obj_generic(path, points, face_offsets, face_vertices, uvs, normals)
 }
 
 /// Items formatted per parallel task (small in tests, so that chunking is exercised).
@@ -490,8 +493,18 @@ fn write_obj_generic<T: ObjFloat>(
     face_offsets: &[u32],
     face_vertices: &[u32],
     uvs: Option<(&[T], &[u32])>,
+    normals: Option<&[T]>,
 ) -> Result<()> {
     check_write_input(points, face_offsets, face_vertices, uvs)?;
+    if let Some(n) = normals {
+        if n.len() != 3 * face_vertices.len() {
+            return Err(Error::InvalidInput(format!(
+                "write_obj: {} normal values for {} face corners (3 per corner)",
+                n.len(),
+                face_vertices.len()
+            )));
+        }
+    }
     let io_error = |e: std::io::Error| Error::Io(format!("{}: {e}", path.display()));
     let mut file = File::create(path).map_err(io_error)?;
     file.write_all(b"# written by bidegree\n")
@@ -525,8 +538,25 @@ fn write_obj_generic<T: ObjFloat>(
         .map_err(io_error)?;
     }
 
+    if let Some(values) = normals {
+        write_parallel(&mut file, values.len() / 3, |range, out| {
+            let mut buffer = ryu::Buffer::new();
+            for n in range {
+                out.extend_from_slice(b"vn ");
+                push_float(out, &mut buffer, values[3 * n]);
+                out.push(b' ');
+                push_float(out, &mut buffer, values[3 * n + 1]);
+                out.push(b' ');
+                push_float(out, &mut buffer, values[3 * n + 2]);
+                out.push(b'\n');
+            }
+        })
+        .map_err(io_error)?;
+    }
+
     let num_faces = face_offsets.len().saturating_sub(1);
     let uv_indices = uvs.map(|(_, indices)| indices);
+    let with_normals = normals.is_some();
     write_parallel(&mut file, num_faces, |range, out| {
         let mut buffer = itoa::Buffer::new();
         for f in range {
@@ -537,6 +567,10 @@ fn write_obj_generic<T: ObjFloat>(
                 if let Some(indices) = uv_indices {
                     out.push(b'/');
                     out.extend_from_slice(buffer.format(indices[c] as u64 + 1).as_bytes());
+                }
+                if with_normals {
+                    out.extend_from_slice(if uv_indices.is_some() { b"/" } else { b"//" });
+                    out.extend_from_slice(buffer.format(c as u64 + 1).as_bytes());
                 }
             }
             out.push(b'\n');
@@ -929,6 +963,7 @@ mod tests {
             &offsets,
             &vertices,
             Some((&uv_values, &uv_indices)),
+            None,
         )
         .unwrap();
         let mesh = read_obj(&path).unwrap();
@@ -947,10 +982,38 @@ mod tests {
         assert!(text.contains("\nv 1 1 0.1\n"), "{text}");
         assert!(text.contains("\nf 1/1 2/2 3/3 4/4\n"), "{text}");
 
-        write_obj(&path, &points, &offsets, &vertices, None).unwrap();
+        write_obj(&path, &points, &offsets, &vertices, None, None).unwrap();
         let mesh = read_obj(&path).unwrap();
         assert_eq!(mesh.face_uvs, None);
         assert!(mesh.uvs.is_empty());
+    }
+
+    #[test]
+    fn normals_are_written_per_corner() {
+        let path = temp_path("normals.obj");
+        let points = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+        let normals = [0.0, 0.0, 1.0, 0.0, 0.6, 0.8, 0.0, 0.0, 1.0];
+        write_obj(&path, &points, &[0, 3], &[0, 1, 2], None, Some(&normals)).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains("\nvn 0 0.6 0.8\n"), "{text}");
+        assert!(text.contains("\nf 1//1 2//2 3//3\n"), "{text}");
+        let uv = [0.0, 0.0, 1.0, 0.0, 0.0, 1.0];
+        let uvs = Some((&uv[..], &[0u32, 1, 2][..]));
+        write_obj(&path, &points, &[0, 3], &[0, 1, 2], uvs, Some(&normals)).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains("\nf 1/1/1 2/2/2 3/3/3\n"), "{text}");
+        assert_eq!(read_obj(&path).unwrap().points, points);
+        assert!(matches!(
+            write_obj(
+                &path,
+                &points,
+                &[0, 3],
+                &[0, 1, 2],
+                None,
+                Some(&normals[..6])
+            ),
+            Err(Error::InvalidInput(_))
+        ));
     }
 
     #[test]
@@ -961,6 +1024,7 @@ mod tests {
             &[0.1f32, 0.2, 0.3, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0],
             &[0, 3],
             &[0, 1, 2],
+            None,
             None,
         )
         .unwrap();
@@ -980,7 +1044,7 @@ mod tests {
             .map(|c| (c / 3 + c % 3) % n as u32)
             .collect();
         let path = temp_path("large.obj");
-        write_obj(&path, &points, &offsets, &vertices, None).unwrap();
+        write_obj(&path, &points, &offsets, &vertices, None, None).unwrap();
         let mesh = read_obj(&path).unwrap();
         assert_eq!(mesh.points, points);
         assert_eq!(
@@ -1003,23 +1067,40 @@ mod tests {
         ];
         for (p, o, v) in bad {
             assert!(
-                matches!(write_obj(&path, p, o, v, None), Err(Error::InvalidInput(_))),
+                matches!(
+                    write_obj(&path, p, o, v, None, None),
+                    Err(Error::InvalidInput(_))
+                ),
                 "{o:?} {v:?}"
             );
         }
         let uv = [0.0; 4];
         assert!(matches!(
-            write_obj(&path, &points, &[0, 3], &[0, 1, 2], Some((&uv, &[0, 1]))),
+            write_obj(
+                &path,
+                &points,
+                &[0, 3],
+                &[0, 1, 2],
+                Some((&uv, &[0, 1])),
+                None
+            ),
             Err(Error::InvalidInput(_))
         ));
         assert!(matches!(
-            write_obj(&path, &points, &[0, 3], &[0, 1, 2], Some((&uv, &[0, 1, 2]))),
+            write_obj(
+                &path,
+                &points,
+                &[0, 3],
+                &[0, 1, 2],
+                Some((&uv, &[0, 1, 2])),
+                None
+            ),
             Err(Error::InvalidInput(_))
         ));
         assert!(!path.exists());
         let unwritable = temp_path("no-such-dir").join("x.obj");
         assert!(matches!(
-            write_obj(&unwritable, &points, &[0, 3], &[0, 1, 2], None),
+            write_obj(&unwritable, &points, &[0, 3], &[0, 1, 2], None, None),
             Err(Error::Io(_))
         ));
     }
@@ -1030,7 +1111,7 @@ mod tests {
         assert_eq!(mesh.num_vertices(), 0);
         assert_eq!(mesh.num_faces(), 0);
         let path = temp_path("empty.obj");
-        write_obj(&path, &[], &[], &[], None).unwrap();
+        write_obj(&path, &[], &[], &[], None, None).unwrap();
         assert_eq!(read_obj(&path).unwrap().num_faces(), 0);
     }
 }

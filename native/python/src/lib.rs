@@ -669,20 +669,21 @@ impl PyPlan {
     }
 
     /// Writes the output mesh with `points` `(N, 3)` and optional face-varying `uvs`
-    /// `(corners, 2)` (same dtype as `points`) as OBJ.
-    #[pyo3(signature = (path, points, uvs=None))]
+    /// `(corners, 2)` and `normals` `(corners, 3)` (same dtype as `points`) as OBJ.
+    #[pyo3(signature = (path, points, uvs=None, normals=None))]
     fn write_obj(
         &self,
         py: Python<'_>,
         path: PathBuf,
         points: &Bound<'_, PyAny>,
         uvs: Option<&Bound<'_, PyAny>>,
+        normals: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         let plan = &self.inner;
         let (offsets, vertices) = guard(py, || {
             (plan.output_face_offsets(), plan.output_face_vertices())
         })?;
-        write_mesh(py, &path, points, offsets, vertices, uvs)
+        write_mesh(py, &path, points, offsets, vertices, [uvs, normals])
     }
 }
 
@@ -820,9 +821,10 @@ fn read_obj<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>>
 }
 
 /// Writes a polygon mesh as OBJ: `points` (V,3) float32|float64, `face_offsets` uint32 (F+1),
-/// `face_indices` uint32, optional face-varying `uvs` (corners,2) of the same dtype as `points`.
+/// `face_indices` uint32, optional face-varying `uvs` (corners,2) and `normals` (corners,3) of
+/// the same dtype as `points`.
 #[pyfunction]
-#[pyo3(signature = (path, points, face_offsets, face_indices, uvs=None))]
+#[pyo3(signature = (path, points, face_offsets, face_indices, uvs=None, normals=None))]
 fn write_obj(
     py: Python<'_>,
     path: PathBuf,
@@ -830,11 +832,15 @@ fn write_obj(
     face_offsets: PyReadonlyArray1<'_, u32>,
     face_indices: PyReadonlyArray1<'_, u32>,
     uvs: Option<&Bound<'_, PyAny>>,
+    normals: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<()> {
     let offsets = contiguous(&face_offsets, "face_offsets")?;
     let vertices = contiguous(&face_indices, "face_indices")?;
-    write_mesh(py, &path, points, offsets, vertices, uvs)
+    write_mesh(py, &path, points, offsets, vertices, [uvs, normals])
 }
+
+/// Face-varying arrays of an OBJ write: uvs, normals.
+type FaceVarying<'a, 'py> = [Option<&'a Bound<'py, PyAny>>; 2];
 
 fn write_mesh(
     py: Python<'_>,
@@ -842,36 +848,53 @@ fn write_mesh(
     points: &Bound<'_, PyAny>,
     offsets: &[u32],
     vertices: &[u32],
-    uvs: Option<&Bound<'_, PyAny>>,
+    face_varying: FaceVarying<'_, '_>,
 ) -> PyResult<()> {
-    let uvs = uvs.map(|u| floats(u, "uvs")).transpose()?;
+    let [uvs, normals] = [(face_varying[0], "uvs"), (face_varying[1], "normals")]
+        .map(|(a, what)| a.map(|a| floats(a, what)).transpose());
+    let (uvs, normals) = (uvs?, normals?);
+    let mismatch = || to_py_err(py, invalid("uvs and normals must have the dtype of points"));
     match floats(points, "points")? {
         Floats::F32(p) => {
-            let uv = match &uvs {
-                None => None,
-                Some(Floats::F32(u)) => Some(u),
-                Some(Floats::F64(_)) => {
-                    return Err(to_py_err(py, invalid("uvs must have the dtype of points")))
+            fn pick<'py>(
+                a: &Option<Floats<'py>>,
+                mismatch: impl Fn() -> PyErr,
+            ) -> PyResult<Option<PyReadonlyArray2<'py, f32>>> {
+                match a {
+                    None => Ok(None),
+                    Some(Floats::F32(u)) => Ok(Some(u.clone())),
+                    Some(Floats::F64(_)) => Err(mismatch()),
                 }
-            };
-            write_typed(py, path, &p, offsets, vertices, uv, io::write_obj_f32)
+            }
+            let extra = [pick(&uvs, mismatch)?, pick(&normals, mismatch)?];
+            write_typed(py, path, &p, offsets, vertices, extra, io::write_obj_f32)
         }
         Floats::F64(p) => {
-            let uv = match &uvs {
-                None => None,
-                Some(Floats::F64(u)) => Some(u),
-                Some(Floats::F32(_)) => {
-                    return Err(to_py_err(py, invalid("uvs must have the dtype of points")))
+            fn pick<'py>(
+                a: &Option<Floats<'py>>,
+                mismatch: impl Fn() -> PyErr,
+            ) -> PyResult<Option<PyReadonlyArray2<'py, f64>>> {
+                match a {
+                    None => Ok(None),
+                    Some(Floats::F64(u)) => Ok(Some(u.clone())),
+                    Some(Floats::F32(_)) => Err(mismatch()),
                 }
-            };
-            write_typed(py, path, &p, offsets, vertices, uv, io::write_obj)
+            }
+            let extra = [pick(&uvs, mismatch)?, pick(&normals, mismatch)?];
+            write_typed(py, path, &p, offsets, vertices, extra, io::write_obj)
         }
     }
 }
 
 /// Signature of the typed OBJ writers in the core.
-type ObjWriter<T> =
-    fn(&std::path::Path, &[T], &[u32], &[u32], Option<(&[T], &[u32])>) -> bidegree::Result<()>;
+type ObjWriter<T> = fn(
+    &std::path::Path,
+    &[T],
+    &[u32],
+    &[u32],
+    Option<(&[T], &[u32])>,
+    Option<&[T]>,
+) -> bidegree::Result<()>;
 
 fn write_typed<T: Element + Sync>(
     py: Python<'_>,
@@ -879,7 +902,7 @@ fn write_typed<T: Element + Sync>(
     points: &PyReadonlyArray2<'_, T>,
     offsets: &[u32],
     vertices: &[u32],
-    uvs: Option<&PyReadonlyArray2<'_, T>>,
+    [uvs, normals]: [Option<PyReadonlyArray2<'_, T>>; 2],
     writer: ObjWriter<T>,
 ) -> PyResult<()> {
     if points.shape()[1] != 3 {
@@ -892,12 +915,24 @@ fn write_typed<T: Element + Sync>(
         ));
     }
     let data = contiguous(points, "points")?;
-    let uv = match uvs {
+    let uv = match &uvs {
         Some(u) => {
             if u.shape()[1] != 2 {
                 return Err(to_py_err(py, invalid("uvs must have shape (corners, 2)")));
             }
             Some(contiguous(u, "uvs")?)
+        }
+        None => None,
+    };
+    let normals = match &normals {
+        Some(n) => {
+            if n.shape()[1] != 3 {
+                return Err(to_py_err(
+                    py,
+                    invalid("normals must have shape (corners, 3)"),
+                ));
+            }
+            Some(contiguous(n, "normals")?)
         }
         None => None,
     };
@@ -920,7 +955,7 @@ fn write_typed<T: Element + Sync>(
             }
             None => None,
         };
-        writer(path, data, offsets, vertices, uvs)
+        writer(path, data, offsets, vertices, uvs, normals)
     })
 }
 

@@ -798,7 +798,8 @@ class Result:
         return self._plan.num_output_faces
 
     def write_obj(self, path: str | os.PathLike[str]) -> None:
-        """Writes the result as OBJ (``v``, ``vt`` when there are uvs, ``f``), fast.
+        """Writes the result as OBJ (``v``, ``vt`` when there are uvs, ``vn`` per face corner
+        when there are normals, ``f``), fast.
 
         Raises:
             BidegreeIOError: the file cannot be written.
@@ -807,10 +808,12 @@ class Result:
         points = np.ascontiguousarray(self.points)
         if points.dtype not in (np.float32, np.float64):
             points = points.astype(np.float64)
-        uvs = None
+        uvs = normals = None
         if self.uvs is not None:
             uvs = np.ascontiguousarray(self.uvs, dtype=points.dtype)
-        self._plan._native_plan.write_obj(os.fspath(path), points, uvs)
+        if self.normals is not None:
+            normals = np.ascontiguousarray(self.normals, dtype=points.dtype)
+        self._plan._native_plan.write_obj(os.fspath(path), points, uvs, normals)
 
     def __repr__(self) -> str:
         return (

@@ -81,7 +81,11 @@ class Plan:
     def corner_edges(self) -> NDArray[np.int32]: ...
     def edges(self) -> NDArray[np.int32]: ...
     def write_obj(
-        self, path: str | os.PathLike[str], points: _Float, uvs: _Float | None = None
+        self,
+        path: str | os.PathLike[str],
+        points: _Float,
+        uvs: _Float | None = None,
+        normals: _Float | None = None,
     ) -> None: ...
 
 class _ObjData(TypedDict):
@@ -117,6 +121,7 @@ def write_obj(
     face_offsets: NDArray[np.uint32],
     face_indices: NDArray[np.uint32],
     uvs: _Float | None = None,
+    normals: _Float | None = None,
 ) -> None: ...
 def _panic_for_tests() -> None: ...
 

@@ -110,7 +110,7 @@ def _add_subdivide(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--normals",
         action="store_true",
-        help="write the limit normals (face-varying, split at creases; USD outputs only)",
+        help="write the limit normals (per face corner, split at creases: OBJ vn, USD faceVarying)",
     )
     parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
 
@@ -130,11 +130,6 @@ def _run_subdivide(args: argparse.Namespace) -> int:
     out_ext = os.path.splitext(args.out)[1].lower()
     if out_ext != ".obj" and out_ext not in _USD_EXTENSIONS:
         raise CliError(f"{args.out}: unsupported output format (use .obj, .usda, .usdc or .usd)")
-    if args.normals and out_ext == ".obj":
-        raise CliError(
-            f"{args.out}: --normals is written to USD outputs (.usda, .usdc, .usd); "
-            "OBJ output carries positions only"
-        )
     say: Callable[[str], None] = (lambda _: None) if args.quiet else print
 
     start = time.perf_counter()
