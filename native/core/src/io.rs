@@ -510,19 +510,7 @@ fn write_obj_generic<T: ObjFloat>(
     file.write_all(b"# written by bidegree\n")
         .map_err(io_error)?;
 
-    write_parallel(&mut file, points.len() / 3, |range, out| {
-        let mut buffer = ryu::Buffer::new();
-        for v in range {
-            out.extend_from_slice(b"v ");
-            push_float(out, &mut buffer, points[3 * v]);
-            out.push(b' ');
-            push_float(out, &mut buffer, points[3 * v + 1]);
-            out.push(b' ');
-            push_float(out, &mut buffer, points[3 * v + 2]);
-            out.push(b'\n');
-        }
-    })
-    .map_err(io_error)?;
+    write_vectors(&mut file, b"v ", points).map_err(io_error)?;
 
     if let Some((values, _)) = uvs {
         write_parallel(&mut file, values.len() / 2, |range, out| {
@@ -539,19 +527,7 @@ fn write_obj_generic<T: ObjFloat>(
     }
 
     if let Some(values) = normals {
-        write_parallel(&mut file, values.len() / 3, |range, out| {
-            let mut buffer = ryu::Buffer::new();
-            for n in range {
-                out.extend_from_slice(b"vn ");
-                push_float(out, &mut buffer, values[3 * n]);
-                out.push(b' ');
-                push_float(out, &mut buffer, values[3 * n + 1]);
-                out.push(b' ');
-                push_float(out, &mut buffer, values[3 * n + 2]);
-                out.push(b'\n');
-            }
-        })
-        .map_err(io_error)?;
+        write_vectors(&mut file, b"vn ", values).map_err(io_error)?;
     }
 
     let num_faces = face_offsets.len().saturating_sub(1);
@@ -578,6 +554,26 @@ fn write_obj_generic<T: ObjFloat>(
     })
     .map_err(io_error)?;
     file.flush().map_err(io_error)
+}
+
+/// Writes `values` as lines `<tag>x y z`, three values per line.
+fn write_vectors<W: Write, T: ObjFloat>(
+    out: &mut W,
+    tag: &[u8],
+    values: &[T],
+) -> std::io::Result<()> {
+    write_parallel(out, values.len() / 3, |range, out| {
+        let mut buffer = ryu::Buffer::new();
+        for v in range {
+            out.extend_from_slice(tag);
+            push_float(out, &mut buffer, values[3 * v]);
+            out.push(b' ');
+            push_float(out, &mut buffer, values[3 * v + 1]);
+            out.push(b' ');
+            push_float(out, &mut buffer, values[3 * v + 2]);
+            out.push(b'\n');
+        }
+    })
 }
 
 /// Appends the shortest round-trip form of `x`, without a trailing `.0`.

@@ -7,23 +7,7 @@ mod common;
 
 use bidegree::limit::{cardinal_bspline, cardinal_bspline_derivative, vertex_masks};
 use bidegree::{Cage, Error, Options, OutputKind, Plan, Rules};
-use common::{cage, plan, torus, Random};
-
-fn cube() -> (Cage, Vec<f64>) {
-    let points = vec![
-        -1.0, -1.0, -1.0, 1.0, -1.0, -1.0, 1.0, 1.0, -1.0, -1.0, 1.0, -1.0, -1.0, -1.0, 1.0, 1.0,
-        -1.0, 1.0, 1.0, 1.0, 1.0, -1.0, 1.0, 1.0,
-    ];
-    let faces = vec![
-        vec![0, 3, 2, 1],
-        vec![4, 5, 6, 7],
-        vec![0, 1, 5, 4],
-        vec![1, 2, 6, 5],
-        vec![2, 3, 7, 6],
-        vec![3, 0, 4, 7],
-    ];
-    (cage(8, &faces), points)
-}
+use common::{cage, cube, plan, torus, Random};
 
 /// A cube with a triangle fan on top (valence-5 and valence-3 points, a non-quad cage).
 fn pyramid_cube() -> (Cage, Vec<f64>) {

@@ -4,8 +4,8 @@
 
 mod common;
 
-use bidegree::{subdivide, Boundary, Cage, Options, OutputKind, Plan};
-use common::{cage, grid, plan, torus, Random};
+use bidegree::{subdivide, Boundary, Options, OutputKind, Plan};
+use common::{cage, cube, grid, plan, torus, Random};
 
 type P = [f64; 3];
 
@@ -309,22 +309,6 @@ fn semi_sharp_crease_lies_between_smooth_and_sharp() {
             "degree {degree}"
         );
     }
-}
-
-fn cube() -> (Cage, Vec<f64>) {
-    let faces = vec![
-        vec![0, 3, 2, 1],
-        vec![4, 5, 6, 7],
-        vec![0, 1, 5, 4],
-        vec![1, 2, 6, 5],
-        vec![2, 3, 7, 6],
-        vec![3, 0, 4, 7],
-    ];
-    let points = vec![
-        -1., -1., -1., 1., -1., -1., 1., 1., -1., -1., 1., -1., -1., -1., 1., 1., -1., 1., 1., 1.,
-        1., -1., 1., 1.,
-    ];
-    (cage(8, &faces), points)
 }
 
 #[test]

@@ -853,36 +853,45 @@ fn write_mesh(
     let [uvs, normals] = [(face_varying[0], "uvs"), (face_varying[1], "normals")]
         .map(|(a, what)| a.map(|a| floats(a, what)).transpose());
     let (uvs, normals) = (uvs?, normals?);
-    let mismatch = || to_py_err(py, invalid("uvs and normals must have the dtype of points"));
     match floats(points, "points")? {
         Floats::F32(p) => {
-            fn pick<'py>(
-                a: &Option<Floats<'py>>,
-                mismatch: impl Fn() -> PyErr,
-            ) -> PyResult<Option<PyReadonlyArray2<'py, f32>>> {
-                match a {
-                    None => Ok(None),
-                    Some(Floats::F32(u)) => Ok(Some(u.clone())),
-                    Some(Floats::F64(_)) => Err(mismatch()),
-                }
-            }
-            let extra = [pick(&uvs, mismatch)?, pick(&normals, mismatch)?];
+            let extra = [same_dtype(py, &uvs, f32s)?, same_dtype(py, &normals, f32s)?];
             write_typed(py, path, &p, offsets, vertices, extra, io::write_obj_f32)
         }
         Floats::F64(p) => {
-            fn pick<'py>(
-                a: &Option<Floats<'py>>,
-                mismatch: impl Fn() -> PyErr,
-            ) -> PyResult<Option<PyReadonlyArray2<'py, f64>>> {
-                match a {
-                    None => Ok(None),
-                    Some(Floats::F64(u)) => Ok(Some(u.clone())),
-                    Some(Floats::F32(_)) => Err(mismatch()),
-                }
-            }
-            let extra = [pick(&uvs, mismatch)?, pick(&normals, mismatch)?];
+            let extra = [same_dtype(py, &uvs, f64s)?, same_dtype(py, &normals, f64s)?];
             write_typed(py, path, &p, offsets, vertices, extra, io::write_obj)
         }
+    }
+}
+
+fn f32s<'a, 'py>(a: &'a Floats<'py>) -> Option<&'a PyReadonlyArray2<'py, f32>> {
+    match a {
+        Floats::F32(a) => Some(a),
+        Floats::F64(_) => None,
+    }
+}
+
+fn f64s<'a, 'py>(a: &'a Floats<'py>) -> Option<&'a PyReadonlyArray2<'py, f64>> {
+    match a {
+        Floats::F64(a) => Some(a),
+        Floats::F32(_) => None,
+    }
+}
+
+/// An optional face-varying array, which must have the dtype `pick` selects (that of the
+/// points).
+fn same_dtype<'py, T: Element>(
+    py: Python<'_>,
+    array: &Option<Floats<'py>>,
+    pick: for<'a> fn(&'a Floats<'py>) -> Option<&'a PyReadonlyArray2<'py, T>>,
+) -> PyResult<Option<PyReadonlyArray2<'py, T>>> {
+    match array {
+        None => Ok(None),
+        Some(a) => pick(a)
+            .cloned()
+            .map(Some)
+            .ok_or_else(|| to_py_err(py, invalid("uvs and normals must have the dtype of points"))),
     }
 }
 

@@ -95,6 +95,23 @@ pub fn polar_grid(k: usize, rings: usize) -> (Cage, Vec<f64>) {
     (cage(n, &faces), points)
 }
 
+/// The cube [-1, 1]^3 with outward faces, and its points.
+pub fn cube() -> (Cage, Vec<f64>) {
+    let faces = vec![
+        vec![0, 3, 2, 1],
+        vec![4, 5, 6, 7],
+        vec![0, 1, 5, 4],
+        vec![1, 2, 6, 5],
+        vec![2, 3, 7, 6],
+        vec![3, 0, 4, 7],
+    ];
+    let points = vec![
+        -1., -1., -1., 1., -1., -1., 1., 1., -1., -1., 1., -1., -1., -1., 1., 1., -1., 1., 1., 1.,
+        1., -1., 1., 1.,
+    ];
+    (cage(8, &faces), points)
+}
+
 /// A plan with the given degree and levels and default options otherwise.
 pub fn plan(cage: &Cage, degree: u32, levels: u32) -> Plan {
     Plan::new(

@@ -603,13 +603,7 @@ class Plan:
         one-sided estimates from the finer level the limit is computed on (first-order in its
         spacing). Degree 1 gives each face's bilinear normal. Degenerate geometry gives zeros.
         """
-        if points is None:
-            values: FloatArray = self._mesh.points
-        else:
-            values, _ = _values_2d(points, self._mesh.num_vertices, "points", "vertices")
-            if values.shape[1] != 3:
-                raise InvalidInputError(f"points must have shape (V, 3), not {values.shape}")
-        positions, normals = self._native_plan.limit_surface(values)
+        positions, normals = self._native_plan.limit_surface(self._points(points))
         return positions, normals
 
     @property
@@ -632,13 +626,16 @@ class Plan:
         cage has them. ``limit``: the points are pushed to the limit surface
         (:meth:`limit_positions`); ``normals``: the result carries the limit normals
         (:meth:`limit_surface`)."""
+        return _result(self, self._points(points), None, limit, normals)
+
+    def _points(self, points: ArrayLike | None) -> FloatArray:
+        """``points`` checked as (V, 3), or the cage's own points."""
         if points is None:
-            values: FloatArray = self._mesh.points
-        else:
-            values, _ = _values_2d(points, self._mesh.num_vertices, "points", "vertices")
-            if values.shape[1] != 3:
-                raise InvalidInputError(f"points must have shape (V, 3), not {values.shape}")
-        return _result(self, values, None, limit, normals)
+            return self._mesh.points
+        values, _ = _values_2d(points, self._mesh.num_vertices, "points", "vertices")
+        if values.shape[1] != 3:
+            raise InvalidInputError(f"points must have shape (V, 3), not {values.shape}")
+        return values
 
     @property
     def mesh(self) -> Mesh:
