@@ -12,7 +12,8 @@
 //! - [`plan`]: everything that depends only on topology and options (levels, curve networks);
 //! - [`evaluate`]: running points and attributes through a plan (parallel gathers);
 //! - [`output`]: output meshes (drawing mesh, true dual mesh, edges, face origins);
-//! - [`io`]: OBJ reading and writing.
+//! - [`io`]: OBJ reading and writing;
+//! - [`adaptive`]: adaptive subdivision on a quadtree forest with crack-free triangles (§3).
 //!
 //! ```
 //! use bidegree::{Cage, Options, Plan};
@@ -24,6 +25,7 @@
 //! assert_eq!(refined.len(), 3 * plan.num_output_vertices());
 //! ```
 
+pub mod adaptive;
 pub mod analysis;
 pub mod classic;
 pub mod error;
@@ -34,6 +36,7 @@ pub mod output;
 pub mod plan;
 pub mod topology;
 
+pub use adaptive::{subdivide_adaptive, AdaptiveMesh, AdaptiveOptions};
 pub use classic::Creasing;
 pub use error::{Error, Result};
 pub use evaluate::Scalar;
