@@ -116,6 +116,8 @@ pub struct AdaptiveMesh<T> {
     pub triangles: Vec<[u32; 3]>,
     /// Cage face each triangle comes from.
     pub face_origin: Vec<u32>,
+    /// Level of the leaf each triangle comes from.
+    pub triangle_level: Vec<u32>,
     /// Level whose point each vertex carries (the finest level of the leaves around it).
     pub vertex_level: Vec<u32>,
     /// Uniform vertex id of each vertex at its level: vertex `i` is vertex `vertex_id[i]` of the
@@ -307,8 +309,7 @@ pub fn subdivide_adaptive<T: Scalar>(
     }
     seeds.truncate(max_level + 1);
     let parts = run_pass(&ctx, &seeds)?;
-    triangulate(&ctx, &parts, &refined, &leaves)
-    .map(|mut mesh| {
+    triangulate(&ctx, &parts, &refined, &leaves).map(|mut mesh| {
         mesh.max_error = max_error;
         mesh
     })
@@ -521,7 +522,10 @@ fn refine_part<T: Scalar>(
     let mut frontier: Vec<usize> = Vec::with_capacity(seeds.len());
     for &s in seeds {
         let f = face_uid.binary_search(&s).map_err(|_| {
-            Error::Internal(format!("adaptive: seed face {s} of level {} missing", t + 1))
+            Error::Internal(format!(
+                "adaptive: seed face {s} of level {} missing",
+                t + 1
+            ))
         })?;
         if !keep[f] {
             keep[f] = true;
@@ -556,9 +560,9 @@ fn refine_part<T: Scalar>(
                 let k = k as usize;
                 let out = level.corner_edges[k] as usize;
                 let inc = level.corner_edges[level.prev(k)] as usize;
-                [out, inc].into_iter().all(|e| {
-                    level.edge_corners[e][1] != NONE || boundary[sub.edges[e] as usize]
-                })
+                [out, inc]
+                    .into_iter()
+                    .all(|e| level.edge_corners[e][1] != NONE || boundary[sub.edges[e] as usize])
             })
         })
         .collect();
@@ -598,7 +602,9 @@ struct Sub {
 /// old ids; each vertex keeps its corners in the old order, each edge its faces in the old slot
 /// order (a lone remaining face moves to the first slot).
 fn restrict(fine: &Level, keep: &[bool]) -> Sub {
-    let faces: Vec<u32> = (0..keep.len() as u32).filter(|&f| keep[f as usize]).collect();
+    let faces: Vec<u32> = (0..keep.len() as u32)
+        .filter(|&f| keep[f as usize])
+        .collect();
     let mut corner_map = vec![NONE; fine.num_corners()];
     for (i, &f) in faces.iter().enumerate() {
         for k in 0..4 {
@@ -642,8 +648,13 @@ fn restrict(fine: &Level, keep: &[bool]) -> Sub {
     let edge_corners = edges
         .iter()
         .map(|&e| {
-            let slots = fine.edge_corners[e as usize]
-                .map(|c| if c == NONE { NONE } else { corner_map[c as usize] });
+            let slots = fine.edge_corners[e as usize].map(|c| {
+                if c == NONE {
+                    NONE
+                } else {
+                    corner_map[c as usize]
+                }
+            });
             if slots[0] == NONE {
                 [slots[1], NONE]
             } else {
@@ -738,7 +749,14 @@ fn step<T: Scalar>(
 
     // The curve network of this step (plan::curve_step on the partial level).
     let parents: Vec<usize> = (0..ne).filter(|&e| coarse.sharp[e] > 0.0).collect();
-    let mut edge_1d = vec![zero::<T>(); if parents.is_empty() { 0 } else { fine.num_edges() }];
+    let mut edge_1d = vec![
+        zero::<T>();
+        if parents.is_empty() {
+            0
+        } else {
+            fine.num_edges()
+        }
+    ];
     let mut curve_edges: Vec<(usize, [usize; 2])> = Vec::with_capacity(2 * parents.len());
     let mut ends: Vec<(u32, u32, f64)> = Vec::with_capacity(2 * parents.len());
     for &e in &parents {
@@ -823,22 +841,21 @@ fn step<T: Scalar>(
     }
     // 1-D primal data per fine vertex (valid at the curve vertices).
     let mut vertex_1d = vec![zero::<T>(); if curve_vertices.is_empty() { 0 } else { nfv }];
-    let finish_primal =
-        |vertices: &mut [P<T>], edge_1d: &[P<T>], vertex_1d: &mut [P<T>]| {
-            for cv in &curve_vertices {
-                let w = cv.vertex as usize;
-                let value = match (cv.edges, cv.cage) {
-                    (Some([a, b]), _) => scale(add(edge_1d[a as usize], edge_1d[b as usize]), half),
-                    (None, Some(u)) => ctx.cage[u as usize],
-                    (None, None) => {
-                        vertex_1d[w] = vertices[w];
-                        continue;
-                    }
-                };
-                blend(&mut vertices[w], value, cv.weight);
-                vertex_1d[w] = value;
-            }
-        };
+    let finish_primal = |vertices: &mut [P<T>], edge_1d: &[P<T>], vertex_1d: &mut [P<T>]| {
+        for cv in &curve_vertices {
+            let w = cv.vertex as usize;
+            let value = match (cv.edges, cv.cage) {
+                (Some([a, b]), _) => scale(add(edge_1d[a as usize], edge_1d[b as usize]), half),
+                (None, Some(u)) => ctx.cage[u as usize],
+                (None, None) => {
+                    vertex_1d[w] = vertices[w];
+                    continue;
+                }
+            };
+            blend(&mut vertices[w], value, cv.weight);
+            vertex_1d[w] = value;
+        }
+    };
     let to_dual_1d = |vertex_1d: &[P<T>], edge_1d: &mut [P<T>]| {
         for &(e, [a, b]) in &curve_edges {
             edge_1d[e] = scale(add(vertex_1d[a], vertex_1d[b]), half);
@@ -1087,6 +1104,7 @@ fn triangulate<T: Scalar>(
     let templates: Vec<Vec<[u8; 3]>> = (0..16).map(triangle_template).collect();
     let mut triangles = Vec::new();
     let mut face_origin = Vec::new();
+    let mut triangle_level = Vec::new();
     for t in 1..=max_level {
         let part = &parts[t];
         let level = &part.level;
@@ -1106,7 +1124,10 @@ fn triangulate<T: Scalar>(
                 if refined[t].contains(&neighbour) {
                     let uid = part.counts[0] + part.edge_uid[e];
                     slots[2 * k + 1] = *index.get(&uid).ok_or_else(|| {
-                        Error::Internal(format!("adaptive: edge point {uid} of level {} missing", t + 1))
+                        Error::Internal(format!(
+                            "adaptive: edge point {uid} of level {} missing",
+                            t + 1
+                        ))
                     })?;
                     mask |= 1 << k;
                 }
@@ -1115,6 +1136,7 @@ fn triangulate<T: Scalar>(
             for tri in &templates[mask as usize] {
                 triangles.push(tri.map(|p| slots[p as usize]));
                 face_origin.push(origin);
+                triangle_level.push(t as u32);
             }
         }
     }
@@ -1128,6 +1150,7 @@ fn triangulate<T: Scalar>(
         points,
         triangles,
         face_origin,
+        triangle_level,
         vertex_level,
         vertex_id,
         leaves_per_level,
