@@ -43,9 +43,10 @@
 //! and the nodes above the tolerance refined. Refining a node at level j requires every face of
 //! `M_j` sharing a vertex with it to be a node (the vertex restriction criterion: leaves sharing
 //! an edge or a corner differ by at most one level); parents that are leaves are refined in turn,
-//! down to the roots. Each pass starts again from the cage, so that lower levels grow with the
-//! restriction; the passes cost a small multiple of the last one because the partial levels grow
-//! geometrically.
+//! down to the roots. The partial levels are kept from one decision to the next: level j + 1 was
+//! made around the children of every node of level j, a superset of the nodes it ends up with,
+//! so its data stays exact; only when the restriction criterion adds nodes at a level below j
+//! are the levels above that one made again (from the last valid one, not from the cage).
 //!
 //! Error measure (flatness): for a node f at level j, the 3 x 3 grid of its children's points at
 //! level j + 1 (its 4 corners, 4 edge points, 1 face point) against the bilinear patch of the 4
@@ -252,6 +253,10 @@ pub fn subdivide_adaptive<T: Scalar>(
     let roots = ctx.level0.num_corners() as u64;
     // refined[j]: uniform ids of the refined nodes at level j (1 <= j < max_level).
     let mut refined: Vec<HashSet<u64>> = vec![HashSet::new(); max_level];
+    // Partial levels kept from decision to decision: level j + 1 is made for the children of
+    // every node of level j, a superset of the nodes it ends up with, so it stays exact unless
+    // the restriction criterion adds nodes below (then the levels above are made again).
+    let mut parts: Vec<Part<T>> = Vec::new();
     for j in 1..max_level {
         let nodes = nodes_at(&refined, roots, j);
         if options.tolerance == 0.0 {
@@ -260,12 +265,16 @@ pub fn subdivide_adaptive<T: Scalar>(
         }
         let mut seeds: Vec<Vec<u64>> = (0..=j).map(|t| nodes_at(&refined, roots, t)).collect();
         seeds.push(children(&nodes));
-        let parts = run_pass(&ctx, &seeds)?;
+        extend_pass(&ctx, &mut parts, &seeds)?;
         let errors = measure(&ctx, &parts, j, &nodes)?;
+        let mut lowest = j;
         for (&node, &error) in nodes.iter().zip(&errors) {
             if error > options.tolerance {
-                restrict_refine(&parts, &mut refined, j, node)?;
+                lowest = lowest.min(restrict_refine(&parts, &mut refined, j, node)?);
             }
+        }
+        if lowest < j {
+            parts.truncate(lowest + 1);
         }
     }
 
@@ -308,7 +317,7 @@ pub fn subdivide_adaptive<T: Scalar>(
         max_error = Some(worst);
     }
     seeds.truncate(max_level + 1);
-    let parts = run_pass(&ctx, &seeds)?;
+    extend_pass(&ctx, &mut parts, &seeds)?;
     triangulate(&ctx, &parts, &refined, &leaves).map(|mut mesh| {
         mesh.max_error = max_error;
         mesh
@@ -411,35 +420,30 @@ fn children(faces: &[u64]) -> Vec<u64> {
 /// Estimated bytes of a partial level per corner (topology tables, ids, values and 1-D data).
 const BYTES_PER_CORNER: u64 = 160;
 
-/// Evaluates the partial levels `P_0..P_T` (T = `seeds.len() - 1`): `P_0` is the cage, `P_{t+1}`
-/// is `P_t.refine()` restricted to the margin rings around `seeds[t + 1]` (uniform face ids,
-/// sorted, children of `seeds[t]`).
+/// Evaluates the partial levels `P_0..P_T` (T = `seeds.len() - 1`) from scratch: `P_0` is the
+/// cage, `P_{t+1}` is `P_t.refine()` restricted to the margin rings around `seeds[t + 1]`
+/// (uniform face ids, sorted, children of `seeds[t]`).
 fn run_pass<T: Scalar>(ctx: &Context<T>, seeds: &[Vec<u64>]) -> Result<Vec<Part<T>>> {
-    let level0 = ctx.level0.clone();
-    let nc = level0.num_corners();
-    let counts = [
-        level0.num_vertices as u64,
-        level0.num_edges() as u64,
-        level0.num_faces() as u64,
-        nc as u64,
-    ];
-    let mut parts = vec![Part {
-        face_uid: (0..level0.num_faces() as u64).collect(),
-        vert_uid: (0..level0.num_vertices as u64).collect(),
-        edge_uid: (0..level0.num_edges() as u64).collect(),
-        boundary: (0..level0.num_edges())
-            .map(|e| level0.is_boundary_edge(e))
-            .collect(),
-        sharp: ctx.sharp0.clone(),
-        complete: vec![true; level0.num_vertices],
-        data: ctx.cage.clone(),
-        curve: Vec::new(),
-        points: Vec::new(),
-        counts,
-        level: level0,
-    }];
-    let mut retained = BYTES_PER_CORNER * nc as u64;
-    for t in 0..seeds.len() - 1 {
+    let mut parts = Vec::new();
+    extend_pass(ctx, &mut parts, seeds)?;
+    Ok(parts)
+}
+
+/// As [`run_pass`], keeping the partial levels already in `parts` (which must have been made
+/// for seeds containing these seeds: a superset of the margin rings is exact as well).
+fn extend_pass<T: Scalar>(
+    ctx: &Context<T>,
+    parts: &mut Vec<Part<T>>,
+    seeds: &[Vec<u64>],
+) -> Result<()> {
+    if parts.is_empty() {
+        parts.push(cage_part(ctx));
+    }
+    let mut retained: u64 = parts
+        .iter()
+        .map(|p| BYTES_PER_CORNER * p.level.num_corners() as u64)
+        .sum();
+    for t in parts.len() - 1..seeds.len() - 1 {
         let coarse = &parts[t];
         let fine_corners = 4 * coarse.level.num_corners() as u64;
         let required = retained + BYTES_PER_CORNER * fine_corners;
@@ -454,7 +458,33 @@ fn run_pass<T: Scalar>(ctx: &Context<T>, seeds: &[Vec<u64>]) -> Result<Vec<Part<
         retained += BYTES_PER_CORNER * next.level.num_corners() as u64;
         parts.push(next);
     }
-    Ok(parts)
+    Ok(())
+}
+
+/// `P_0`: the whole cage level with the cage points.
+fn cage_part<T: Scalar>(ctx: &Context<T>) -> Part<T> {
+    let level0 = ctx.level0.clone();
+    let counts = [
+        level0.num_vertices as u64,
+        level0.num_edges() as u64,
+        level0.num_faces() as u64,
+        level0.num_corners() as u64,
+    ];
+    Part {
+        face_uid: (0..level0.num_faces() as u64).collect(),
+        vert_uid: (0..level0.num_vertices as u64).collect(),
+        edge_uid: (0..level0.num_edges() as u64).collect(),
+        boundary: (0..level0.num_edges())
+            .map(|e| level0.is_boundary_edge(e))
+            .collect(),
+        sharp: ctx.sharp0.clone(),
+        complete: vec![true; level0.num_vertices],
+        data: ctx.cage.clone(),
+        curve: Vec::new(),
+        points: Vec::new(),
+        counts,
+        level: level0,
+    }
 }
 
 /// One step `P_t -> P_{t+1}`: refine, evaluate, keep the margin rings around the seeds.
@@ -730,6 +760,9 @@ fn blend<T: Scalar>(vertex: &mut P<T>, curve: P<T>, weight: f64) {
     }
 }
 
+/// What one step produces on the fine level: the scheme data, the 1-D data, the drawing points.
+type Stepped<T> = (Vec<P<T>>, Vec<P<T>>, Vec<P<T>>);
+
 /// One step of degree n from `coarse` (level t) to `fine = coarse.level.refine()`: replication
 /// and n averages with the 1-D scheme on the curves, the same operations in the same order as
 /// `evaluate::Run::step` (whose fused first pass is bitwise the separate passes used here).
@@ -739,7 +772,7 @@ fn step<T: Scalar>(
     t: usize,
     coarse: &Part<T>,
     fine: &Level,
-) -> (Vec<P<T>>, Vec<P<T>>, Vec<P<T>>) {
+) -> Stepped<T> {
     let c = &coarse.level;
     let (nv, ne) = (c.num_vertices, c.num_edges());
     let nfv = fine.num_vertices;
@@ -1011,16 +1044,22 @@ fn measure<T: Scalar>(
 }
 
 /// Refines node `node` of level `t` and, by the vertex restriction criterion, every leaf parent
-/// of a face sharing a vertex with a refined node, down to the roots.
+/// of a face sharing a vertex with a refined node, down to the roots. Returns the lowest level
+/// at which a node was refined.
 fn restrict_refine<T>(
     parts: &[Part<T>],
     refined: &mut [HashSet<u64>],
     t: usize,
     node: u64,
-) -> Result<()> {
+) -> Result<usize> {
+    let mut lowest = t;
     let mut stack = vec![(t, node)];
     while let Some((s, x)) = stack.pop() {
-        if !refined[s].insert(x) || s == 1 {
+        if !refined[s].insert(x) {
+            continue;
+        }
+        lowest = lowest.min(s);
+        if s == 1 {
             continue;
         }
         let part = &parts[s];
@@ -1043,7 +1082,7 @@ fn restrict_refine<T>(
             }
         }
     }
-    Ok(())
+    Ok(lowest)
 }
 
 /// Triangle templates of a leaf quad for the 16 cases of refined edge neighbours (bit k: the
