@@ -192,6 +192,18 @@ pub fn subdivide_adaptive<T: Scalar>(
     points: &[T],
     options: &AdaptiveOptions,
 ) -> Result<AdaptiveMesh<T>> {
+    subdivide_adaptive_with_margin(cage, points, options, margin_rings(options.degree))
+}
+
+/// [`subdivide_adaptive`] with another margin than [`margin_rings`]; for the tests that show
+/// that a smaller margin breaks the equality with the uniform points.
+#[doc(hidden)]
+pub fn subdivide_adaptive_with_margin<T: Scalar>(
+    cage: &Cage,
+    points: &[T],
+    options: &AdaptiveOptions,
+    margin: usize,
+) -> Result<AdaptiveMesh<T>> {
     if options.degree < 1 || options.degree > MAX_DEGREE {
         return Err(Error::DegreeOutOfRange {
             degree: options.degree as i64,
@@ -244,7 +256,7 @@ pub fn subdivide_adaptive<T: Scalar>(
         sharp0,
         tags,
         degree: options.degree,
-        margin: margin_rings(options.degree),
+        margin,
         budget: options.memory_budget,
         diagonal,
     };
@@ -767,12 +779,7 @@ type Stepped<T> = (Vec<P<T>>, Vec<P<T>>, Vec<P<T>>);
 /// and n averages with the 1-D scheme on the curves, the same operations in the same order as
 /// `evaluate::Run::step` (whose fused first pass is bitwise the separate passes used here).
 /// Returns the scheme data, the 1-D data and the drawing points of the fine level.
-fn step<T: Scalar>(
-    ctx: &Context<T>,
-    t: usize,
-    coarse: &Part<T>,
-    fine: &Level,
-) -> Stepped<T> {
+fn step<T: Scalar>(ctx: &Context<T>, t: usize, coarse: &Part<T>, fine: &Level) -> Stepped<T> {
     let c = &coarse.level;
     let (nv, ne) = (c.num_vertices, c.num_edges());
     let nfv = fine.num_vertices;

@@ -5,7 +5,7 @@ mod common;
 
 use std::collections::HashMap;
 
-use bidegree::adaptive::{margin_rings, triangle_template};
+use bidegree::adaptive::{margin_rings, subdivide_adaptive_with_margin, triangle_template};
 use bidegree::{
     subdivide_adaptive, AdaptiveMesh, AdaptiveOptions, Boundary, Cage, Error, Options, Plan, Scalar,
 };
@@ -184,6 +184,60 @@ fn margin_follows_the_degree() {
         (1..=12).map(margin_rings).collect::<Vec<_>>(),
         [2, 2, 2, 2, 4, 4, 4, 4, 6, 6, 6, 6]
     );
+}
+
+/// Index of the first vertex that differs from the uniform vertex of its level, if any.
+fn first_difference(
+    cage: &Cage,
+    points: &[f64],
+    degree: u32,
+    mesh: &AdaptiveMesh<f64>,
+) -> Option<usize> {
+    let uniform: Vec<Vec<f64>> = (0..mesh.leaves_per_level.len() as u32)
+        .map(|levels| {
+            Plan::new(
+                cage,
+                &Options {
+                    degree,
+                    levels,
+                    ..Options::default()
+                },
+            )
+            .unwrap()
+            .evaluate(points, 3)
+            .unwrap()
+        })
+        .collect();
+    (0..mesh.vertex_id.len()).find(|&i| {
+        let level = &uniform[mesh.vertex_level[i] as usize];
+        let u = mesh.vertex_id[i] as usize;
+        (0..3).any(|k| mesh.points[3 * i + k].to_bits() != level[3 * u + k].to_bits())
+    })
+}
+
+/// The margin is not idle: without it the evaluation meets cut-off vertices (and says so, as an
+/// internal error) or its points leave the uniform ones. (On this cage one ring is enough for
+/// degrees 2-5, and degree 9 happens to need none: the restriction criterion and the measured
+/// children already keep nodes around the refined ones. The documented margin is a sufficient
+/// bound, not a minimal one.)
+#[test]
+fn smaller_margins_break_the_equality() {
+    let (cage, points) = bumped_grid(16, 3.0);
+    for degree in [2, 3, 4, 5, 9] {
+        let options = options(degree, 4, 1e-4);
+        let exact = subdivide_adaptive(&cage, &points, &options).unwrap();
+        assert!(levels_used(&exact) >= 3);
+        assert_eq!(first_difference(&cage, &points, degree, &exact), None);
+        if degree == 9 {
+            continue;
+        }
+        let exact = match subdivide_adaptive_with_margin(&cage, &points, &options, 0) {
+            Err(Error::Internal(_)) => false,
+            Err(e) => panic!("unexpected error {e}"),
+            Ok(mesh) => first_difference(&cage, &points, degree, &mesh).is_none(),
+        };
+        assert!(!exact, "degree {degree}: no margin gave the uniform points");
+    }
 }
 
 #[test]
