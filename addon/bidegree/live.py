@@ -46,6 +46,9 @@ def settings_of(obj: bpy.types.Object, *, render: bool = False) -> Settings:
         output=str(p.output),
         boundary=str(p.boundary),
         use_creases=bool(p.use_creases),
+        # Adaptive subdivision is a viewport option: renders stay uniform.
+        adaptive=bool(p.adaptive) and not render,
+        tolerance=float(p.tolerance),
     )
 
 

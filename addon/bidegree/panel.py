@@ -37,6 +37,10 @@ class BIDEGREE_PT_surface(bpy.types.Panel):
         col.prop(props, "boundary")
         col.prop(props, "use_creases")
         col.prop(props, "uv_mode")
+        col.prop(props, "adaptive")
+        sub = col.column()
+        sub.active = props.adaptive
+        sub.prop(props, "tolerance")
 
         box = layout.box()
         status = box.column(align=True)

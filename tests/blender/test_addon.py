@@ -475,3 +475,33 @@ def test_batch_three_files_one_broken(addon: ModuleType, scene: Any, tmp_path: P
         "scene.bidegree.blend",
     ]
     assert len(list(out.glob("*.usd*"))) == 2
+
+
+def test_adaptive_viewport_result(addon: ModuleType, scene: Any) -> None:
+    obj = cube(scene)
+    obj.data.vertices[7].co = (1.8, 1.6, 1.7)
+    obj.data.update()
+    enable(obj, adaptive=True, tolerance=0.003, levels=4, degree=3)
+    assert obj.bidegree.last_error == ""
+    result = obj.bidegree.result.data
+    points, sizes, corners = mesh_arrays(result)
+    assert (sizes == 3).all()
+
+    ref_points, faces, _ = evaluated_reference(obj)
+    ref = bidegree.subdivide_adaptive(
+        bidegree.Mesh(ref_points, faces), degree=3, max_level=4, tolerance=0.003
+    )
+    assert (ref.leaves_per_level > 0).sum() >= 2
+    np.testing.assert_array_equal(corners, ref.triangles.reshape(-1))
+    np.testing.assert_allclose(points, ref.points, rtol=0, atol=1e-6)
+    # Closed and crack-free: every edge has two triangles.
+    assert 2 * len(result.edges) == 3 * len(sizes)
+    assert obj.bidegree.result_faces == ref.num_triangles
+
+    # Renders stay uniform; nothing changed means no work; turning it off is uniform again.
+    assert not addon.live.settings_of(obj, render=True).adaptive
+    assert addon.update(obj) == "unchanged"
+    obj.bidegree.adaptive = False
+    assert_matches(
+        obj.bidegree.result.data, bidegree.subdivide(bidegree.Mesh(ref_points, faces), 3, 4)
+    )
