@@ -562,13 +562,18 @@ fn refine_part<T: Scalar>(
     // The seeds and the margin rings around them.
     let mut keep = vec![false; fine.num_faces()];
     let mut frontier: Vec<usize> = Vec::with_capacity(seeds.len());
+    // Both lists are sorted: one merge walk finds every seed.
+    let mut f = 0;
     for &s in seeds {
-        let f = face_uid.binary_search(&s).map_err(|_| {
-            Error::Internal(format!(
+        while f < face_uid.len() && face_uid[f] < s {
+            f += 1;
+        }
+        if f == face_uid.len() || face_uid[f] != s {
+            return Err(Error::Internal(format!(
                 "adaptive: seed face {s} of level {} missing",
                 t + 1
-            ))
-        })?;
+            )));
+        }
         if !keep[f] {
             keep[f] = true;
             frontier.push(f);
@@ -1025,10 +1030,15 @@ fn measure<T: Scalar>(
             let mut corner = [[0.0; 3]; 4];
             let mut mid = [[0.0; 3]; 4];
             let mut centre = [0.0; 3];
-            for k in 0..4 {
-                let f = fine.face_of_uid(4 * u + k as u64).ok_or_else(|| {
+            // The four children have consecutive uniform ids, so consecutive places.
+            let first = fine
+                .face_of_uid(4 * u)
+                .filter(|&f| fine.face_uid.get(f + 3) == Some(&(4 * u + 3)))
+                .ok_or_else(|| {
                     Error::Internal(format!("adaptive: child of node {u} (level {t}) missing"))
                 })?;
+            for k in 0..4 {
+                let f = first + k;
                 let q = &fine.level.corner_verts[4 * f..4 * f + 4];
                 corner[k] = p(q[0]);
                 mid[k] = p(q[1]);
