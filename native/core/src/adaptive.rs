@@ -459,6 +459,13 @@ fn extend_pass<T: Scalar>(
         let coarse = &parts[t];
         let fine_corners = 4 * coarse.level.num_corners() as u64;
         let required = retained + BYTES_PER_CORNER * fine_corners;
+        if fine_corners >= u32::MAX as u64 {
+            return Err(Error::InvalidInput(format!(
+                "{} faces at level {} is more than 32-bit indices can address",
+                fine_corners / 4,
+                t + 1
+            )));
+        }
         if required > ctx.budget {
             return Err(Error::MemoryBudget {
                 required,

@@ -388,6 +388,21 @@ fn tolerance_zero_is_uniform_level() {
 }
 
 #[test]
+fn max_level_one_is_the_roots() {
+    let (prism, points) = roofed_prism();
+    for degree in [2, 3] {
+        let mesh = subdivide_adaptive(&prism, &points, &options(degree, 1, 1e-3)).unwrap();
+        assert_eq!(
+            mesh.leaves_per_level,
+            [0, prism.face_vertices().len() as u64]
+        );
+        assert_eq!(mesh.triangles.len(), 2 * prism.face_vertices().len());
+        assert_watertight(&mesh);
+        assert_uniform_points(&prism, &points, degree, Boundary::EdgeOnly, &mesh);
+    }
+}
+
+#[test]
 fn flat_cage_with_one_bump_needs_far_fewer_faces() {
     let (cage, points) = bumped_grid(16, 3.0);
     for degree in [3, 4] {
