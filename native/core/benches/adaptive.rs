@@ -61,8 +61,7 @@ fn main() {
         "time A/U"
     );
     let mut details = Vec::new();
-    for degree in [3, 4] {
-        let max_level = 5;
+    for (degree, max_level) in [(3, 5), (4, 5), (4, 6)] {
         let adaptive = |tolerance: f64, measure_leaves: bool| AdaptiveOptions {
             degree,
             max_level,
@@ -124,7 +123,7 @@ fn main() {
             ta / tu
         );
         details.push(format!(
-            "degree {degree}: adaptive leaves per level {per_level:?}, {triangles} triangles"
+            "degree {degree}, level {max_level}: adaptive leaves per level {per_level:?}, {triangles} triangles"
         ));
     }
     for d in details {
