@@ -486,3 +486,50 @@ fn invalid_requests_are_typed_errors() {
         Error::NonFinite { .. }
     ));
 }
+
+/// Random closed cages (a jittered 4 x 5 torus, the prism, the cube), random jitter,
+/// random degrees, tolerances and levels: never an error, always watertight, restricted and
+/// equal to the uniform points.
+#[test]
+fn random_cases_hold_every_property() {
+    let mut rng = Random(2026);
+    let (prism, prism_points) = roofed_prism();
+    let (cube, cube_points) = bumped_cube();
+    let torus = common::torus(4, 5);
+    let mut mixed = 0;
+    for case in 0..48 {
+        let (cage, mut points) = match case % 3 {
+            0 => (&prism, prism_points.clone()),
+            1 => (&cube, cube_points.clone()),
+            _ => {
+                let points: Vec<f64> = (0..20)
+                    .flat_map(|i| {
+                        let (a, b) = (i / 5, i % 5);
+                        let (u, v) = (
+                            std::f64::consts::TAU * a as f64 / 4.0,
+                            std::f64::consts::TAU * b as f64 / 5.0,
+                        );
+                        let r = 2.0 + 0.7 * v.cos();
+                        [r * u.cos(), 0.7 * v.sin(), r * u.sin()]
+                    })
+                    .collect();
+                (&torus, points)
+            }
+        };
+        for p in points.iter_mut() {
+            *p += 0.2 * (rng.next() - 0.5);
+        }
+        let degrees = [1, 2, 3, 4, 5, 6, 9];
+        let degree = degrees[(rng.next() * degrees.len() as f64) as usize];
+        let tolerance = [0.01, 0.003, 0.001, 3e-4][(rng.next() * 4.0) as usize];
+        let max_level = 3 + (rng.next() * 2.0) as u32;
+        let mesh = subdivide_adaptive(cage, &points, &options(degree, max_level, tolerance))
+            .unwrap_or_else(|e| panic!("case {case} (degree {degree}): {e}"));
+        mixed += (levels_used(&mesh) >= 2) as usize;
+        assert_watertight(&mesh);
+        assert_restricted(&mesh);
+        assert_uniform_points(cage, &points, degree, Boundary::EdgeOnly, &mesh);
+    }
+    println!("{mixed} of 48 cases mixed levels");
+    assert!(mixed >= 16, "only {mixed} cases mixed levels");
+}
