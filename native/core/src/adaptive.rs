@@ -68,6 +68,7 @@
 //! tiling of Fig. 13). No T-junctions arise: both sides of every edge use the same vertices.
 
 use std::collections::{HashMap, HashSet};
+use std::hash::{BuildHasherDefault, Hasher};
 
 use crate::error::{Error, Result};
 use crate::evaluate::{add, gather, scale, Scalar};
@@ -75,6 +76,29 @@ use crate::mesh::{validate_geometry, Cage};
 use crate::plan::{Boundary, Options, Plan};
 use crate::topology::{Level, NONE};
 use crate::{DEFAULT_MEMORY_BUDGET, INFINITELY_SHARP, MAX_DEGREE, MAX_LEVELS};
+
+/// Hasher of uniform ids (u64 keys): one multiply and a fold, plenty for ids that are spread
+/// over the whole range anyway. Iteration order never reaches a result (sets are sorted first).
+#[derive(Default)]
+struct IdHasher(u64);
+
+impl Hasher for IdHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_u64(&mut self, x: u64) {
+        let m = (self.0 ^ x).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        self.0 = m ^ (m >> 29);
+    }
+}
+
+type IdSet = HashSet<u64, BuildHasherDefault<IdHasher>>;
+type IdMap<V> = HashMap<u64, V, BuildHasherDefault<IdHasher>>;
 
 /// Options of an adaptive subdivision request.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -150,8 +174,6 @@ struct Part<T> {
     boundary: Vec<bool>,
     /// Per edge: its sharpness as a curve edge of the step from this level (0: no curve).
     sharp: Vec<f32>,
-    /// Per vertex: every uniform face around it is present.
-    complete: Vec<bool>,
     /// Scheme data: per vertex (odd degree) or per face (even degree); the cage at level 0.
     data: Vec<P<T>>,
     /// 1-D curve data of the step that made this level: per vertex (odd) or per edge (even).
@@ -165,6 +187,20 @@ struct Part<T> {
 impl<T> Part<T> {
     fn face_of_uid(&self, uid: u64) -> Option<usize> {
         self.face_uid.binary_search(&uid).ok()
+    }
+
+    /// True when every uniform face around vertex `v` is present: no edge at `v` lacks a face
+    /// unless it is a boundary edge of the uniform level.
+    fn is_complete(&self, v: usize) -> bool {
+        let level = &self.level;
+        level.corners_of_vertex(v).iter().all(|&k| {
+            let k = k as usize;
+            let out = level.corner_edges[k] as usize;
+            let inc = level.corner_edges[level.prev(k)] as usize;
+            [out, inc]
+                .into_iter()
+                .all(|e| level.edge_corners[e][1] != NONE || self.boundary[e])
+        })
     }
 }
 
@@ -264,7 +300,7 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
     let max_level = options.max_level as usize;
     let roots = ctx.level0.num_corners() as u64;
     // refined[j]: uniform ids of the refined nodes at level j (1 <= j < max_level).
-    let mut refined: Vec<HashSet<u64>> = vec![HashSet::new(); max_level];
+    let mut refined: Vec<IdSet> = vec![IdSet::default(); max_level];
     // Partial levels kept from decision to decision: level j + 1 is made for the children of
     // every node of level j, a superset of the nodes it ends up with, so it stays exact unless
     // the restriction criterion adds nodes below (then the levels above are made again).
@@ -407,7 +443,7 @@ fn curve_tags(
 
 /// The nodes at level `t` (sorted uniform ids): every face of `M_1` at level 1, the children of
 /// the refined nodes of level `t - 1` above.
-fn nodes_at(refined: &[HashSet<u64>], roots: u64, t: usize) -> Vec<u64> {
+fn nodes_at(refined: &[IdSet], roots: u64, t: usize) -> Vec<u64> {
     match t {
         0 => Vec::new(),
         1 => (0..roots).collect(),
@@ -497,7 +533,6 @@ fn cage_part<T: Scalar>(ctx: &Context<T>) -> Part<T> {
             .map(|e| level0.is_boundary_edge(e))
             .collect(),
         sharp: ctx.sharp0.clone(),
-        complete: vec![true; level0.num_vertices],
         data: ctx.cage.clone(),
         curve: Vec::new(),
         points: Vec::new(),
@@ -608,18 +643,6 @@ fn refine_part<T: Scalar>(
         map.iter().map(|&i| values[i as usize]).collect()
     };
     let level = sub.level;
-    let complete: Vec<bool> = (0..level.num_vertices)
-        .map(|v| {
-            level.corners_of_vertex(v).iter().all(|&k| {
-                let k = k as usize;
-                let out = level.corner_edges[k] as usize;
-                let inc = level.corner_edges[level.prev(k)] as usize;
-                [out, inc]
-                    .into_iter()
-                    .all(|e| level.edge_corners[e][1] != NONE || boundary[sub.edges[e] as usize])
-            })
-        })
-        .collect();
     let counts = [nv + ne + nf, 2 * ne + ncorners, ncorners, 4 * ncorners];
     Ok(Part {
         face_uid: pick(&face_uid, &sub.faces),
@@ -627,7 +650,6 @@ fn refine_part<T: Scalar>(
         edge_uid: pick(&edge_uid, &sub.edges),
         boundary: sub.edges.iter().map(|&e| boundary[e as usize]).collect(),
         sharp: sub.edges.iter().map(|&e| sharp[e as usize]).collect(),
-        complete,
         data: if odd {
             sub.vertices.iter().map(|&v| data[v as usize]).collect()
         } else {
@@ -1072,7 +1094,7 @@ fn measure<T: Scalar>(
 /// at which a node was refined.
 fn restrict_refine<T>(
     parts: &[Part<T>],
-    refined: &mut [HashSet<u64>],
+    refined: &mut [IdSet],
     t: usize,
     node: u64,
 ) -> Result<usize> {
@@ -1092,7 +1114,7 @@ fn restrict_refine<T>(
         })?;
         for k in 4 * f..4 * f + 4 {
             let v = part.level.corner_verts[k] as usize;
-            if !part.complete[v] {
+            if !part.is_complete(v) {
                 return Err(Error::Internal(format!(
                     "adaptive: vertex {} of level {s} is cut off",
                     part.vert_uid[v]
@@ -1132,11 +1154,11 @@ pub fn triangle_template(mask: u8) -> Vec<[u8; 3]> {
 fn triangulate<T: Scalar>(
     ctx: &Context<T>,
     parts: &[Part<T>],
-    refined: &[HashSet<u64>],
+    refined: &[IdSet],
     leaves: &[Vec<u64>],
 ) -> Result<AdaptiveMesh<T>> {
     let max_level = parts.len() - 1;
-    let mut index: HashMap<u64, u32> = HashMap::new();
+    let mut index: IdMap<u32> = IdMap::default();
     let mut points = Vec::new();
     let mut vertex_level = Vec::new();
     let mut vertex_id = Vec::new();
