@@ -301,7 +301,9 @@ def render_swap_in(scene: bpy.types.Scene) -> int:
         result = props.result
         if (
             result is None
-            or props.render_levels == props.levels
+            # An adaptive viewport result is swapped for the uniform render result even at
+            # equal levels.
+            or (props.render_levels == props.levels and not props.adaptive)
             or result.name_full in _render_swaps
         ):
             continue

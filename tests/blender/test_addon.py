@@ -505,3 +505,32 @@ def test_adaptive_viewport_result(addon: ModuleType, scene: Any) -> None:
     assert_matches(
         obj.bidegree.result.data, bidegree.subdivide(bidegree.Mesh(ref_points, faces), 3, 4)
     )
+
+
+def test_adaptive_viewport_renders_uniform(addon: ModuleType, scene: Any) -> None:
+    obj = cube(scene)
+    enable(obj, adaptive=True, tolerance=0.01, levels=2, render_levels=2)
+    result = obj.bidegree.result
+    viewport_faces = len(result.data.polygons)
+    assert all(p.loop_total == 3 for p in result.data.polygons)
+    seen: list[int] = []
+
+    def probe(_scene: Any, *_args: Any) -> None:  # runs after the add-on's render_pre
+        seen.append(len(result.data.polygons))
+
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.location = (0.0, -8.0, 0.0)
+    camera.rotation_euler = (1.5708, 0.0, 0.0)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    scene.render.engine = "CYCLES"
+    scene.cycles.samples = 1
+    scene.cycles.device = "CPU"
+    scene.render.resolution_x = scene.render.resolution_y = 16
+    bpy.app.handlers.render_pre.append(probe)
+    try:
+        assert bpy.ops.render.render(write_still=False) == {"FINISHED"}
+    finally:
+        bpy.app.handlers.render_pre.remove(probe)
+    assert seen == [6 * 4**2]  # uniform level 2 quads
+    assert len(result.data.polygons) == viewport_faces
