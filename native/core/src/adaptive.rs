@@ -30,8 +30,10 @@
 //! `m = ceil(ceil(n/2) / 2)`. Keeping `P_j = ring_r(S_j)` around the seed faces `S_j` of every
 //! level, with `S_{j+1} ⊆ children(S_j)`, is therefore exact when `r >= ceil(r/2) + m`, i.e. with
 //! the margin `r = 2m` rings (2 for degrees 1-4, 4 for 5-8, 6 for 9-12, ...). This is a
-//! sufficient margin derived from the stencil sizes, not a minimal one: degree 1, for example,
-//! would need none. The 1-D curve data lives on the edges and vertices of the same faces and
+//! sufficient margin derived from the stencil sizes, not a minimal one (the seeds themselves
+//! already carry rings of nodes, from the restriction criterion and the measured children): in
+//! `tests/adaptive.rs`, no margin at all fails for degrees 2-5 on a bumped grid, while one ring
+//! is enough there. The 1-D curve data lives on the edges and vertices of the same faces and
 //! reaches no farther. The same margin also makes every vertex of `ring_1` of the seeds complete
 //! (all its uniform faces present), which the drawing step, the restriction criterion and the
 //! triangulation need; a query that meets an incomplete vertex is reported as
@@ -39,7 +41,7 @@
 //!
 //! # Refinement
 //! Levels are decided one at a time: level j's nodes are evaluated together with their children
-//! (one pass from the cage up to level j + 1 over the partial levels), each node's error measured
+//! (the partial levels are extended up to level j + 1), each node's error measured
 //! and the nodes above the tolerance refined. Refining a node at level j requires every face of
 //! `M_j` sharing a vertex with it to be a node (the vertex restriction criterion: leaves sharing
 //! an edge or a corner differ by at most one level); parents that are leaves are refined in turn,
@@ -58,10 +60,13 @@
 //! # Output
 //! Points are the drawing points of each level: the primal points for odd degrees, and for even
 //! degrees the paper's drawing step (Fig. 14: one more dual -> primal centroid average), computed
-//! exactly as the uniform drawing mesh at that level. A vertex shared by leaves of two levels is
-//! drawn at the finer one (its position in the finer uniform level), and is one output vertex.
-//! Each leaf quad is triangulated by one of 16 templates chosen by which of its four edge
-//! neighbours is refined once more (the paper's Fig. 13): the midpoints of those edges (vertices
+//! exactly as the uniform drawing mesh at that level (where the paper forms corner and edge
+//! averages at level transitions, the partial levels hold the finer faces around every drawn
+//! vertex, so even the transition points are exact uniform points). A vertex shared by leaves of
+//! two levels is drawn at the finer one (its position in the finer uniform level), and is one
+//! output vertex. Each leaf quad is triangulated by one of 16 templates chosen by which of its
+//! four edge neighbours is refined once more (the cases of the paper's Fig. 13; the templates
+//! are fans of our own): the midpoints of those edges (vertices
 //! of the finer leaves) are inserted and the quad is fanned from the first of them; without such a
 //! neighbour the quad is split along the diagonal through its corner 0 and corner 2 (the parent's
 //! face point), so that the diagonals of four siblings meet at their parent's centre (the 4-8
