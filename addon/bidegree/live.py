@@ -49,6 +49,9 @@ def settings_of(obj: bpy.types.Object, *, render: bool = False) -> Settings:
         rules=str(p.rules),
         limit=bool(p.use_limit),
         normals=bool(p.use_limit_normals),
+        # Adaptive subdivision is a viewport option: renders stay uniform.
+        adaptive=bool(p.adaptive) and not render,
+        tolerance=float(p.tolerance),
     )
 
 
@@ -301,7 +304,9 @@ def render_swap_in(scene: bpy.types.Scene) -> int:
         result = props.result
         if (
             result is None
-            or props.render_levels == props.levels
+            # An adaptive viewport result is swapped for the uniform render result even at
+            # equal levels.
+            or (props.render_levels == props.levels and not props.adaptive)
             or result.name_full in _render_swaps
         ):
             continue

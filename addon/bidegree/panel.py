@@ -41,6 +41,10 @@ class BIDEGREE_PT_surface(bpy.types.Panel):
         sub = col.column(heading="Limit Surface", align=True)
         sub.prop(props, "use_limit", text="Positions")
         sub.prop(props, "use_limit_normals", text="Normals")
+        col.prop(props, "adaptive")
+        sub = col.column()
+        sub.active = props.adaptive
+        sub.prop(props, "tolerance")
 
         box = layout.box()
         status = box.column(align=True)

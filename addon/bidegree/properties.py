@@ -143,6 +143,24 @@ class BidegreeObjectSettings(bpy.types.PropertyGroup):
         ],
         default="linear",
     )
+    adaptive: BoolProperty(  # type: ignore[valid-type]
+        name="Adaptive",
+        description="Viewport: refine only where the surface is not flat (up to the viewport "
+        "levels), drawn as crack-free triangles; renders stay uniform",
+        default=False,
+        update=_settings_changed,
+    )
+    tolerance: FloatProperty(  # type: ignore[valid-type]
+        name="Tolerance",
+        description="Adaptive flatness tolerance, relative to the cage's bounding-box diagonal "
+        "(0 refines everywhere)",
+        default=1e-3,
+        min=0.0,
+        soft_max=0.05,
+        precision=4,
+        step=0.01,
+        update=_settings_changed,
+    )
     result: PointerProperty(  # type: ignore[valid-type]
         name="Result",
         description="Object holding the live bidegree surface",

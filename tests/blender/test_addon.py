@@ -514,3 +514,72 @@ def test_classic_rules_setting_matches_subdivide(addon: ModuleType, scene: Any) 
     points, faces, _ = evaluated_reference(obj)
     ref = bidegree.subdivide(bidegree.Mesh(points, faces), degree=3, levels=2, rules="classic")
     assert_matches(obj.bidegree.result.data, ref)
+
+
+def test_adaptive_viewport_result(addon: ModuleType, scene: Any) -> None:
+    obj = cube(scene)
+    obj.data.vertices[7].co = (1.8, 1.6, 1.7)
+    obj.data.update()
+    enable(obj, adaptive=True, tolerance=0.003, levels=4, degree=3)
+    assert obj.bidegree.last_error == ""
+    result = obj.bidegree.result.data
+    points, sizes, corners = mesh_arrays(result)
+    assert (sizes == 3).all()
+
+    ref_points, faces, _ = evaluated_reference(obj)
+    ref = bidegree.subdivide_adaptive(
+        bidegree.Mesh(ref_points, faces), degree=3, max_level=4, tolerance=0.003
+    )
+    assert (ref.leaves_per_level > 0).sum() >= 2
+    np.testing.assert_array_equal(corners, ref.triangles.reshape(-1))
+    np.testing.assert_allclose(points, ref.points, rtol=0, atol=1e-6)
+    # Closed and crack-free: every edge has two triangles.
+    assert 2 * len(result.edges) == 3 * len(sizes)
+    assert obj.bidegree.result_faces == ref.num_triangles
+
+    # Renders stay uniform; nothing changed means no work; turning it off is uniform again.
+    assert not addon.live.settings_of(obj, render=True).adaptive
+    assert addon.update(obj) == "unchanged"
+    obj.bidegree.adaptive = False
+    assert_matches(
+        obj.bidegree.result.data, bidegree.subdivide(bidegree.Mesh(ref_points, faces), 3, 4)
+    )
+
+
+def test_adaptive_viewport_renders_uniform(addon: ModuleType, scene: Any) -> None:
+    obj = cube(scene)
+    enable(obj, adaptive=True, tolerance=0.01, levels=2, render_levels=2)
+    result = obj.bidegree.result
+    viewport_faces = len(result.data.polygons)
+    assert all(p.loop_total == 3 for p in result.data.polygons)
+    seen: list[int] = []
+
+    def probe(_scene: Any, *_args: Any) -> None:  # runs after the add-on's render_pre
+        seen.append(len(result.data.polygons))
+
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.location = (0.0, -8.0, 0.0)
+    camera.rotation_euler = (1.5708, 0.0, 0.0)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    scene.render.engine = "CYCLES"
+    scene.cycles.samples = 1
+    scene.cycles.device = "CPU"
+    scene.render.resolution_x = scene.render.resolution_y = 16
+    bpy.app.handlers.render_pre.append(probe)
+    try:
+        assert bpy.ops.render.render(write_still=False) == {"FINISHED"}
+    finally:
+        bpy.app.handlers.render_pre.remove(probe)
+    assert seen == [6 * 4**2]  # uniform level 2 quads
+    assert len(result.data.polygons) == viewport_faces
+
+
+def test_adaptive_refuses_what_it_does_not_support(addon: ModuleType, scene: Any) -> None:
+    obj = cube(scene)
+    enable(obj, adaptive=True, tolerance=0.01, levels=2)
+    assert obj.bidegree.last_error == ""
+    before = snapshot(obj.bidegree.result)
+    obj.bidegree.use_limit_normals = True
+    assert "limit normals" in obj.bidegree.last_error
+    assert snapshot(obj.bidegree.result) == before

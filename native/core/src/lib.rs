@@ -13,6 +13,7 @@
 //! - [`evaluate`]: running points and attributes through a plan (parallel gathers);
 //! - [`output`]: output meshes (drawing mesh, true dual mesh, edges, face origins);
 //! - [`limit`]: limit positions and normals at the output vertices, every degree;
+//! - [`adaptive`]: adaptive subdivision on a quadtree forest with crack-free triangles (§3);
 //! - [`classic`]: OpenSubdiv's Catmull-Clark and the original Doo-Sabin rules;
 //! - [`analysis`]: subdivision matrices, their spectra and the C1 report (the paper's §4);
 //! - [`io`]: OBJ reading and writing.
@@ -27,6 +28,7 @@
 //! assert_eq!(refined.len(), 3 * plan.num_output_vertices());
 //! ```
 
+pub mod adaptive;
 pub mod analysis;
 pub mod classic;
 pub mod error;
@@ -38,6 +40,7 @@ pub mod output;
 pub mod plan;
 pub mod topology;
 
+pub use adaptive::{subdivide_adaptive, AdaptiveMesh, AdaptiveOptions};
 pub use classic::Creasing;
 pub use error::{Error, Result};
 pub use evaluate::Scalar;

@@ -7,6 +7,8 @@
 //! live in the Python layer (`bidegree/__init__.py`), which always hands over C-contiguous arrays
 //! of the expected dtypes. This layer checks again and refuses anything else.
 
+mod adaptive;
+
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
 
@@ -1177,5 +1179,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(analyze, m)?)?;
     m.add_function(wrap_pyfunction!(basis_function, m)?)?;
     m.add_function(wrap_pyfunction!(_panic_for_tests, m)?)?;
+    adaptive::register(m)?;
     Ok(())
 }

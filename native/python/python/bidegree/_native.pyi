@@ -138,3 +138,24 @@ def basis_function(
 ) -> dict[str, Any]:
     """A level-1 unit impulse refined by ``steps`` engine steps: ``params`` (rows, columns, 2),
     ``values`` (k, rows, columns), ``spacing``, ``primal``."""
+
+class _AdaptiveData(TypedDict):
+    points: _Float
+    triangles: NDArray[np.int32]
+    face_origin: NDArray[np.int32]
+    triangle_level: NDArray[np.int32]
+    vertex_level: NDArray[np.int32]
+    vertex_id: NDArray[np.int64]
+    leaves_per_level: NDArray[np.int64]
+    max_error: float | None
+
+def subdivide_adaptive(
+    cage: Cage,
+    points: _Float,
+    degree: int,
+    max_level: int,
+    tolerance: float,
+    boundary: str,
+    memory_budget: int | None = None,
+    measure_leaves: bool = False,
+) -> _AdaptiveData: ...

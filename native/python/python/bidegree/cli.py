@@ -113,6 +113,71 @@ def _add_subdivide(parser: argparse.ArgumentParser) -> None:
         help="write the limit normals (per face corner, split at creases: OBJ vn, USD faceVarying)",
     )
     parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+    _add_adaptive_arguments(parser)
+
+
+def _add_adaptive_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--adaptive",
+        action="store_true",
+        help="adaptive subdivision (quadtrees refined where not flat), crack-free triangles",
+    )
+    parser.add_argument(
+        "--tolerance",
+        type=float,
+        default=1e-3,
+        help="adaptive: flatness tolerance relative to the cage's diagonal (default 1e-3; "
+        "0 refines everywhere)",
+    )
+    parser.add_argument(
+        "--max-level",
+        type=int,
+        default=None,
+        metavar="L",
+        help="adaptive: deepest level (default: --levels)",
+    )
+
+
+def _run_adaptive(args: argparse.Namespace, say: Callable[[str], None]) -> int:
+    """``subdivide --adaptive``: OBJ in, triangles out (OBJ only)."""
+    if os.path.splitext(args.out)[1].lower() != ".obj":
+        raise CliError(f"{args.out}: adaptive output is written as OBJ only")
+    if args.output != "primal" or args.rules != "averaging":
+        raise CliError("--adaptive draws the primal drawing mesh with averaging rules only")
+    if args.limit or args.normals:
+        raise CliError("--adaptive does not compute limit positions or normals yet")
+    start = time.perf_counter()
+    cage = bidegree.Mesh.from_obj(args.input, boundary=args.boundary)
+    say(f"cage: {cage.num_vertices} vertices, {cage.num_faces} faces ({args.input})")
+    max_level = args.levels if args.max_level is None else args.max_level
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", bidegree.IsolatedVerticesWarning)
+        result = bidegree.subdivide_adaptive(
+            cage,
+            degree=args.degree,
+            max_level=max_level,
+            tolerance=args.tolerance,
+            memory_budget=args.memory_budget,
+        )
+    elapsed = time.perf_counter() - start
+    for warning in caught:
+        text = " ".join(str(warning.message).split("\n"))
+        print(f"bidegree: warning: {text}", file=sys.stderr)
+    leaves = ", ".join(
+        f"{n} at level {level}" for level, n in enumerate(result.leaves_per_level) if n
+    )
+    say(
+        f"degree {result.degree}, adaptive to level {max_level}, tolerance {result.tolerance:g}: "
+        f"{result.num_leaves} leaves ({leaves})"
+    )
+    say(
+        f"output: {result.num_vertices} vertices, {result.num_triangles} triangles (subdivided "
+        f"in {_seconds(elapsed)})"
+    )
+    start = time.perf_counter()
+    result.write_obj(args.out)
+    say(f"wrote {args.out} in {_seconds(time.perf_counter() - start)}")
+    return 0
 
 
 def _export_usd(path: str, cage: bidegree.Mesh, result: bidegree.Result) -> None:
@@ -131,6 +196,8 @@ def _run_subdivide(args: argparse.Namespace) -> int:
     if out_ext != ".obj" and out_ext not in _USD_EXTENSIONS:
         raise CliError(f"{args.out}: unsupported output format (use .obj, .usda, .usdc or .usd)")
     say: Callable[[str], None] = (lambda _: None) if args.quiet else print
+    if args.adaptive:
+        return _run_adaptive(args, say)
 
     start = time.perf_counter()
     cage = bidegree.Mesh.from_obj(args.input, boundary=args.boundary)

@@ -55,6 +55,10 @@ class Settings:
     limit: bool = False
     #: Limit normals as the result's custom normals (split at creases).
     normals: bool = False
+    #: Adaptive subdivision (``levels`` is then the deepest level) drawn as triangles.
+    adaptive: bool = False
+    #: Flatness tolerance of the adaptive subdivision, relative to the cage's diagonal.
+    tolerance: float = 1e-3
 
 
 @dataclass
@@ -224,6 +228,38 @@ def write_full(
     )
 
 
+def triangle_edges(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The edges (E, 2) of a triangle mesh and the edge of each corner (to the next corner)."""
+    tris = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    a = tris.reshape(-1)
+    b = np.roll(tris, -1, axis=1).reshape(-1)
+    keys = np.minimum(a, b) << 32 | np.maximum(a, b)
+    unique, corner_edges = np.unique(keys, return_inverse=True)
+    edges = np.stack([unique >> 32, unique & 0xFFFFFFFF], axis=-1)
+    return edges.astype(np.int32), corner_edges.reshape(-1).astype(np.int32)
+
+
+def write_adaptive(
+    mesh: bpy.types.Mesh,
+    result: Any,
+    cage: mesh_io.CageArrays,
+    materials: list[Any] | None,
+) -> None:
+    """Write an adaptive result (triangles; per-face data through ``face_origin``, no UVs)."""
+    edges, corner_edges = triangle_edges(result.triangles)
+    mesh_io.write_mesh(
+        mesh,
+        points=result.points,
+        face_sizes=np.full(result.num_triangles, 3, dtype=np.int32),
+        corner_verts=np.asarray(result.triangles, dtype=np.int32).reshape(-1),
+        edges=edges,
+        corner_edges=corner_edges,
+        face_origin=result.face_origin,
+        cage=cage,
+        materials=materials,
+    )
+
+
 class LiveCache:
     """Per-object cache of subdivision plans for live updates."""
 
@@ -284,6 +320,8 @@ class LiveCache:
         """
         t0 = time.perf_counter()
         try:
+            if settings.adaptive:
+                return self._update_adaptive(key, cage, settings, mesh, materials, t0)
             return self._update(key, cage, settings, mesh, materials, t0)
         except Exception:
             self.stats.errors += 1
@@ -357,6 +395,77 @@ class LiveCache:
         entry.mesh_vertices = len(mesh.vertices)
         report = self._report(action, t0, cage, entry)
         report.warnings = notes
+        return report
+
+    def _update_adaptive(
+        self,
+        key: Hashable,
+        cage: mesh_io.CageArrays,
+        settings: Settings,
+        mesh: bpy.types.Mesh,
+        materials: list[Any] | None,
+        t0: float,
+    ) -> UpdateReport:
+        """The adaptive result: where it refines depends on the positions, so any change of
+        topology, settings, positions or face data recomputes it (there is no plan to keep)."""
+        topology = (cage.topology_fingerprint(use_creases=settings.use_creases), settings)
+        positions = cage.positions_hash()
+        face_data = face_data_fingerprint(cage, materials)
+        entry = self._entries.get(key)
+        if (
+            entry is not None
+            and entry.topology == topology
+            and entry.positions == positions
+            and entry.face_data == face_data
+            and entry.mesh_name == mesh.name_full
+            and entry.mesh_vertices == len(mesh.vertices)
+        ):
+            self.stats.skips += 1
+            return self._report(UNCHANGED, t0, cage, entry)
+        unsupported = [
+            name
+            for name, asked in (
+                ("classic rules", settings.rules != "averaging"),
+                ("the dual output", settings.output != "primal"),
+                ("limit positions", settings.limit),
+                ("limit normals", settings.normals),
+            )
+            if asked
+        ]
+        if unsupported:
+            raise bidegree.InvalidInputError(
+                f"adaptive subdivision does not support {' or '.join(unsupported)}; "
+                "turn Adaptive off or those settings off"
+            )
+        check = GeometryCheck(cage.face_sizes, cage.corner_verts)
+        check(cage.points)
+        bmesh = mesh_io.to_bidegree_mesh(
+            cage, boundary=settings.boundary, use_creases=settings.use_creases
+        )
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = bidegree.subdivide_adaptive(
+                bmesh,
+                degree=settings.degree,
+                max_level=settings.levels,
+                tolerance=settings.tolerance,
+                memory_budget=settings.memory_budget,
+            )
+        write_adaptive(mesh, result, cage, materials)
+        self.stats.plan_builds += 1
+        entry = _Entry(
+            plan=None,
+            check=check,
+            topology=topology,
+            positions=positions,
+            face_data=face_data,
+            mesh_name=mesh.name_full,
+            mesh_vertices=len(mesh.vertices),
+            result_faces=result.num_triangles,
+        )
+        self._entries[key] = entry
+        report = self._report(BUILT, t0, cage, entry)
+        report.warnings = [str(w.message) for w in caught]
         return report
 
     @staticmethod

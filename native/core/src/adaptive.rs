@@ -1,0 +1,1249 @@
+//! Adaptive subdivision (the paper's §3): a forest of quadtrees over the quads of `M_1`, refined
+//! where an error measure asks, balanced by the vertex restriction criterion, with points computed
+//! exactly as the uniform scheme computes them and a crack-free triangulation.
+//!
+//! This module owns the quadtree forest, the partial levels it evaluates on, the error measure,
+//! the restriction criterion and the triangulation templates. It reuses [`Level`] (the refined
+//! topology) unchanged and mirrors the arithmetic of [`crate::evaluate`] pass for pass.
+//!
+//! # Nodes
+//! A node is a face of the uniform level `M_j` (`j >= 1`), named by its uniform face id. Face `c`
+//! of `M_{j+1}` is corner `c` of `M_j`, so on quad levels the children of face `f` are
+//! `4f..4f + 4`: the uniform numbering is the hierarchy. The roots are all faces of `M_1` (one per
+//! corner of the cage). Vertices are named by their uniform ids too; an old vertex keeps its id
+//! from level to level, so a vertex id names the same surface vertex at every level.
+//!
+//! # Partial levels and exactness
+//! Level `j` is kept only on a subset `P_j` of the faces of `M_j`, stored as a [`Level`] whose
+//! numbering preserves the relative order of the uniform ids (faces, corners, edges, vertices
+//! sorted by uniform id; every vertex's corner list in the uniform order). `P_{j+1}` is
+//! `P_j.refine()` restricted to the faces that are needed. All sums are then accumulated over the
+//! same terms in the same order as in the uniform [`crate::Plan`], so every value whose stencil lies
+//! inside `P_j` is bitwise the uniform value (checked against the uniform plan in
+//! `tests/adaptive.rs` for degrees 1-5 and 9, with boundaries, creases and corners).
+//!
+//! Margin. One step of degree n is a replication followed by n averages. Backwards from a set
+//! `S` of fine faces (their dual points, or the primal points at their vertices), the n averages
+//! reach `k = ceil(n/2)` vertex rings of fine faces, and the replication reads the coarse parents
+//! of those. Fine rings relate to coarse ones by `ring_k(children(Y)) ⊆ children(ring_ceil(k/2)(Y))`,
+//! so the data of `S = ring_r(children(Y))` is exact when `P_j ⊇ ring_(ceil(r/2) + m)(Y)` with
+//! `m = ceil(ceil(n/2) / 2)`. Keeping `P_j = ring_r(S_j)` around the seed faces `S_j` of every
+//! level, with `S_{j+1} ⊆ children(S_j)`, is therefore exact when `r >= ceil(r/2) + m`, i.e. with
+//! the margin `r = 2m` rings (2 for degrees 1-4, 4 for 5-8, 6 for 9-12, ...). This is a
+//! sufficient margin derived from the stencil sizes, not a minimal one (the seeds themselves
+//! already carry rings of nodes, from the restriction criterion and the measured children): in
+//! `tests/adaptive.rs`, no margin at all fails for degrees 2-5 on a bumped grid, while one ring
+//! is enough there. The 1-D curve data lives on the edges and vertices of the same faces and
+//! reaches no farther. The same margin also makes every vertex of `ring_1` of the seeds complete
+//! (all its uniform faces present), which the drawing step, the restriction criterion and the
+//! triangulation need; a query that meets an incomplete vertex is reported as
+//! [`Error::Internal`] rather than answered wrongly.
+//!
+//! # Refinement
+//! Levels are decided one at a time: level j's nodes are evaluated together with their children
+//! (the partial levels are extended up to level j + 1), each node's error measured
+//! and the nodes above the tolerance refined. Refining a node at level j requires every face of
+//! `M_j` sharing a vertex with it to be a node (the vertex restriction criterion: leaves sharing
+//! an edge or a corner differ by at most one level); parents that are leaves are refined in turn,
+//! down to the roots. The partial levels are kept from one decision to the next: level j + 1 was
+//! made around the children of every node of level j, a superset of the nodes it ends up with,
+//! so its data stays exact; only when the restriction criterion adds nodes at a level below j
+//! are the levels above that one made again (from the last valid one, not from the cage).
+//!
+//! Error measure (flatness): for a node f at level j, the 3 x 3 grid of its children's points at
+//! level j + 1 (its 4 corners, 4 edge points, 1 face point) against the bilinear patch of the 4
+//! corners: the largest distance of an edge point from the midpoint of its corners and of the
+//! face point from the mean of the 4 corners, divided by the diagonal of the cage's bounding box.
+//! A node is refined when this is above `tolerance`; a tolerance of 0 refines every node (the
+//! result is then uniform level `max_level`).
+//!
+//! # Output
+//! Points are the drawing points of each level: the primal points for odd degrees, and for even
+//! degrees the paper's drawing step (Fig. 14: one more dual -> primal centroid average), computed
+//! exactly as the uniform drawing mesh at that level (where the paper forms corner and edge
+//! averages at level transitions, the partial levels hold the finer faces around every drawn
+//! vertex, so even the transition points are exact uniform points). A vertex shared by leaves of
+//! two levels is drawn at the finer one (its position in the finer uniform level), and is one
+//! output vertex. Each leaf quad is triangulated by one of 16 templates chosen by which of its
+//! four edge neighbours is refined once more (the cases of the paper's Fig. 13; the templates
+//! are fans of our own): the midpoints of those edges (vertices
+//! of the finer leaves) are inserted and the quad is fanned from the first of them; without such a
+//! neighbour the quad is split along the diagonal through its corner 0 and corner 2 (the parent's
+//! face point), so that the diagonals of four siblings meet at their parent's centre (the 4-8
+//! tiling of Fig. 13). No T-junctions arise: both sides of every edge use the same vertices.
+
+use std::collections::{HashMap, HashSet};
+use std::hash::{BuildHasherDefault, Hasher};
+
+use crate::error::{Error, Result};
+use crate::evaluate::{add, gather, scale, Scalar};
+use crate::mesh::{validate_geometry, Cage};
+use crate::plan::{Boundary, Options, Plan};
+use crate::topology::{Level, NONE};
+use crate::{DEFAULT_MEMORY_BUDGET, INFINITELY_SHARP, MAX_DEGREE, MAX_LEVELS};
+
+/// Hasher of uniform ids (u64 keys): one multiply and a fold, plenty for ids that are spread
+/// over the whole range anyway. Iteration order never reaches a result (sets are sorted first).
+#[derive(Default)]
+struct IdHasher(u64);
+
+impl Hasher for IdHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_u64(&mut self, x: u64) {
+        let m = (self.0 ^ x).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        self.0 = m ^ (m >> 29);
+    }
+}
+
+type IdSet = HashSet<u64, BuildHasherDefault<IdHasher>>;
+type IdMap<V> = HashMap<u64, V, BuildHasherDefault<IdHasher>>;
+
+/// Options of an adaptive subdivision request.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AdaptiveOptions {
+    /// Number of averaging steps per level (as [`Options::degree`]), 1..=31.
+    pub degree: u32,
+    /// Deepest level a leaf may reach, 1..=16 (level 1 is the quads of `M_1`, the roots).
+    pub max_level: u32,
+    /// Flatness tolerance, relative to the diagonal of the cage's bounding box (see the module
+    /// documentation); 0 refines everywhere to `max_level`.
+    pub tolerance: f64,
+    /// Boundary interpolation.
+    pub boundary: Boundary,
+    /// Largest memory, in bytes, the partial levels may need (estimated before each level).
+    pub memory_budget: u64,
+    /// Also measure the error of every leaf (one more level is evaluated around each leaf);
+    /// the largest is reported as [`AdaptiveMesh::max_error`].
+    pub measure_leaves: bool,
+}
+
+impl Default for AdaptiveOptions {
+    fn default() -> Self {
+        AdaptiveOptions {
+            degree: 4,
+            max_level: 4,
+            tolerance: 1e-3,
+            boundary: Boundary::EdgeOnly,
+            memory_budget: DEFAULT_MEMORY_BUDGET,
+            measure_leaves: false,
+        }
+    }
+}
+
+/// The result of [`subdivide_adaptive`]: a crack-free triangle mesh.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AdaptiveMesh<T> {
+    /// Points, 3 values per vertex, in the scalar type of the input.
+    pub points: Vec<T>,
+    /// Triangles (counter-clockwise as the cage's faces), indices into the points.
+    pub triangles: Vec<[u32; 3]>,
+    /// Cage face each triangle comes from.
+    pub face_origin: Vec<u32>,
+    /// Level of the leaf each triangle comes from.
+    pub triangle_level: Vec<u32>,
+    /// Level whose point each vertex carries (the finest level of the leaves around it).
+    pub vertex_level: Vec<u32>,
+    /// Uniform vertex id of each vertex at its level: vertex `i` is vertex `vertex_id[i]` of the
+    /// uniform level `vertex_level[i]`, which has the same point bit for bit.
+    pub vertex_id: Vec<u64>,
+    /// Number of leaves at each level (index = level; index 0 is always 0).
+    pub leaves_per_level: Vec<u64>,
+    /// With [`AdaptiveOptions::measure_leaves`], the largest error measure over all leaves
+    /// (relative to the cage diagonal, as the tolerance).
+    pub max_error: Option<f64>,
+}
+
+impl<T> AdaptiveMesh<T> {
+    /// Number of leaves (quads of the adaptive surface before triangulation).
+    pub fn num_leaves(&self) -> u64 {
+        self.leaves_per_level.iter().sum()
+    }
+}
+
+type P<T> = [T; 3];
+
+/// One partial level: a subset of the faces of uniform `M_j`, with its data.
+struct Part<T> {
+    level: Level,
+    face_uid: Vec<u64>,
+    vert_uid: Vec<u64>,
+    edge_uid: Vec<u64>,
+    /// Per edge: a boundary edge of the uniform level.
+    boundary: Vec<bool>,
+    /// Per edge: its sharpness as a curve edge of the step from this level (0: no curve).
+    sharp: Vec<f32>,
+    /// Scheme data: per vertex (odd degree) or per face (even degree); the cage at level 0.
+    data: Vec<P<T>>,
+    /// 1-D curve data of the step that made this level: per vertex (odd) or per edge (even).
+    curve: Vec<P<T>>,
+    /// Drawing points per vertex (empty at level 0).
+    points: Vec<P<T>>,
+    /// Uniform counts of this level: vertices, edges, faces, corners.
+    counts: [u64; 4],
+}
+
+impl<T> Part<T> {
+    fn face_of_uid(&self, uid: u64) -> Option<usize> {
+        self.face_uid.binary_search(&uid).ok()
+    }
+
+    /// True when every uniform face around vertex `v` is present: no edge at `v` lacks a face
+    /// unless it is a boundary edge of the uniform level.
+    fn is_complete(&self, v: usize) -> bool {
+        let level = &self.level;
+        level.corners_of_vertex(v).iter().all(|&k| {
+            let k = k as usize;
+            let out = level.corner_edges[k] as usize;
+            let inc = level.corner_edges[level.prev(k)] as usize;
+            [out, inc]
+                .into_iter()
+                .all(|e| level.edge_corners[e][1] != NONE || self.boundary[e])
+        })
+    }
+}
+
+/// What does not change between passes.
+struct Context<T> {
+    cage: Vec<P<T>>,
+    level0: Level,
+    sharp0: Vec<f32>,
+    tags: Vec<(u32, f32)>,
+    degree: u32,
+    margin: usize,
+    budget: u64,
+    diagonal: f64,
+}
+
+/// Rings of margin kept around the seed faces of every level for degree `n` (module docs).
+pub fn margin_rings(degree: u32) -> usize {
+    2 * (degree.div_ceil(2).div_ceil(2) as usize)
+}
+
+/// Subdivides `points` (3 values per cage vertex) adaptively; see the module documentation for
+/// the forest, the error measure and the output.
+pub fn subdivide_adaptive<T: Scalar>(
+    cage: &Cage,
+    points: &[T],
+    options: &AdaptiveOptions,
+) -> Result<AdaptiveMesh<T>> {
+    subdivide_adaptive_with_margin(cage, points, options, margin_rings(options.degree))
+}
+
+/// [`subdivide_adaptive`] with another margin than [`margin_rings`]; for the tests that show
+/// that a smaller margin breaks the equality with the uniform points.
+#[doc(hidden)]
+pub fn subdivide_adaptive_with_margin<T: Scalar>(
+    cage: &Cage,
+    points: &[T],
+    options: &AdaptiveOptions,
+    margin: usize,
+) -> Result<AdaptiveMesh<T>> {
+    if options.degree < 1 || options.degree > MAX_DEGREE {
+        return Err(Error::DegreeOutOfRange {
+            degree: options.degree as i64,
+            max: MAX_DEGREE,
+        });
+    }
+    if options.max_level < 1 || options.max_level > MAX_LEVELS {
+        return Err(Error::LevelOutOfRange {
+            levels: options.max_level as i64,
+            max: MAX_LEVELS,
+        });
+    }
+    if !options.tolerance.is_finite() || options.tolerance < 0.0 {
+        return Err(Error::InvalidInput(format!(
+            "the tolerance must be finite and at least 0, not {}",
+            options.tolerance
+        )));
+    }
+    validate_geometry(cage, points, 3)?;
+    // The cage level, its vertex compaction and the crease checks, as the uniform plan has them.
+    let base = Plan::new(
+        cage,
+        &Options {
+            degree: options.degree,
+            levels: 0,
+            boundary: options.boundary,
+            memory_budget: options.memory_budget,
+            ..Options::default()
+        },
+    )?;
+    let (given, _) = points.as_chunks::<3>();
+    let compact: Vec<P<T>> = match base.vertex_map() {
+        None => given.to_vec(),
+        Some(map) => map.iter().map(|&v| given[v as usize]).collect(),
+    };
+    let level0 = base.levels()[0].clone();
+    let (sharp0, tags) = curve_tags(cage, &level0, base.vertex_map(), options.boundary);
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in &compact {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k].to_f64());
+            hi[k] = hi[k].max(p[k].to_f64());
+        }
+    }
+    let diagonal = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
+    let ctx = Context {
+        cage: compact,
+        level0,
+        sharp0,
+        tags,
+        degree: options.degree,
+        margin,
+        budget: options.memory_budget,
+        diagonal,
+    };
+
+    let max_level = options.max_level as usize;
+    let roots = ctx.level0.num_corners() as u64;
+    // refined[j]: uniform ids of the refined nodes at level j (1 <= j < max_level).
+    let mut refined: Vec<IdSet> = vec![IdSet::default(); max_level];
+    // Partial levels kept from decision to decision: level j + 1 is made for the children of
+    // every node of level j, a superset of the nodes it ends up with, so it stays exact unless
+    // the restriction criterion adds nodes below (then the levels above are made again).
+    let mut parts: Vec<Part<T>> = Vec::new();
+    for j in 1..max_level {
+        let nodes = nodes_at(&refined, roots, j);
+        if options.tolerance == 0.0 {
+            refined[j] = nodes.into_iter().collect();
+            continue;
+        }
+        let mut seeds: Vec<Vec<u64>> = (0..=j).map(|t| nodes_at(&refined, roots, t)).collect();
+        seeds.push(children(&nodes));
+        extend_pass(&ctx, &mut parts, &seeds)?;
+        let errors = measure(&ctx, &parts, j, &nodes)?;
+        let mut lowest = j;
+        for (&node, &error) in nodes.iter().zip(&errors) {
+            if error > options.tolerance {
+                lowest = lowest.min(restrict_refine(&parts, &mut refined, j, node)?);
+            }
+        }
+        if lowest < j {
+            parts.truncate(lowest + 1);
+        }
+    }
+
+    let mut seeds: Vec<Vec<u64>> = (0..=max_level)
+        .map(|t| nodes_at(&refined, roots, t))
+        .collect();
+    let leaves: Vec<Vec<u64>> = (0..=max_level)
+        .map(|t| {
+            if t == 0 {
+                Vec::new()
+            } else {
+                let r = refined.get(t);
+                seeds[t]
+                    .iter()
+                    .copied()
+                    .filter(|u| r.is_none_or(|r| !r.contains(u)))
+                    .collect()
+            }
+        })
+        .collect();
+    let mut max_error = None;
+    if options.measure_leaves {
+        // Every leaf's children are seeds one level down.
+        let mut measured = seeds.clone();
+        measured.push(Vec::new());
+        for t in 1..=max_level {
+            let mut more = children(&leaves[t]);
+            more.extend_from_slice(&measured[t + 1]);
+            more.sort_unstable();
+            more.dedup();
+            measured[t + 1] = more;
+        }
+        let parts = run_pass(&ctx, &measured)?;
+        let mut worst = 0.0f64;
+        for (t, leaves) in leaves.iter().enumerate().skip(1) {
+            for e in measure(&ctx, &parts, t, leaves)? {
+                worst = worst.max(e);
+            }
+        }
+        max_error = Some(worst);
+    }
+    seeds.truncate(max_level + 1);
+    extend_pass(&ctx, &mut parts, &seeds)?;
+    triangulate(&ctx, &parts, &refined, &leaves).map(|mut mesh| {
+        mesh.max_error = max_error;
+        mesh
+    })
+}
+
+/// Sharpness of the cage's edges (boundaries infinite, creases) and the corner tags, exactly as
+/// [`Plan::new`] lays them out.
+fn curve_tags(
+    cage: &Cage,
+    level0: &Level,
+    vertex_map: Option<&[u32]>,
+    boundary: Boundary,
+) -> (Vec<f32>, Vec<(u32, f32)>) {
+    let sharp_or_inf = |s: f32| {
+        if s >= INFINITELY_SHARP {
+            f32::INFINITY
+        } else {
+            s
+        }
+    };
+    let mut compact_of: Option<Vec<u32>> = None;
+    if let Some(map) = vertex_map {
+        let mut c = vec![NONE; cage.num_vertices()];
+        for (i, &v) in map.iter().enumerate() {
+            c[v as usize] = i as u32;
+        }
+        compact_of = Some(c);
+    }
+    let compact = |v: u32| compact_of.as_ref().map_or(v, |m| m[v as usize]);
+    let mut sharpness: Vec<f32> = (0..level0.num_edges())
+        .map(|e| {
+            if level0.is_boundary_edge(e) {
+                f32::INFINITY
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    if !cage.creases().is_empty() {
+        let mut keys: Vec<(u64, u32)> = level0
+            .edge_verts
+            .iter()
+            .enumerate()
+            .map(|(e, &[a, b])| (((a.min(b) as u64) << 32) | a.max(b) as u64, e as u32))
+            .collect();
+        keys.sort_unstable();
+        for crease in cage.creases() {
+            let (a, b) = (compact(crease.a), compact(crease.b));
+            let key = ((a.min(b) as u64) << 32) | a.max(b) as u64;
+            // The plan has already refused creases that are not edges.
+            if let Ok(at) = keys.binary_search_by_key(&key, |k| k.0) {
+                let e = keys[at].1 as usize;
+                sharpness[e] = sharpness[e].max(sharp_or_inf(crease.sharpness));
+            }
+        }
+    }
+    let mut tags: Vec<(u32, f32)> = cage
+        .corners()
+        .iter()
+        .map(|c| (compact(c.vertex), sharp_or_inf(c.sharpness)))
+        .collect();
+    if boundary == Boundary::EdgeAndCorner {
+        for v in 0..level0.num_vertices {
+            if level0.corners_of_vertex(v).len() == 1 {
+                tags.push((v as u32, f32::INFINITY));
+            }
+        }
+    }
+    tags.sort_by(|x, y| x.0.cmp(&y.0).then(y.1.total_cmp(&x.1)));
+    tags.dedup_by_key(|t| t.0);
+    tags.retain(|t| t.1 > 0.0);
+    (sharpness, tags)
+}
+
+/// The nodes at level `t` (sorted uniform ids): every face of `M_1` at level 1, the children of
+/// the refined nodes of level `t - 1` above.
+fn nodes_at(refined: &[IdSet], roots: u64, t: usize) -> Vec<u64> {
+    match t {
+        0 => Vec::new(),
+        1 => (0..roots).collect(),
+        _ => {
+            let mut parents: Vec<u64> = refined
+                .get(t - 1)
+                .map_or(Vec::new(), |r| r.iter().copied().collect());
+            parents.sort_unstable();
+            children(&parents)
+        }
+    }
+}
+
+/// The children of sorted quad-level faces, sorted.
+fn children(faces: &[u64]) -> Vec<u64> {
+    faces
+        .iter()
+        .flat_map(|&f| (0..4).map(move |k| 4 * f + k))
+        .collect()
+}
+
+/// Estimated bytes of a partial level per corner (topology tables, ids, values and 1-D data).
+const BYTES_PER_CORNER: u64 = 160;
+
+/// Evaluates the partial levels `P_0..P_T` (T = `seeds.len() - 1`) from scratch: `P_0` is the
+/// cage, `P_{t+1}` is `P_t.refine()` restricted to the margin rings around `seeds[t + 1]`
+/// (uniform face ids, sorted, children of `seeds[t]`).
+fn run_pass<T: Scalar>(ctx: &Context<T>, seeds: &[Vec<u64>]) -> Result<Vec<Part<T>>> {
+    let mut parts = Vec::new();
+    extend_pass(ctx, &mut parts, seeds)?;
+    Ok(parts)
+}
+
+/// As [`run_pass`], keeping the partial levels already in `parts` (which must have been made
+/// for seeds containing these seeds: a superset of the margin rings is exact as well).
+fn extend_pass<T: Scalar>(
+    ctx: &Context<T>,
+    parts: &mut Vec<Part<T>>,
+    seeds: &[Vec<u64>],
+) -> Result<()> {
+    if parts.is_empty() {
+        parts.push(cage_part(ctx));
+    }
+    let mut retained: u64 = parts
+        .iter()
+        .map(|p| BYTES_PER_CORNER * p.level.num_corners() as u64)
+        .sum();
+    for t in parts.len() - 1..seeds.len() - 1 {
+        let coarse = &parts[t];
+        let fine_corners = 4 * coarse.level.num_corners() as u64;
+        let required = retained + BYTES_PER_CORNER * fine_corners;
+        if fine_corners >= u32::MAX as u64 {
+            return Err(Error::InvalidInput(format!(
+                "{} faces at level {} is more than 32-bit indices can address",
+                fine_corners / 4,
+                t + 1
+            )));
+        }
+        if required > ctx.budget {
+            return Err(Error::MemoryBudget {
+                required,
+                budget: ctx.budget,
+                faces: fine_corners / 4,
+            });
+        }
+        let next = refine_part(ctx, t, coarse, &seeds[t + 1])?;
+        retained += BYTES_PER_CORNER * next.level.num_corners() as u64;
+        parts.push(next);
+    }
+    Ok(())
+}
+
+/// `P_0`: the whole cage level with the cage points.
+fn cage_part<T: Scalar>(ctx: &Context<T>) -> Part<T> {
+    let level0 = ctx.level0.clone();
+    let counts = [
+        level0.num_vertices as u64,
+        level0.num_edges() as u64,
+        level0.num_faces() as u64,
+        level0.num_corners() as u64,
+    ];
+    Part {
+        face_uid: (0..level0.num_faces() as u64).collect(),
+        vert_uid: (0..level0.num_vertices as u64).collect(),
+        edge_uid: (0..level0.num_edges() as u64).collect(),
+        boundary: (0..level0.num_edges())
+            .map(|e| level0.is_boundary_edge(e))
+            .collect(),
+        sharp: ctx.sharp0.clone(),
+        data: ctx.cage.clone(),
+        curve: Vec::new(),
+        points: Vec::new(),
+        counts,
+        level: level0,
+    }
+}
+
+/// One step `P_t -> P_{t+1}`: refine, evaluate, keep the margin rings around the seeds.
+fn refine_part<T: Scalar>(
+    ctx: &Context<T>,
+    t: usize,
+    coarse: &Part<T>,
+    seeds: &[u64],
+) -> Result<Part<T>> {
+    let c = &coarse.level;
+    let fine = c.refine();
+    let [nv, ne, nf, ncorners] = coarse.counts;
+    let (cnv, cne) = (c.num_vertices, c.num_edges());
+    let corner_uid = |k: usize| -> u64 {
+        if t == 0 {
+            k as u64
+        } else {
+            4 * coarse.face_uid[k >> 2] + (k & 3) as u64
+        }
+    };
+    // Uniform ids of the fine level.
+    let face_uid: Vec<u64> = (0..fine.num_faces()).map(corner_uid).collect();
+    let vert_uid: Vec<u64> = (0..fine.num_vertices)
+        .map(|w| {
+            if w < cnv {
+                coarse.vert_uid[w]
+            } else if w < cnv + cne {
+                nv + coarse.edge_uid[w - cnv]
+            } else {
+                nv + ne + coarse.face_uid[w - cnv - cne]
+            }
+        })
+        .collect();
+    let edge_uid: Vec<u64> = (0..fine.num_edges())
+        .map(|i| {
+            if i < 2 * cne {
+                2 * coarse.edge_uid[i >> 1] + (i & 1) as u64
+            } else {
+                2 * ne + corner_uid(i - 2 * cne)
+            }
+        })
+        .collect();
+    let boundary: Vec<bool> = (0..fine.num_edges())
+        .map(|i| i < 2 * cne && coarse.boundary[i >> 1])
+        .collect();
+    let sharp: Vec<f32> = (0..fine.num_edges())
+        .map(|i| {
+            let s = if i < 2 * cne {
+                coarse.sharp[i >> 1]
+            } else {
+                0.0
+            };
+            if s > 1.0 {
+                s - 1.0
+            } else {
+                0.0
+            }
+        })
+        .collect();
+
+    let (data, curve, points) = step(ctx, t, coarse, &fine);
+
+    // The seeds and the margin rings around them.
+    let mut keep = vec![false; fine.num_faces()];
+    let mut frontier: Vec<usize> = Vec::with_capacity(seeds.len());
+    // Both lists are sorted: one merge walk finds every seed.
+    let mut f = 0;
+    for &s in seeds {
+        while f < face_uid.len() && face_uid[f] < s {
+            f += 1;
+        }
+        if f == face_uid.len() || face_uid[f] != s {
+            return Err(Error::Internal(format!(
+                "adaptive: seed face {s} of level {} missing",
+                t + 1
+            )));
+        }
+        if !keep[f] {
+            keep[f] = true;
+            frontier.push(f);
+        }
+    }
+    for _ in 0..ctx.margin {
+        let mut next = Vec::new();
+        for &f in &frontier {
+            for k in 4 * f..4 * f + 4 {
+                for &d in fine.corners_of_vertex(fine.corner_verts[k] as usize) {
+                    let g = (d >> 2) as usize;
+                    if !keep[g] {
+                        keep[g] = true;
+                        next.push(g);
+                    }
+                }
+            }
+        }
+        frontier = next;
+    }
+
+    let odd = ctx.degree % 2 == 1;
+    let sub = restrict(&fine, &keep);
+    let pick = |values: &[u64], map: &[u32]| -> Vec<u64> {
+        map.iter().map(|&i| values[i as usize]).collect()
+    };
+    let level = sub.level;
+    let counts = [nv + ne + nf, 2 * ne + ncorners, ncorners, 4 * ncorners];
+    Ok(Part {
+        face_uid: pick(&face_uid, &sub.faces),
+        vert_uid: pick(&vert_uid, &sub.vertices),
+        edge_uid: pick(&edge_uid, &sub.edges),
+        boundary: sub.edges.iter().map(|&e| boundary[e as usize]).collect(),
+        sharp: sub.edges.iter().map(|&e| sharp[e as usize]).collect(),
+        data: if odd {
+            sub.vertices.iter().map(|&v| data[v as usize]).collect()
+        } else {
+            sub.faces.iter().map(|&f| data[f as usize]).collect()
+        },
+        curve: if odd {
+            sub.vertices.iter().map(|&v| curve[v as usize]).collect()
+        } else {
+            sub.edges.iter().map(|&e| curve[e as usize]).collect()
+        },
+        points: sub.vertices.iter().map(|&v| points[v as usize]).collect(),
+        counts,
+        level,
+    })
+}
+
+/// A level restricted to some of its faces, with the old ids of what it kept.
+struct Sub {
+    level: Level,
+    faces: Vec<u32>,
+    vertices: Vec<u32>,
+    edges: Vec<u32>,
+}
+
+/// The quad level `fine` restricted to the faces marked in `keep`, numbered in the order of the
+/// old ids; each vertex keeps its corners in the old order, each edge its faces in the old slot
+/// order (a lone remaining face moves to the first slot).
+fn restrict(fine: &Level, keep: &[bool]) -> Sub {
+    let faces: Vec<u32> = (0..keep.len() as u32)
+        .filter(|&f| keep[f as usize])
+        .collect();
+    let mut corner_map = vec![NONE; fine.num_corners()];
+    for (i, &f) in faces.iter().enumerate() {
+        for k in 0..4 {
+            corner_map[4 * f as usize + k] = (4 * i + k) as u32;
+        }
+    }
+    let mut vert_map = vec![NONE; fine.num_vertices];
+    let mut edge_map = vec![NONE; fine.num_edges()];
+    for &f in &faces {
+        for k in 4 * f as usize..4 * f as usize + 4 {
+            vert_map[fine.corner_verts[k] as usize] = 0;
+            edge_map[fine.corner_edges[k] as usize] = 0;
+        }
+    }
+    let mut vertices = Vec::new();
+    for (v, m) in vert_map.iter_mut().enumerate() {
+        if *m != NONE {
+            *m = vertices.len() as u32;
+            vertices.push(v as u32);
+        }
+    }
+    let mut edges = Vec::new();
+    for (e, m) in edge_map.iter_mut().enumerate() {
+        if *m != NONE {
+            *m = edges.len() as u32;
+            edges.push(e as u32);
+        }
+    }
+    let mut corner_verts = Vec::with_capacity(4 * faces.len());
+    let mut corner_edges = Vec::with_capacity(4 * faces.len());
+    for &f in &faces {
+        for k in 4 * f as usize..4 * f as usize + 4 {
+            corner_verts.push(vert_map[fine.corner_verts[k] as usize]);
+            corner_edges.push(edge_map[fine.corner_edges[k] as usize]);
+        }
+    }
+    let edge_verts = edges
+        .iter()
+        .map(|&e| fine.edge_verts[e as usize].map(|v| vert_map[v as usize]))
+        .collect();
+    let edge_corners = edges
+        .iter()
+        .map(|&e| {
+            let slots = fine.edge_corners[e as usize].map(|c| {
+                if c == NONE {
+                    NONE
+                } else {
+                    corner_map[c as usize]
+                }
+            });
+            if slots[0] == NONE {
+                [slots[1], NONE]
+            } else {
+                slots
+            }
+        })
+        .collect();
+    let mut vert_corner_offsets = Vec::with_capacity(vertices.len() + 1);
+    let mut vert_corners = Vec::with_capacity(corner_verts.len());
+    vert_corner_offsets.push(0u32);
+    for &v in &vertices {
+        for &c in fine.corners_of_vertex(v as usize) {
+            let m = corner_map[c as usize];
+            if m != NONE {
+                vert_corners.push(m);
+            }
+        }
+        vert_corner_offsets.push(vert_corners.len() as u32);
+    }
+    // Built field by field: the level's lazily built tables stay private to the topology.
+    let mut level = Level::default();
+    level.num_vertices = vertices.len();
+    level.corner_verts = corner_verts;
+    level.corner_edges = corner_edges;
+    level.edge_verts = edge_verts;
+    level.edge_corners = edge_corners;
+    level.vert_corner_offsets = vert_corner_offsets;
+    level.vert_corners = vert_corners;
+    Sub {
+        level,
+        faces,
+        vertices,
+        edges,
+    }
+}
+
+/// A vertex of the curve network of one step, on the fine level (as [`crate::plan::CurveVertex`]).
+struct CurveVertex {
+    vertex: u32,
+    /// Its two curve edges (fine edge ids), or `None` for a corner.
+    edges: Option<[u32; 2]>,
+    weight: f64,
+    /// For a corner: the cage vertex whose point it keeps (`None` only for a vertex cut off by the
+    /// partial level, whose value is outside the exact region).
+    cage: Option<u32>,
+}
+
+#[inline(always)]
+fn zero<T: Scalar>() -> P<T> {
+    [T::default(); 3]
+}
+
+/// `1/k` exactly as the uniform evaluation computes it.
+#[inline(always)]
+fn reciprocal<T: Scalar>(k: usize) -> T {
+    match k {
+        2 => T::from_f64(0.5),
+        4 => T::from_f64(0.25),
+        _ => T::from_f64(1.0 / k as f64),
+    }
+}
+
+/// Sets a vertex to `w * curve + (1 - w) * centroid`, as the uniform evaluation does.
+#[inline]
+fn blend<T: Scalar>(vertex: &mut P<T>, curve: P<T>, weight: f64) {
+    if weight >= 1.0 {
+        *vertex = curve;
+    } else if weight > 0.0 {
+        *vertex = add(
+            scale(curve, T::from_f64(weight)),
+            scale(*vertex, T::from_f64(1.0 - weight)),
+        );
+    }
+}
+
+/// What one step produces on the fine level: the scheme data, the 1-D data, the drawing points.
+type Stepped<T> = (Vec<P<T>>, Vec<P<T>>, Vec<P<T>>);
+
+/// One step of degree n from `coarse` (level t) to `fine = coarse.level.refine()`: replication
+/// and n averages with the 1-D scheme on the curves, the same operations in the same order as
+/// `evaluate::Run::step` (whose fused first pass is bitwise the separate passes used here).
+/// Returns the scheme data, the 1-D data and the drawing points of the fine level.
+fn step<T: Scalar>(ctx: &Context<T>, t: usize, coarse: &Part<T>, fine: &Level) -> Stepped<T> {
+    let c = &coarse.level;
+    let (nv, ne) = (c.num_vertices, c.num_edges());
+    let nfv = fine.num_vertices;
+    let odd = ctx.degree % 2 == 1;
+    let half = T::from_f64(0.5);
+    let quarter = T::from_f64(0.25);
+
+    // The curve network of this step (plan::curve_step on the partial level).
+    let parents: Vec<usize> = (0..ne).filter(|&e| coarse.sharp[e] > 0.0).collect();
+    let mut edge_1d = vec![
+        zero::<T>();
+        if parents.is_empty() {
+            0
+        } else {
+            fine.num_edges()
+        }
+    ];
+    let mut curve_edges: Vec<(usize, [usize; 2])> = Vec::with_capacity(2 * parents.len());
+    let mut ends: Vec<(u32, u32, f64)> = Vec::with_capacity(2 * parents.len());
+    for &e in &parents {
+        let w = coarse.sharp[e].min(1.0) as f64;
+        for k in 0..2 {
+            let end = c.edge_verts[e][k] as usize;
+            edge_1d[2 * e + k] = if t == 0 {
+                ctx.cage[end]
+            } else if odd {
+                coarse.curve[end]
+            } else {
+                coarse.curve[e]
+            };
+            curve_edges.push((2 * e + k, [end, nv + e]));
+            ends.push((end as u32, (2 * e + k) as u32, w));
+        }
+    }
+    ends.sort_unstable_by(|x, y| x.0.cmp(&y.0).then(x.1.cmp(&y.1)));
+    let level = t as f32;
+    let nv0 = ctx.level0.num_vertices as u64;
+    let active_tags: Vec<(u32, f64)> = ctx
+        .tags
+        .iter()
+        .filter(|tag| tag.1 > level)
+        .filter_map(|tag| {
+            coarse
+                .vert_uid
+                .binary_search(&(tag.0 as u64))
+                .ok()
+                .map(|v| (v as u32, (tag.1 - level).min(1.0) as f64))
+        })
+        .collect();
+    let mut curve_vertices: Vec<CurveVertex> = Vec::new();
+    let (mut i, mut k) = (0, 0);
+    while i < ends.len() || k < active_tags.len() {
+        let v = match (ends.get(i), active_tags.get(k)) {
+            (Some(e), Some(tag)) => e.0.min(tag.0),
+            (Some(e), None) => e.0,
+            (None, Some(tag)) => tag.0,
+            (None, None) => unreachable!(),
+        };
+        let start = i;
+        while i < ends.len() && ends[i].0 == v {
+            i += 1;
+        }
+        let tag = if k < active_tags.len() && active_tags[k].0 == v {
+            k += 1;
+            active_tags[k - 1].1
+        } else {
+            0.0
+        };
+        let group = &ends[start..i];
+        let mean = if group.is_empty() {
+            0.0
+        } else {
+            group.iter().map(|g| g.2).sum::<f64>() / group.len() as f64
+        };
+        let uid = coarse.vert_uid[v as usize];
+        curve_vertices.push(if group.len() == 2 && tag == 0.0 {
+            CurveVertex {
+                vertex: v,
+                edges: Some([group[0].1, group[1].1]),
+                weight: mean,
+                cage: None,
+            }
+        } else {
+            CurveVertex {
+                vertex: v,
+                edges: None,
+                weight: mean.max(tag),
+                cage: (uid < nv0).then_some(uid as u32),
+            }
+        });
+    }
+    for &e in &parents {
+        curve_vertices.push(CurveVertex {
+            vertex: (nv + e) as u32,
+            edges: Some([2 * e as u32, 2 * e as u32 + 1]),
+            weight: coarse.sharp[e].min(1.0) as f64,
+            cage: None,
+        });
+    }
+    // 1-D primal data per fine vertex (valid at the curve vertices).
+    let mut vertex_1d = vec![zero::<T>(); if curve_vertices.is_empty() { 0 } else { nfv }];
+    let finish_primal = |vertices: &mut [P<T>], edge_1d: &[P<T>], vertex_1d: &mut [P<T>]| {
+        for cv in &curve_vertices {
+            let w = cv.vertex as usize;
+            let value = match (cv.edges, cv.cage) {
+                (Some([a, b]), _) => scale(add(edge_1d[a as usize], edge_1d[b as usize]), half),
+                (None, Some(u)) => ctx.cage[u as usize],
+                (None, None) => {
+                    vertex_1d[w] = vertices[w];
+                    continue;
+                }
+            };
+            blend(&mut vertices[w], value, cv.weight);
+            vertex_1d[w] = value;
+        }
+    };
+    let to_dual_1d = |vertex_1d: &[P<T>], edge_1d: &mut [P<T>]| {
+        for &(e, [a, b]) in &curve_edges {
+            edge_1d[e] = scale(add(vertex_1d[a], vertex_1d[b]), half);
+        }
+    };
+    let average_to_primal = |faces: &[P<T>]| -> Vec<P<T>> {
+        gather(nfv, |w| {
+            if w < nv {
+                let corners = c.corners_of_vertex(w);
+                let sum = corners
+                    .iter()
+                    .fold(zero(), |s, &k| add(s, faces[k as usize]));
+                scale(sum, reciprocal(corners.len()))
+            } else if w < nv + ne {
+                match c.edge_corners[w - nv] {
+                    [a, NONE] => scale(add(faces[a as usize], faces[c.next(a as usize)]), half),
+                    [a, b] => {
+                        let (a, b) = (a as usize, b as usize);
+                        let s = add(
+                            add(faces[a], faces[c.next(a)]),
+                            add(faces[b], faces[c.next(b)]),
+                        );
+                        scale(s, quarter)
+                    }
+                }
+            } else {
+                let corners = c.face_corners(w - nv - ne);
+                let k = corners.len();
+                let sum = faces[corners].iter().fold(zero(), |s, &x| add(s, x));
+                scale(sum, reciprocal(k))
+            }
+        })
+    };
+    let average_to_dual = |v: &[P<T>]| -> Vec<P<T>> {
+        gather(fine.num_faces(), |f| {
+            let q = &fine.corner_verts[4 * f..4 * f + 4];
+            let s = add(
+                add(v[q[0] as usize], v[q[1] as usize]),
+                add(v[q[2] as usize], v[q[3] as usize]),
+            );
+            scale(s, quarter)
+        })
+    };
+
+    // Replication and the first dual -> primal average in closed form.
+    let data = &coarse.data;
+    let coarse_primal = t == 0 || odd;
+    let mut vertices: Vec<P<T>> = gather(nfv, |w| {
+        if coarse_primal {
+            if w < nv {
+                data[w]
+            } else if w < nv + ne {
+                let [a, b] = c.edge_verts[w - nv];
+                scale(add(data[a as usize], data[b as usize]), half)
+            } else {
+                let corners = c.face_corners(w - nv - ne);
+                let k = corners.len();
+                let sum = corners.fold(zero(), |s, k| add(s, data[c.corner_verts[k] as usize]));
+                scale(sum, reciprocal(k))
+            }
+        } else if w < nv {
+            let corners = c.corners_of_vertex(w);
+            let sum = corners
+                .iter()
+                .fold(zero(), |s, &k| add(s, data[c.face_of(k as usize)]));
+            scale(sum, reciprocal(corners.len()))
+        } else if w < nv + ne {
+            match c.edge_corners[w - nv] {
+                [a, NONE] => data[c.face_of(a as usize)],
+                [a, b] => scale(
+                    add(data[c.face_of(a as usize)], data[c.face_of(b as usize)]),
+                    half,
+                ),
+            }
+        } else {
+            data[w - nv - ne]
+        }
+    });
+    finish_primal(&mut vertices, &edge_1d, &mut vertex_1d);
+    let mut faces: Vec<P<T>> = Vec::new();
+    for a in 2..=ctx.degree {
+        if a % 2 == 1 {
+            vertices = average_to_primal(&faces);
+            finish_primal(&mut vertices, &edge_1d, &mut vertex_1d);
+        } else {
+            faces = average_to_dual(&vertices);
+            to_dual_1d(&vertex_1d, &mut edge_1d);
+        }
+    }
+    if odd {
+        let points = vertices.clone();
+        let n = vertices.len();
+        vertex_1d.resize(n, zero());
+        (vertices, vertex_1d, points)
+    } else {
+        // The drawing step: one more dual -> primal average, with the 1-D values.
+        let mut points = average_to_primal(&faces);
+        let mut scratch = vertex_1d;
+        finish_primal(&mut points, &edge_1d, &mut scratch);
+        let n = fine.num_edges();
+        edge_1d.resize(n, zero());
+        (faces, edge_1d, points)
+    }
+}
+
+/// Flatness of nodes at level `t` (see the module documentation), from their children's
+/// drawing points at level `t + 1`.
+fn measure<T: Scalar>(
+    ctx: &Context<T>,
+    parts: &[Part<T>],
+    t: usize,
+    nodes: &[u64],
+) -> Result<Vec<f64>> {
+    let fine = &parts[t + 1];
+    let scale_by = if ctx.diagonal > 0.0 {
+        1.0 / ctx.diagonal
+    } else {
+        1.0
+    };
+    let p = |v: u32| -> [f64; 3] { fine.points[v as usize].map(|x| x.to_f64()) };
+    let dist = |a: [f64; 3], b: [f64; 3]| -> f64 {
+        ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+    };
+    nodes
+        .iter()
+        .map(|&u| {
+            let mut corner = [[0.0; 3]; 4];
+            let mut mid = [[0.0; 3]; 4];
+            let mut centre = [0.0; 3];
+            // The four children have consecutive uniform ids, so consecutive places.
+            let first = fine
+                .face_of_uid(4 * u)
+                .filter(|&f| fine.face_uid.get(f + 3) == Some(&(4 * u + 3)))
+                .ok_or_else(|| {
+                    Error::Internal(format!("adaptive: child of node {u} (level {t}) missing"))
+                })?;
+            for k in 0..4 {
+                let f = first + k;
+                let q = &fine.level.corner_verts[4 * f..4 * f + 4];
+                corner[k] = p(q[0]);
+                mid[k] = p(q[1]);
+                centre = p(q[2]);
+            }
+            let mut error = 0.0f64;
+            let mut mean = [0.0; 3];
+            for k in 0..4 {
+                let (a, b) = (corner[k], corner[(k + 1) & 3]);
+                let m = [0, 1, 2].map(|i| 0.5 * (a[i] + b[i]));
+                error = error.max(dist(mid[k], m));
+                for i in 0..3 {
+                    mean[i] += 0.25 * a[i];
+                }
+            }
+            error = error.max(dist(centre, mean));
+            Ok(error * scale_by)
+        })
+        .collect()
+}
+
+/// Refines node `node` of level `t` and, by the vertex restriction criterion, every leaf parent
+/// of a face sharing a vertex with a refined node, down to the roots. Returns the lowest level
+/// at which a node was refined.
+fn restrict_refine<T>(
+    parts: &[Part<T>],
+    refined: &mut [IdSet],
+    t: usize,
+    node: u64,
+) -> Result<usize> {
+    let mut lowest = t;
+    let mut stack = vec![(t, node)];
+    while let Some((s, x)) = stack.pop() {
+        if !refined[s].insert(x) {
+            continue;
+        }
+        lowest = lowest.min(s);
+        if s == 1 {
+            continue;
+        }
+        let part = &parts[s];
+        let f = part.face_of_uid(x).ok_or_else(|| {
+            Error::Internal(format!("adaptive: node {x} of level {s} outside its level"))
+        })?;
+        for k in 4 * f..4 * f + 4 {
+            let v = part.level.corner_verts[k] as usize;
+            if !part.is_complete(v) {
+                return Err(Error::Internal(format!(
+                    "adaptive: vertex {} of level {s} is cut off",
+                    part.vert_uid[v]
+                )));
+            }
+            for &d in part.level.corners_of_vertex(v) {
+                let parent = part.face_uid[(d >> 2) as usize] >> 2;
+                if !refined[s - 1].contains(&parent) {
+                    stack.push((s - 1, parent));
+                }
+            }
+        }
+    }
+    Ok(lowest)
+}
+
+/// Triangle templates of a leaf quad for the 16 cases of refined edge neighbours (bit k: the
+/// neighbour across edge k, from corner k to corner k + 1, is refined once more). Positions:
+/// corner k is `2k`, the midpoint of edge k is `2k + 1`.
+pub fn triangle_template(mask: u8) -> Vec<[u8; 3]> {
+    let mask = mask & 15;
+    if mask == 0 {
+        return vec![[0, 2, 4], [0, 4, 6]];
+    }
+    let first = mask.trailing_zeros() as u8;
+    let ring: Vec<u8> = (0..8u8)
+        .map(|i| (2 * first + 1 + i) % 8)
+        .filter(|&p| p % 2 == 0 || mask & (1 << (p / 2)) != 0)
+        .collect();
+    (1..ring.len() - 1)
+        .map(|i| [ring[0], ring[i], ring[i + 1]])
+        .collect()
+}
+
+/// The output mesh: leaves triangulated by the templates, shared vertices drawn at the finest
+/// level around them.
+fn triangulate<T: Scalar>(
+    ctx: &Context<T>,
+    parts: &[Part<T>],
+    refined: &[IdSet],
+    leaves: &[Vec<u64>],
+) -> Result<AdaptiveMesh<T>> {
+    let max_level = parts.len() - 1;
+    let mut index: IdMap<u32> = IdMap::default();
+    let mut points = Vec::new();
+    let mut vertex_level = Vec::new();
+    let mut vertex_id = Vec::new();
+    let leaf_faces = |t: usize| -> Result<Vec<usize>> {
+        leaves[t]
+            .iter()
+            .map(|&u| {
+                parts[t].face_of_uid(u).ok_or_else(|| {
+                    Error::Internal(format!("adaptive: leaf {u} of level {t} missing"))
+                })
+            })
+            .collect()
+    };
+    for t in (1..=max_level).rev() {
+        let part = &parts[t];
+        for f in leaf_faces(t)? {
+            for &v in &part.level.corner_verts[4 * f..4 * f + 4] {
+                let uid = part.vert_uid[v as usize];
+                index.entry(uid).or_insert_with(|| {
+                    points.extend_from_slice(&part.points[v as usize]);
+                    vertex_level.push(t as u32);
+                    vertex_id.push(uid);
+                    (vertex_id.len() - 1) as u32
+                });
+            }
+        }
+    }
+    let templates: Vec<Vec<[u8; 3]>> = (0..16).map(triangle_template).collect();
+    let mut triangles = Vec::new();
+    let mut face_origin = Vec::new();
+    let mut triangle_level = Vec::new();
+    for t in 1..=max_level {
+        let part = &parts[t];
+        let level = &part.level;
+        for f in leaf_faces(t)? {
+            let mut slots = [NONE; 8];
+            let mut mask = 0u8;
+            for k in 0..4 {
+                let corner = 4 * f + k;
+                slots[2 * k] = index[&part.vert_uid[level.corner_verts[corner] as usize]];
+                let e = level.corner_edges[corner] as usize;
+                let [a, b] = level.edge_corners[e];
+                let other = if a as usize == corner { b } else { a };
+                if other == NONE || t == max_level {
+                    continue;
+                }
+                let neighbour = part.face_uid[(other >> 2) as usize];
+                if refined[t].contains(&neighbour) {
+                    let uid = part.counts[0] + part.edge_uid[e];
+                    slots[2 * k + 1] = *index.get(&uid).ok_or_else(|| {
+                        Error::Internal(format!(
+                            "adaptive: edge point {uid} of level {} missing",
+                            t + 1
+                        ))
+                    })?;
+                    mask |= 1 << k;
+                }
+            }
+            let origin = ctx.level0.corner_faces[(part.face_uid[f] >> (2 * (t - 1))) as usize];
+            for tri in &templates[mask as usize] {
+                triangles.push(tri.map(|p| slots[p as usize]));
+                face_origin.push(origin);
+                triangle_level.push(t as u32);
+            }
+        }
+    }
+    let mut leaves_per_level = vec![0u64; max_level + 1];
+    for (t, l) in leaves.iter().enumerate() {
+        if t <= max_level {
+            leaves_per_level[t] = l.len() as u64;
+        }
+    }
+    Ok(AdaptiveMesh {
+        points,
+        triangles,
+        face_origin,
+        triangle_level,
+        vertex_level,
+        vertex_id,
+        leaves_per_level,
+        max_error: None,
+    })
+}

@@ -1,0 +1,535 @@
+//! Adaptive subdivision: exact uniform points at every level, watertight triangles, tolerance 0
+//! is uniform, and far fewer faces than uniform on a mostly flat cage.
+
+mod common;
+
+use std::collections::HashMap;
+
+use bidegree::adaptive::{margin_rings, subdivide_adaptive_with_margin, triangle_template};
+use bidegree::{
+    subdivide_adaptive, AdaptiveMesh, AdaptiveOptions, Boundary, Cage, Error, Options, Plan, Scalar,
+};
+use common::{cage, grid, Random};
+
+/// A closed pentagonal prism with a pyramid roof: a pentagon, quads and triangles, vertices of
+/// valence 3, 4 and 5; points jittered so that refinement is uneven.
+fn roofed_prism() -> (Cage, Vec<f64>) {
+    let mut points = Vec::new();
+    let mut rng = Random(7);
+    for ring in 0..2 {
+        for i in 0..5 {
+            let a = 2.0 * std::f64::consts::PI * i as f64 / 5.0;
+            let jitter = 0.15 * rng.next();
+            points.extend([a.cos() * (1.0 + jitter), a.sin(), 1.5 * ring as f64]);
+        }
+    }
+    points.extend([0.2, 0.1, 3.5]);
+    let mut faces = vec![(0..5).rev().collect::<Vec<usize>>()];
+    for i in 0..5 {
+        let j = (i + 1) % 5;
+        faces.push(vec![i, j, 5 + j, 5 + i]);
+        faces.push(vec![5 + i, 5 + j, 10]);
+    }
+    (cage(11, &faces), points)
+}
+
+/// A closed cube with one corner pulled out (valence-3 vertices, all quads).
+fn bumped_cube() -> (Cage, Vec<f64>) {
+    let mut points: Vec<f64> = (0..8)
+        .flat_map(|i| [(i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64])
+        .collect();
+    points[21] += 0.8;
+    let faces = vec![
+        vec![0, 2, 3, 1],
+        vec![4, 5, 7, 6],
+        vec![0, 1, 5, 4],
+        vec![2, 6, 7, 3],
+        vec![0, 4, 6, 2],
+        vec![1, 3, 7, 5],
+    ];
+    (cage(8, &faces), points)
+}
+
+/// An open grid in z = 0 with one vertex lifted: flat except for one bump.
+fn bumped_grid(n: usize, height: f64) -> (Cage, Vec<f64>) {
+    let (cage, mut points) = grid(n, n);
+    let centre = (n / 2) * (n + 1) + n / 2;
+    points[3 * centre + 2] = height;
+    (cage, points)
+}
+
+fn options(degree: u32, max_level: u32, tolerance: f64) -> AdaptiveOptions {
+    AdaptiveOptions {
+        degree,
+        max_level,
+        tolerance,
+        ..AdaptiveOptions::default()
+    }
+}
+
+/// Every vertex of the adaptive mesh is, bit for bit, the vertex of the same id of the uniform
+/// drawing mesh at its level.
+fn assert_uniform_points<T: Scalar>(
+    cage: &Cage,
+    points: &[T],
+    degree: u32,
+    boundary: Boundary,
+    mesh: &AdaptiveMesh<T>,
+) {
+    let mut checked = 0;
+    for level in 1..mesh.leaves_per_level.len() as u32 {
+        let at: Vec<usize> = (0..mesh.vertex_level.len())
+            .filter(|&i| mesh.vertex_level[i] == level)
+            .collect();
+        if at.is_empty() {
+            continue;
+        }
+        let plan = Plan::new(
+            cage,
+            &Options {
+                degree,
+                levels: level,
+                boundary,
+                ..Options::default()
+            },
+        )
+        .unwrap();
+        let uniform = plan.evaluate(points, 3).unwrap();
+        for i in at {
+            let u = mesh.vertex_id[i] as usize;
+            for k in 0..3 {
+                let (a, b) = (mesh.points[3 * i + k], uniform[3 * u + k]);
+                assert!(
+                    a.to_f64().to_bits() == b.to_f64().to_bits(),
+                    "degree {degree}: vertex {u} of level {level}, channel {k}: {a:?} != {b:?}"
+                );
+            }
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, mesh.vertex_level.len());
+}
+
+/// Every undirected edge is in exactly two triangles, once in each direction; no triangle
+/// repeats a vertex; every vertex is used and vertex ids are unique.
+fn assert_watertight<T>(mesh: &AdaptiveMesh<T>) {
+    let mut edges: HashMap<(u32, u32), i32> = HashMap::new();
+    for t in &mesh.triangles {
+        assert!(
+            t[0] != t[1] && t[1] != t[2] && t[2] != t[0],
+            "degenerate {t:?}"
+        );
+        for k in 0..3 {
+            *edges.entry((t[k], t[(k + 1) % 3])).or_default() += 1;
+        }
+    }
+    for (&(a, b), &count) in &edges {
+        assert_eq!(count, 1, "directed edge ({a}, {b}) used {count} times");
+        assert_eq!(
+            edges.get(&(b, a)),
+            Some(&1),
+            "edge ({a}, {b}) has no opposite: a crack or T-junction"
+        );
+    }
+    let mut used = vec![false; mesh.vertex_level.len()];
+    for t in &mesh.triangles {
+        for &v in t {
+            used[v as usize] = true;
+        }
+    }
+    assert!(used.iter().all(|&u| u), "unused vertices");
+    let mut ids: Vec<(u32, u64)> = mesh
+        .vertex_level
+        .iter()
+        .zip(&mesh.vertex_id)
+        .map(|(&l, &u)| (l, u))
+        .collect();
+    ids.sort_unstable();
+    ids.dedup_by_key(|x| x.1);
+    assert_eq!(ids.len(), mesh.vertex_id.len(), "a vertex id appears twice");
+}
+
+/// The vertex restriction criterion: leaves sharing a vertex (across an edge or at a corner)
+/// differ by at most one level.
+fn assert_restricted<T>(mesh: &AdaptiveMesh<T>) {
+    let n = mesh.vertex_level.len();
+    let (mut lo, mut hi) = (vec![u32::MAX; n], vec![0u32; n]);
+    for (t, &level) in mesh.triangles.iter().zip(&mesh.triangle_level) {
+        for &v in t {
+            lo[v as usize] = lo[v as usize].min(level);
+            hi[v as usize] = hi[v as usize].max(level);
+        }
+    }
+    for v in 0..n {
+        assert!(
+            hi[v] - lo[v] <= 1,
+            "vertex {v}: leaves of levels {} and {}",
+            lo[v],
+            hi[v]
+        );
+        assert_eq!(
+            mesh.vertex_level[v], hi[v],
+            "vertex {v} not drawn at its finest level"
+        );
+    }
+}
+
+fn levels_used<T>(mesh: &AdaptiveMesh<T>) -> usize {
+    mesh.leaves_per_level.iter().filter(|&&n| n > 0).count()
+}
+
+#[test]
+fn margin_follows_the_degree() {
+    assert_eq!(
+        (1..=12).map(margin_rings).collect::<Vec<_>>(),
+        [2, 2, 2, 2, 4, 4, 4, 4, 6, 6, 6, 6]
+    );
+}
+
+/// Index of the first vertex that differs from the uniform vertex of its level, if any.
+fn first_difference(
+    cage: &Cage,
+    points: &[f64],
+    degree: u32,
+    mesh: &AdaptiveMesh<f64>,
+) -> Option<usize> {
+    let uniform: Vec<Vec<f64>> = (0..mesh.leaves_per_level.len() as u32)
+        .map(|levels| {
+            Plan::new(
+                cage,
+                &Options {
+                    degree,
+                    levels,
+                    ..Options::default()
+                },
+            )
+            .unwrap()
+            .evaluate(points, 3)
+            .unwrap()
+        })
+        .collect();
+    (0..mesh.vertex_id.len()).find(|&i| {
+        let level = &uniform[mesh.vertex_level[i] as usize];
+        let u = mesh.vertex_id[i] as usize;
+        (0..3).any(|k| mesh.points[3 * i + k].to_bits() != level[3 * u + k].to_bits())
+    })
+}
+
+/// The margin is not idle: without it the evaluation meets cut-off vertices (and says so, as an
+/// internal error) or its points leave the uniform ones. (On this cage one ring is enough for
+/// degrees 2-5, and degree 9 happens to need none: the restriction criterion and the measured
+/// children already keep nodes around the refined ones. The documented margin is a sufficient
+/// bound, not a minimal one.)
+#[test]
+fn smaller_margins_break_the_equality() {
+    let (cage, points) = bumped_grid(16, 3.0);
+    for degree in [2, 3, 4, 5, 9] {
+        let options = options(degree, 4, 1e-4);
+        let exact = subdivide_adaptive(&cage, &points, &options).unwrap();
+        assert!(levels_used(&exact) >= 3);
+        assert_eq!(first_difference(&cage, &points, degree, &exact), None);
+        if degree == 9 {
+            continue;
+        }
+        let exact = match subdivide_adaptive_with_margin(&cage, &points, &options, 0) {
+            Err(Error::Internal(_)) => false,
+            Err(e) => panic!("unexpected error {e}"),
+            Ok(mesh) => first_difference(&cage, &points, degree, &mesh).is_none(),
+        };
+        assert!(!exact, "degree {degree}: no margin gave the uniform points");
+    }
+}
+
+#[test]
+fn templates_cover_the_quad_without_new_vertices() {
+    for mask in 0..16u8 {
+        let t = triangle_template(mask);
+        let splits = mask.count_ones() as usize;
+        // A polygon of 4 + splits vertices fans into 2 + splits triangles.
+        assert_eq!(t.len(), 2 + splits, "mask {mask}");
+        // Its boundary edges are exactly the quad's (split) edges, each once.
+        let mut directed: HashMap<(u8, u8), i32> = HashMap::new();
+        for tri in &t {
+            for k in 0..3 {
+                *directed.entry((tri[k], tri[(k + 1) % 3])).or_default() += 1;
+            }
+        }
+        let ring: Vec<u8> = (0..8u8)
+            .filter(|&p| p % 2 == 0 || mask & (1 << (p / 2)) != 0)
+            .collect();
+        for i in 0..ring.len() {
+            let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
+            assert_eq!(directed.get(&(a, b)), Some(&1), "mask {mask}: edge {a}-{b}");
+            assert_eq!(directed.get(&(b, a)), None, "mask {mask}: edge {b}-{a}");
+        }
+    }
+}
+
+#[test]
+fn adaptive_points_equal_uniform_points_bitwise() {
+    let (prism, prism_points) = roofed_prism();
+    let creased = prism
+        .clone()
+        .with_creases(&[(5, 6, 10.0), (6, 7, 2.5), (7, 8, 1.5), (0, 5, 0.5)])
+        .unwrap()
+        .with_corners(&[(8, 1.5), (2, 10.0)])
+        .unwrap();
+    let (open, open_points) = bumped_grid(6, 2.0);
+    let open = open
+        .with_creases(&[(8, 9, 10.0), (9, 10, 10.0), (10, 11, 1.5)])
+        .unwrap();
+    let cases: Vec<(&Cage, &[f64], Boundary, f64)> = vec![
+        (&creased, &prism_points, Boundary::EdgeOnly, 0.003),
+        (&open, &open_points, Boundary::EdgeOnly, 3e-4),
+        (&open, &open_points, Boundary::EdgeAndCorner, 3e-4),
+    ];
+    for degree in [1, 2, 3, 4, 5, 9] {
+        for &(cage, points, boundary, tolerance) in &cases {
+            let options = AdaptiveOptions {
+                boundary,
+                ..options(degree, 4, tolerance)
+            };
+            let mesh = subdivide_adaptive(cage, points, &options).unwrap();
+            // Degree 1 is bilinear: every node is its own bilinear patch, nothing refines.
+            assert!(
+                levels_used(&mesh) >= 2 || degree == 1,
+                "degree {degree}: leaves {:?}",
+                mesh.leaves_per_level
+            );
+            assert_uniform_points(cage, points, degree, boundary, &mesh);
+            assert_restricted(&mesh);
+        }
+    }
+    // Single precision follows the uniform single-precision evaluation.
+    let points32: Vec<f32> = prism_points.iter().map(|&x| x as f32).collect();
+    for degree in [3, 4] {
+        let mesh = subdivide_adaptive(&creased, &points32, &options(degree, 4, 0.003)).unwrap();
+        assert!(levels_used(&mesh) >= 2);
+        assert_uniform_points(&creased, &points32, degree, Boundary::EdgeOnly, &mesh);
+    }
+}
+
+#[test]
+fn closed_cages_give_watertight_triangles() {
+    let (prism, prism_points) = roofed_prism();
+    let (cube, cube_points) = bumped_cube();
+    for degree in [2, 3, 4, 9] {
+        for (cage, points) in [(&prism, &prism_points), (&cube, &cube_points)] {
+            let mut mixed = 0;
+            for tolerance in [0.01, 0.003, 0.001, 3e-4] {
+                let mesh =
+                    subdivide_adaptive(cage, points, &options(degree, 5, tolerance)).unwrap();
+                mixed += (levels_used(&mesh) >= 2) as usize;
+                assert_watertight(&mesh);
+                assert_restricted(&mesh);
+                assert_eq!(mesh.face_origin.len(), mesh.triangles.len());
+                assert!(mesh
+                    .face_origin
+                    .iter()
+                    .all(|&f| (f as usize) < cage.num_faces()));
+            }
+            assert!(mixed >= 1, "degree {degree}: no adaptive case");
+        }
+    }
+}
+
+#[test]
+fn tolerance_zero_is_uniform_level() {
+    let (prism, points) = roofed_prism();
+    for degree in [2, 3] {
+        let level = 3;
+        let mesh = subdivide_adaptive(&prism, &points, &options(degree, level, 0.0)).unwrap();
+        let plan = Plan::new(
+            &prism,
+            &Options {
+                degree,
+                levels: level,
+                ..Options::default()
+            },
+        )
+        .unwrap();
+        let uniform = plan.evaluate(&points, 3).unwrap();
+        assert_eq!(mesh.num_leaves() as usize, plan.num_output_faces());
+        assert_eq!(mesh.triangles.len(), 2 * plan.num_output_faces());
+        assert_eq!(mesh.vertex_id.len(), plan.num_output_vertices());
+        assert!(mesh.vertex_level.iter().all(|&l| l == level));
+        for (i, &u) in mesh.vertex_id.iter().enumerate() {
+            for k in 0..3 {
+                assert_eq!(
+                    mesh.points[3 * i + k].to_bits(),
+                    uniform[3 * u as usize + k].to_bits()
+                );
+            }
+        }
+        // The triangles split the uniform quads along a diagonal.
+        let offsets = plan.output_face_offsets();
+        let verts = plan.output_face_vertices();
+        let index: HashMap<u64, u32> = mesh
+            .vertex_id
+            .iter()
+            .enumerate()
+            .map(|(i, &u)| (u, i as u32))
+            .collect();
+        let mut quads: Vec<[u32; 3]> = (0..plan.num_output_faces())
+            .flat_map(|f| {
+                let q: Vec<u32> = verts[offsets[f] as usize..offsets[f + 1] as usize]
+                    .iter()
+                    .map(|&v| index[&(v as u64)])
+                    .collect();
+                [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]
+            })
+            .collect();
+        let mut triangles = mesh.triangles.clone();
+        quads.sort_unstable();
+        triangles.sort_unstable();
+        assert_eq!(triangles, quads);
+        assert_watertight(&mesh);
+    }
+}
+
+#[test]
+fn max_level_one_is_the_roots() {
+    let (prism, points) = roofed_prism();
+    for degree in [2, 3] {
+        let mesh = subdivide_adaptive(&prism, &points, &options(degree, 1, 1e-3)).unwrap();
+        assert_eq!(
+            mesh.leaves_per_level,
+            [0, prism.face_vertices().len() as u64]
+        );
+        assert_eq!(mesh.triangles.len(), 2 * prism.face_vertices().len());
+        assert_watertight(&mesh);
+        assert_uniform_points(&prism, &points, degree, Boundary::EdgeOnly, &mesh);
+    }
+}
+
+#[test]
+fn flat_cage_with_one_bump_needs_far_fewer_faces() {
+    let (cage, points) = bumped_grid(16, 3.0);
+    for degree in [3, 4] {
+        let max_level = 4;
+        let mesh = subdivide_adaptive(&cage, &points, &options(degree, max_level, 1e-4)).unwrap();
+        let uniform_faces = 4u64.pow(max_level) * cage.num_faces() as u64;
+        let ratio = mesh.num_leaves() as f64 / uniform_faces as f64;
+        println!(
+            "degree {degree}, max level {max_level}, tolerance 1e-4: {} leaves vs {} uniform faces, ratio {ratio:.4}; leaves per level {:?}",
+            mesh.num_leaves(),
+            uniform_faces,
+            mesh.leaves_per_level
+        );
+        assert!(mesh.leaves_per_level[max_level as usize] > 0);
+        assert!(ratio < 0.1, "ratio {ratio}");
+        assert_uniform_points(&cage, &points, degree, Boundary::EdgeOnly, &mesh);
+    }
+}
+
+#[test]
+fn leaf_errors_are_measured_and_bounded_by_uniform() {
+    let (cage, points) = bumped_grid(8, 2.0);
+    let measured = |tolerance: f64| {
+        subdivide_adaptive(
+            &cage,
+            &points,
+            &AdaptiveOptions {
+                measure_leaves: true,
+                ..options(4, 3, tolerance)
+            },
+        )
+        .unwrap()
+    };
+    let uniform = measured(0.0).max_error.unwrap();
+    let adaptive = measured(1e-3).max_error.unwrap();
+    assert!(uniform > 0.0 && adaptive > 0.0);
+    assert!(adaptive >= uniform, "{adaptive} < {uniform}");
+    assert!(subdivide_adaptive(&cage, &points, &options(4, 3, 1e-3))
+        .unwrap()
+        .max_error
+        .is_none());
+}
+
+#[test]
+fn invalid_requests_are_typed_errors() {
+    let (cage, points) = bumped_grid(4, 1.0);
+    let run = |o: AdaptiveOptions| subdivide_adaptive(&cage, &points, &o).unwrap_err();
+    assert!(matches!(
+        run(options(0, 3, 0.1)),
+        Error::DegreeOutOfRange { .. }
+    ));
+    assert!(matches!(
+        run(options(4, 0, 0.1)),
+        Error::LevelOutOfRange { .. }
+    ));
+    assert!(matches!(
+        run(options(4, 17, 0.1)),
+        Error::LevelOutOfRange { .. }
+    ));
+    assert!(matches!(run(options(4, 3, -1.0)), Error::InvalidInput(_)));
+    assert!(matches!(
+        run(options(4, 3, f64::NAN)),
+        Error::InvalidInput(_)
+    ));
+    assert!(matches!(
+        run(AdaptiveOptions {
+            memory_budget: 10_000,
+            ..options(4, 6, 0.0)
+        }),
+        Error::MemoryBudget { .. }
+    ));
+    let short = &points[..points.len() - 3];
+    assert!(matches!(
+        subdivide_adaptive(&cage, short, &options(4, 3, 0.1)).unwrap_err(),
+        Error::InvalidInput(_)
+    ));
+    let mut bad = points.clone();
+    bad[4] = f64::INFINITY;
+    assert!(matches!(
+        subdivide_adaptive(&cage, &bad, &options(4, 3, 0.1)).unwrap_err(),
+        Error::NonFinite { .. }
+    ));
+}
+
+/// Random closed cages (a jittered 4 x 5 torus, the prism, the cube), random jitter,
+/// random degrees, tolerances and levels: never an error, always watertight, restricted and
+/// equal to the uniform points.
+#[test]
+fn random_cases_hold_every_property() {
+    let mut rng = Random(2026);
+    let (prism, prism_points) = roofed_prism();
+    let (cube, cube_points) = bumped_cube();
+    let torus = common::torus(4, 5);
+    let mut mixed = 0;
+    for case in 0..48 {
+        let (cage, mut points) = match case % 3 {
+            0 => (&prism, prism_points.clone()),
+            1 => (&cube, cube_points.clone()),
+            _ => {
+                let points: Vec<f64> = (0..20)
+                    .flat_map(|i| {
+                        let (a, b) = (i / 5, i % 5);
+                        let (u, v) = (
+                            std::f64::consts::TAU * a as f64 / 4.0,
+                            std::f64::consts::TAU * b as f64 / 5.0,
+                        );
+                        let r = 2.0 + 0.7 * v.cos();
+                        [r * u.cos(), 0.7 * v.sin(), r * u.sin()]
+                    })
+                    .collect();
+                (&torus, points)
+            }
+        };
+        for p in points.iter_mut() {
+            *p += 0.2 * (rng.next() - 0.5);
+        }
+        let degrees = [1, 2, 3, 4, 5, 6, 9];
+        let degree = degrees[(rng.next() * degrees.len() as f64) as usize];
+        let tolerance = [0.01, 0.003, 0.001, 3e-4][(rng.next() * 4.0) as usize];
+        let max_level = 3 + (rng.next() * 2.0) as u32;
+        let mesh = subdivide_adaptive(cage, &points, &options(degree, max_level, tolerance))
+            .unwrap_or_else(|e| panic!("case {case} (degree {degree}): {e}"));
+        mixed += (levels_used(&mesh) >= 2) as usize;
+        assert_watertight(&mesh);
+        assert_restricted(&mesh);
+        assert_uniform_points(cage, &points, degree, Boundary::EdgeOnly, &mesh);
+    }
+    println!("{mixed} of 48 cases mixed levels");
+    assert!(mixed >= 16, "only {mixed} cases mixed levels");
+}
