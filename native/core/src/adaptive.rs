@@ -76,7 +76,7 @@ use std::collections::{HashMap, HashSet};
 use std::hash::{BuildHasherDefault, Hasher};
 
 use crate::error::{Error, Result};
-use crate::evaluate::{add, gather, scale, Scalar};
+use crate::evaluate::{add, blend_weight, gather, reciprocal, scale, Scalar};
 use crate::mesh::{validate_geometry, Cage};
 use crate::plan::{Boundary, Options, Plan};
 use crate::topology::{Level, NONE};
@@ -788,29 +788,6 @@ fn zero<T: Scalar>() -> P<T> {
     [T::default(); 3]
 }
 
-/// `1/k` exactly as the uniform evaluation computes it.
-#[inline(always)]
-fn reciprocal<T: Scalar>(k: usize) -> T {
-    match k {
-        2 => T::from_f64(0.5),
-        4 => T::from_f64(0.25),
-        _ => T::from_f64(1.0 / k as f64),
-    }
-}
-
-/// Sets a vertex to `w * curve + (1 - w) * centroid`, as the uniform evaluation does.
-#[inline]
-fn blend<T: Scalar>(vertex: &mut P<T>, curve: P<T>, weight: f64) {
-    if weight >= 1.0 {
-        *vertex = curve;
-    } else if weight > 0.0 {
-        *vertex = add(
-            scale(curve, T::from_f64(weight)),
-            scale(*vertex, T::from_f64(1.0 - weight)),
-        );
-    }
-}
-
 /// What one step produces on the fine level: the scheme data, the 1-D data, the drawing points.
 type Stepped<T> = (Vec<P<T>>, Vec<P<T>>, Vec<P<T>>);
 
@@ -931,7 +908,7 @@ fn step<T: Scalar>(ctx: &Context<T>, t: usize, coarse: &Part<T>, fine: &Level) -
                     continue;
                 }
             };
-            blend(&mut vertices[w], value, cv.weight);
+            blend_weight(&mut vertices[w], value, cv.weight);
             vertex_1d[w] = value;
         }
     };

@@ -91,8 +91,9 @@ pub(crate) fn scale<T: Scalar, const N: usize>(a: [T; N], s: T) -> [T; N] {
 }
 
 /// Precomputed `1/k` for centroid averages, so that a centroid is a sum and one multiply.
+/// `1/k` as every centroid computes it (the adaptive evaluation relies on the same bits).
 #[inline(always)]
-fn reciprocal<T: Scalar>(k: usize) -> T {
+pub(crate) fn reciprocal<T: Scalar>(k: usize) -> T {
     match k {
         2 => T::from_f64(0.5),
         4 => T::from_f64(0.25),
@@ -549,12 +550,22 @@ fn blend<T: Scalar, const N: usize>(
     curve: Value<T, N>,
     cv: &CurveVertex,
 ) {
-    if cv.weight >= 1.0 {
+    blend_weight(vertex, curve, cv.weight);
+}
+
+/// Sets a vertex to `w * curve + (1 - w) * centroid` (`w` the blend weight of a curve vertex).
+#[inline]
+pub(crate) fn blend_weight<T: Scalar, const N: usize>(
+    vertex: &mut Value<T, N>,
+    curve: Value<T, N>,
+    weight: f64,
+) {
+    if weight >= 1.0 {
         *vertex = curve;
-    } else if cv.weight > 0.0 {
+    } else if weight > 0.0 {
         *vertex = add(
-            scale(curve, T::from_f64(cv.weight)),
-            scale(*vertex, T::from_f64(1.0 - cv.weight)),
+            scale(curve, T::from_f64(weight)),
+            scale(*vertex, T::from_f64(1.0 - weight)),
         );
     }
 }
