@@ -43,7 +43,10 @@ pub struct Level {
     /// `vert_corners` are empty on the last level of a plan whose output is the drawing mesh
     /// (see [`Level::refine_with`]).
     pub vert_corner_offsets: Vec<u32>,
-    /// The corners at each vertex, in increasing order of corner.
+    /// The corners at each vertex: in increasing order on the cage level and for old vertices
+    /// and face points of refined levels; an edge point lists, for each of its edge's corner
+    /// slots in turn, the two child corners of that slot (evaluation sums in this order, and
+    /// the adaptive partial levels reproduce it).
     pub vert_corners: Vec<u32>,
     /// `(vert_corner_offsets, vert_corners)` built on first use by [`Level::corners_of_vertex`]
     /// when the tables above were left out.
