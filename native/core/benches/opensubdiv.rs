@@ -251,6 +251,14 @@ fn median_ms<R>(seconds: f64, mut f: impl FnMut() -> R) -> f64 {
     }
 }
 
+/// The 1, 5 and 15 minute load averages (Linux), or "unknown".
+fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_else(|| "unknown".into())
+}
+
 const GIB: f64 = (1u64 << 30) as f64;
 
 fn env_list<T: std::str::FromStr>(name: &str) -> Option<Vec<T>> {
@@ -290,8 +298,10 @@ fn main() {
     let driver = driver.filter(|d| d.is_file());
     let dir = PathBuf::from(option_env!("CARGO_TARGET_TMPDIR").unwrap_or("/tmp"));
     println!(
-        "{} rayon threads; times are medians; ratio = bidegree faces/s / OpenSubdiv faces/s",
-        rayon::current_num_threads()
+        "{} rayon threads (OpenSubdiv's Far refinement is single-threaded); load average {}; \
+         times are medians; ratio = bidegree faces/s / OpenSubdiv faces/s",
+        rayon::current_num_threads(),
+        load_average()
     );
     let header = format!(
         "{:>5} {:>5} {:<14} {:>10} {:>11} {:>11} {:>8} {:>8}",
@@ -410,4 +420,5 @@ fn main() {
             }
         }
     }
+    println!("\nload average at the end: {}", load_average());
 }

@@ -23,6 +23,7 @@ use crate::evaluate::{add, gather, scale, Scalar};
 use crate::plan::Step;
 use crate::topology::{with_capacity_hinted, Level, CHUNK, NONE};
 use rayon::prelude::*;
+use std::mem::MaybeUninit;
 
 /// Sharpness of an infinitely sharp edge or vertex (OpenSubdiv's `SHARPNESS_INFINITE`).
 pub const SHARPNESS_INFINITE: f32 = 10.0;
@@ -443,18 +444,14 @@ impl Catmark {
         values: &[[T; N]],
     ) -> Vec<[T; N]> {
         let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
-        let mut out: Vec<[T; N]> = with_capacity_hinted(fine.num_vertices);
-        (0..fine.num_vertices)
-            .into_par_iter()
-            .with_min_len(4 * CHUNK)
-            .map(|_| zero())
-            .collect_into_vec(&mut out);
-        let (head, faces) = out.split_at_mut(nv + ne);
+        let n = fine.num_vertices;
+        let mut out: Vec<[T; N]> = with_capacity_hinted(n);
+        let (head, faces) = out.spare_capacity_mut()[..n].split_at_mut(nv + ne);
         let quads = coarse.is_quads();
         fill(faces, |f| {
             if quads {
                 let c = 4 * f;
-                // The same order of additions as the general case below (bitwise equal).
+                // The additions of the general case below, in the same order.
                 let at = |i: usize| values[coarse.corner_verts[c + i] as usize];
                 let sum = add(add(add(at(0), at(1)), at(2)), at(3));
                 return scale(sum, T::from_f64(0.25));
@@ -466,7 +463,10 @@ impl Catmark {
             });
             scale(sum, w)
         });
-        let faces = &*faces;
+        // SAFETY: `fill` wrote every item of `faces` (a panic would have unwound past here),
+        // and `MaybeUninit<V>` has the layout of `V`.
+        let faces: &[[T; N]] =
+            unsafe { &*(faces as *const [MaybeUninit<[T; N]>] as *const [[T; N]]) };
         let (old, edges) = head.split_at_mut(nv);
         let (this, child) = (&self.levels[j], &self.levels[j + 1]);
         if this.rules.is_empty() {
@@ -483,6 +483,8 @@ impl Catmark {
                 edge_point(coarse, this, child, e, nv + e, values, faces)
             });
         }
+        // SAFETY: the three sections, which `fill` wrote completely, are the first `n` items.
+        unsafe { out.set_len(n) };
         out
     }
 
@@ -742,15 +744,15 @@ fn crease_vertex<T: Scalar, const N: usize>(
     )
 }
 
-/// `out[i] = f(i)`, in parallel chunks of [`CHUNK`] items (each item written by one task,
-/// so the result does not depend on the number of threads).
-fn fill<V: Send, F: Fn(usize) -> V + Sync + Send>(out: &mut [V], f: F) {
+/// `out[i] = f(i)` (initialising every item), in parallel chunks of [`CHUNK`] items, each
+/// item written by one task, so the result does not depend on the number of threads.
+fn fill<V: Send, F: Fn(usize) -> V + Sync + Send>(out: &mut [MaybeUninit<V>], f: F) {
     out.par_chunks_mut(CHUNK)
         .enumerate()
         .for_each(|(chunk, items)| {
             let start = chunk * CHUNK;
             for (i, item) in items.iter_mut().enumerate() {
-                *item = f(start + i);
+                item.write(f(start + i));
             }
         });
 }
