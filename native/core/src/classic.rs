@@ -443,9 +443,28 @@ impl Catmark {
         fine: &Level,
         values: &[[T; N]],
     ) -> Vec<[T; N]> {
+        let mut out = Vec::new();
+        self.step_into(j, coarse, fine, values, &mut out);
+        out
+    }
+
+    /// As [`Catmark::step`], into `out` (its previous contents are dropped; its allocation is
+    /// reused when large enough, which spares the page faults of a fresh one: a caller that
+    /// keeps two buffers and swaps them level by level allocates nothing on a cached run).
+    pub fn step_into<T: Scalar, const N: usize>(
+        &self,
+        j: usize,
+        coarse: &Level,
+        fine: &Level,
+        values: &[[T; N]],
+        out: &mut Vec<[T; N]>,
+    ) {
         let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
         let n = fine.num_vertices;
-        let mut out: Vec<[T; N]> = with_capacity_hinted(n);
+        out.clear();
+        if out.capacity() < n {
+            *out = with_capacity_hinted(n);
+        }
         let (head, faces) = out.spare_capacity_mut()[..n].split_at_mut(nv + ne);
         let quads = coarse.is_quads();
         fill(faces, |f| {
@@ -485,7 +504,6 @@ impl Catmark {
         }
         // SAFETY: the three sections, which `fill` wrote completely, are the first `n` items.
         unsafe { out.set_len(n) };
-        out
     }
 
     /// The vertex point of old vertex `v` (OpenSubdiv's `ComputeVertexVertexMask` with the
