@@ -18,7 +18,7 @@
 //! are printed), `BIDEGREE_BENCH_SECONDS` (target time per measurement, default 1),
 //! `BIDEGREE_BENCH_MAX_GIB` (skip a row whose memory estimate exceeds this, default 13: the
 //! crate's `estimate`, which assumes f64 evaluation buffers, says 12.4 GiB for the 250k cage at
-//! level 4 where the measured peak RSS of this bench was 7.7 GiB; OpenSubdiv's was 9.9 GiB),
+//! level 4 where the measured peak RSS of this bench was 7.9 GiB; OpenSubdiv's was 9.9 GiB),
 //! `BIDEGREE_BENCH_CAGES` (e.g. `4k` or `4k,250k`), `BIDEGREE_BENCH_LEVELS` (e.g. `2,3`),
 //! `BIDEGREE_BENCH_SCHEMES` (e.g. `classic 3,averaging 4`).
 
