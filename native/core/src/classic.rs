@@ -21,7 +21,9 @@
 
 use crate::evaluate::{add, gather, scale, Scalar};
 use crate::plan::Step;
-use crate::topology::{Level, NONE};
+use crate::topology::{with_capacity_hinted, Level, CHUNK, NONE};
+use rayon::prelude::*;
+use std::mem::MaybeUninit;
 
 /// Sharpness of an infinitely sharp edge or vertex (OpenSubdiv's `SHARPNESS_INFINITE`).
 pub const SHARPNESS_INFINITE: f32 = 10.0;
@@ -429,6 +431,11 @@ impl Catmark {
     /// One Catmull-Clark step `levels[j] -> levels[j + 1]` of per-vertex data: face points
     /// (centroids), edge points (smooth, crease or the fractional blend of the two), vertex
     /// points (smooth, crease or corner masks, blended where the rule changes).
+    ///
+    /// The face points are written straight into the last section of the output (the fine
+    /// level numbers old vertices, then edge points, then face points), then the vertex and
+    /// edge points read them from there: one allocation per step, no copy, and no per-vertex
+    /// branch on the section.
     pub fn step<T: Scalar, const N: usize>(
         &self,
         j: usize,
@@ -436,8 +443,38 @@ impl Catmark {
         fine: &Level,
         values: &[[T; N]],
     ) -> Vec<[T; N]> {
+        let mut out = Vec::new();
+        self.step_into(j, coarse, fine, values, &mut out);
+        out
+    }
+
+    /// As [`Catmark::step`], into `out` (its previous contents are dropped; its allocation is
+    /// reused when large enough, which spares the page faults of a fresh one: a caller that
+    /// keeps two buffers and swaps them level by level allocates nothing on a cached run).
+    pub fn step_into<T: Scalar, const N: usize>(
+        &self,
+        j: usize,
+        coarse: &Level,
+        fine: &Level,
+        values: &[[T; N]],
+        out: &mut Vec<[T; N]>,
+    ) {
         let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
-        let faces: Vec<[T; N]> = gather(coarse.num_faces(), |f| {
+        let n = fine.num_vertices;
+        out.clear();
+        if out.capacity() < n {
+            *out = with_capacity_hinted(n);
+        }
+        let (head, faces) = out.spare_capacity_mut()[..n].split_at_mut(nv + ne);
+        let quads = coarse.is_quads();
+        fill(faces, |f| {
+            if quads {
+                let c = 4 * f;
+                // The additions of the general case below, in the same order.
+                let at = |i: usize| values[coarse.corner_verts[c + i] as usize];
+                let sum = add(add(add(at(0), at(1)), at(2)), at(3));
+                return scale(sum, T::from_f64(0.25));
+            }
             let corners = coarse.face_corners(f);
             let w = T::from_f64(1.0 / corners.len() as f64);
             let sum = corners.fold(zero(), |s, c| {
@@ -445,16 +482,28 @@ impl Catmark {
             });
             scale(sum, w)
         });
+        // SAFETY: `fill` wrote every item of `faces` (a panic would have unwound past here),
+        // and `MaybeUninit<V>` has the layout of `V`.
+        let faces: &[[T; N]] =
+            unsafe { &*(faces as *const [MaybeUninit<[T; N]>] as *const [[T; N]]) };
+        let (old, edges) = head.split_at_mut(nv);
         let (this, child) = (&self.levels[j], &self.levels[j + 1]);
-        gather(fine.num_vertices, |w| {
-            if w < nv {
-                self.vertex_point(coarse, this, child, w, values, &faces)
-            } else if w < nv + ne {
-                edge_point(coarse, this, child, w - nv, w, values, &faces)
-            } else {
-                faces[w - nv - ne]
-            }
-        })
+        if this.rules.is_empty() {
+            fill(old, |v| smooth_vertex(coarse, v, values, faces));
+        } else {
+            fill(old, |v| {
+                self.vertex_point(coarse, this, child, v, values, faces)
+            });
+        }
+        if this.edges.is_empty() {
+            fill(edges, |e| smooth_edge(coarse, e, values, faces));
+        } else {
+            fill(edges, |e| {
+                edge_point(coarse, this, child, e, nv + e, values, faces)
+            });
+        }
+        // SAFETY: the three sections, which `fill` wrote completely, are the first `n` items.
+        unsafe { out.set_len(n) };
     }
 
     /// The vertex point of old vertex `v` (OpenSubdiv's `ComputeVertexVertexMask` with the
@@ -710,6 +759,43 @@ fn crease_vertex<T: Scalar, const N: usize>(
         scale(values[v], T::from_f64(0.75)),
         T::from_f64(0.125),
         add(values[ends[0]], values[ends[1]]),
+    )
+}
+
+/// `out[i] = f(i)` (initialising every item), in parallel chunks of [`CHUNK`] items, each
+/// item written by one task, so the result does not depend on the number of threads.
+fn fill<V: Send, F: Fn(usize) -> V + Sync + Send>(out: &mut [MaybeUninit<V>], f: F) {
+    out.par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(chunk, items)| {
+            let start = chunk * CHUNK;
+            for (i, item) in items.iter_mut().enumerate() {
+                item.write(f(start + i));
+            }
+        });
+}
+
+/// The smooth edge point `1/4 (a + b + f_0 + f_1)` of an interior edge `e` of a level
+/// without sharp edges (where every edge has two faces: boundaries are sharp).
+#[inline]
+fn smooth_edge<T: Scalar, const N: usize>(
+    coarse: &Level,
+    e: usize,
+    values: &[[T; N]],
+    faces: &[[T; N]],
+) -> [T; N] {
+    let [a, b] = coarse.edge_verts[e];
+    let [c0, c1] = coarse.edge_corners[e];
+    debug_assert!(c1 != NONE, "a smooth level has no boundary edge");
+    // The operations of `edge_point` at sharpness 0 (bitwise equal).
+    let f = add(
+        faces[coarse.face_of(c0 as usize)],
+        faces[coarse.face_of(c1 as usize)],
+    );
+    mad(
+        scale(f, T::from_f64(0.25)),
+        T::from_f64(0.25),
+        add(values[a as usize], values[b as usize]),
     )
 }
 

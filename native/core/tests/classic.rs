@@ -570,3 +570,29 @@ fn doo_sabin_keeps_the_averaging_boundary_and_outputs_work() {
         assert!(out.iter().all(|x| x.is_finite()));
     }
 }
+
+#[test]
+fn step_into_reuses_a_dirty_buffer_and_matches_step() {
+    // A bipyramid (triangles, valence 4 and k) and a torus with a crease, two levels each:
+    // `step_into` on a buffer holding garbage (and larger than needed) equals `step` bitwise.
+    let (bi, bi_points) = bipyramid(5);
+    let creased = torus(4, 5)
+        .with_creases(&[(0, 1, 2.5), (1, 2, 10.0)])
+        .unwrap();
+    let torus_points = random_points(20, 7);
+    for (cage, points) in [(bi, bi_points), (creased, torus_points)] {
+        let plan = Plan::new(&cage, &classic(3, 2)).unwrap();
+        let catmark = plan.catmark().unwrap();
+        let levels = plan.levels();
+        let mut values: Vec<P> = pts(&points);
+        let mut buffer: Vec<P> = vec![[f64::NAN; 3]; 4 * levels[2].num_vertices];
+        for j in 0..2 {
+            let expected = catmark.step(j, &levels[j], &levels[j + 1], &values);
+            catmark.step_into(j, &levels[j], &levels[j + 1], &values, &mut buffer);
+            assert_eq!(buffer.len(), levels[j + 1].num_vertices);
+            let bits = |v: &[P]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&buffer), bits(&expected));
+            values = expected;
+        }
+    }
+}

@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# The benchmark against OpenSubdiv's C++ library (issue 5; not a test). Installs what it needs
+# (Debian/Ubuntu: libosd-dev and g++ through apt-get, with sudo when not root), compiles
+# bench/opensubdiv/driver.cpp with -O3 -march=native into target/osd/, then runs
+# `cargo bench -p bidegree --bench opensubdiv` with BIDEGREE_OSD_DRIVER pointing at it.
+# The BIDEGREE_BENCH_* variables documented in native/core/benches/opensubdiv.rs pass through
+# (e.g. BIDEGREE_BENCH_CAGES=4k for a quick run).
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+log() { printf '[bench_opensubdiv] %s\n' "$*" >&2; }
+
+if [ ! -f /usr/include/opensubdiv/far/topologyRefinerFactory.h ] || ! command -v g++ >/dev/null 2>&1; then
+    command -v apt-get >/dev/null 2>&1 || {
+        log "OpenSubdiv headers missing and no apt-get: install OpenSubdiv 3.x (libosdCPU) and g++"
+        exit 2
+    }
+    SUDO=""
+    [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+    log "installing libosd-dev and g++"
+    $SUDO apt-get install -y libosd-dev g++ >/dev/null 2>&1 || {
+        $SUDO apt-get update >/dev/null
+        $SUDO apt-get install -y libosd-dev g++ >/dev/null
+    }
+fi
+command -v cargo >/dev/null 2>&1 || { log "Rust (cargo) is required"; exit 2; }
+
+TARGET="${CARGO_TARGET_DIR:-$ROOT/target}"
+DRIVER="$TARGET/osd/osd_driver"
+mkdir -p "$TARGET/osd"
+if [ ! -x "$DRIVER" ] || [ "$ROOT/bench/opensubdiv/driver.cpp" -nt "$DRIVER" ]; then
+    log "compiling $DRIVER (g++ -O3 -march=native, -losdCPU)"
+    g++ -std=c++17 -O3 -march=native -o "$DRIVER" "$ROOT/bench/opensubdiv/driver.cpp" -losdCPU
+fi
+
+log "load average before the run: $(cut -d' ' -f1-3 /proc/loadavg) on $(nproc) cores"
+cd "$ROOT"
+BIDEGREE_OSD_DRIVER="$DRIVER" cargo bench -p bidegree --bench opensubdiv
+log "load average after the run: $(cut -d' ' -f1-3 /proc/loadavg)"
