@@ -636,11 +636,17 @@ impl Plan {
         let degree = self.options().degree;
         let levels = self.levels();
         if let Some(catmark) = self.catmark() {
-            // Classic Catmull-Clark (crate::classic): primal data all the way.
-            let mut points = cage.to_vec();
+            // Classic Catmull-Clark (crate::classic): primal data all the way, between two
+            // buffers kept in the plan (the result is one of them; the other goes back).
+            let capacity = levels.last().map_or(0, |l| l.num_vertices);
+            let mut points: Vec<Value<T, N>> = self.scratch().take(capacity);
+            let mut spare: Vec<Value<T, N>> = self.scratch().take(capacity);
+            points.extend_from_slice(cage);
             for j in 0..self.steps().len() {
-                points = catmark.step(j, &levels[j], &levels[j + 1], &points);
+                catmark.step_into(j, &levels[j], &levels[j + 1], &points, &mut spare);
+                std::mem::swap(&mut points, &mut spare);
             }
+            self.scratch().give(spare);
             let Some(last) = self.steps().last().filter(|_| want_dual) else {
                 return Final::Primal(points);
             };
@@ -826,7 +832,7 @@ impl Plan {
 
 #[cfg(test)]
 mod tests {
-    use crate::{Cage, Options, Plan};
+    use crate::{Cage, Options, Plan, Rules};
 
     /// Kept buffers change nothing: repeated evaluations (f32 and f64, with and without the
     /// buffers of the previous ones) give the same bits.
@@ -837,10 +843,12 @@ mod tests {
         ];
         let cage =
             Cage::from_indices(5, &[3, 3, 3, 3], &[0, 1, 2, 0, 2, 3, 0, 3, 4, 0, 4, 1]).unwrap();
-        for degree in 1..=5 {
+        let classic = (3, Rules::Classic);
+        for (degree, rules) in (1..=5).map(|d| (d, Rules::Averaging)).chain([classic]) {
             let options = Options {
                 degree,
                 levels: 3,
+                rules,
                 ..Options::default()
             };
             let plan = Plan::new(&cage, &options).unwrap();

@@ -292,12 +292,10 @@ impl Plan {
         let mut levels = vec![level0];
         let mut steps: Vec<Step> = Vec::with_capacity(options.levels as usize);
         for j in 0..options.levels {
-            // The last level's vertex -> corner table serves only the dual output and the
-            // classic rules (and is built on first use if anything else asks).
+            // The last level's vertex -> corner table serves only the dual output (and is built
+            // on first use if anything else asks: limits, classic sharp edges).
             let last = j + 1 == options.levels;
-            let fine = levels[j as usize].refine_with(
-                !last || options.output == OutputKind::Dual || options.rules == Rules::Classic,
-            );
+            let fine = levels[j as usize].refine_with(!last || options.output == OutputKind::Dual);
             let (step, next) = curve_step(
                 &levels[j as usize],
                 &parents,
