@@ -195,17 +195,9 @@ fn first_difference(
 ) -> Option<usize> {
     let uniform: Vec<Vec<f64>> = (0..mesh.leaves_per_level.len() as u32)
         .map(|levels| {
-            Plan::new(
-                cage,
-                &Options {
-                    degree,
-                    levels,
-                    ..Options::default()
-                },
-            )
-            .unwrap()
-            .evaluate(points, 3)
-            .unwrap()
+            common::plan(cage, degree, levels)
+                .evaluate(points, 3)
+                .unwrap()
         })
         .collect();
     (0..mesh.vertex_id.len()).find(|&i| {
