@@ -161,22 +161,33 @@ def check_geometry(cage: mesh_io.CageArrays) -> None:
     GeometryCheck(cage.face_sizes, cage.corner_verts)(cage.points)
 
 
-def build_plan(cage: mesh_io.CageArrays, settings: Settings) -> tuple[Any, list[str]]:
-    """Build the :class:`bidegree.Plan` for ``cage`` and collect its warnings as text."""
+def with_warnings(
+    cage: mesh_io.CageArrays, settings: Settings, make: Callable[[bidegree.Mesh], Any]
+) -> tuple[Any, list[str]]:
+    """``make`` applied to ``cage`` as a :class:`bidegree.Mesh`, its warnings collected as text."""
     bmesh = mesh_io.to_bidegree_mesh(
         cage, boundary=settings.boundary, use_creases=settings.use_creases
     )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        plan = bidegree.Plan(
+        made = make(bmesh)
+    return made, [str(w.message) for w in caught]
+
+
+def build_plan(cage: mesh_io.CageArrays, settings: Settings) -> tuple[Any, list[str]]:
+    """Build the :class:`bidegree.Plan` for ``cage`` and collect its warnings as text."""
+    return with_warnings(
+        cage,
+        settings,
+        lambda bmesh: bidegree.Plan(
             bmesh,
             degree=settings.degree,
             levels=settings.levels,
             output=settings.output,
             memory_budget=settings.memory_budget,
             rules=settings.rules,
-        )
-    return plan, [str(w.message) for w in caught]
+        ),
+    )
 
 
 def evaluate_surface(
@@ -439,18 +450,17 @@ class LiveCache:
             )
         check = GeometryCheck(cage.face_sizes, cage.corner_verts)
         check(cage.points)
-        bmesh = mesh_io.to_bidegree_mesh(
-            cage, boundary=settings.boundary, use_creases=settings.use_creases
-        )
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            result = bidegree.subdivide_adaptive(
+        result, notes = with_warnings(
+            cage,
+            settings,
+            lambda bmesh: bidegree.subdivide_adaptive(
                 bmesh,
                 degree=settings.degree,
                 max_level=settings.levels,
                 tolerance=settings.tolerance,
                 memory_budget=settings.memory_budget,
-            )
+            ),
+        )
         write_adaptive(mesh, result, cage, materials)
         self.stats.plan_builds += 1
         entry = _Entry(
@@ -465,7 +475,7 @@ class LiveCache:
         )
         self._entries[key] = entry
         report = self._report(BUILT, t0, cage, entry)
-        report.warnings = [str(w.message) for w in caught]
+        report.warnings = notes
         return report
 
     @staticmethod
