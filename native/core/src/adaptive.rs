@@ -78,7 +78,7 @@ use std::hash::{BuildHasherDefault, Hasher};
 use crate::error::{Error, Result};
 use crate::evaluate::{add, blend_weight, gather, reciprocal, scale, Scalar};
 use crate::mesh::{validate_geometry, Cage};
-use crate::plan::{Boundary, Options, Plan};
+use crate::plan::{old_curve_vertices, Boundary, Options, Plan};
 use crate::topology::{Level, NONE};
 use crate::{DEFAULT_MEMORY_BUDGET, INFINITELY_SHARP, MAX_DEGREE, MAX_LEVELS};
 
@@ -845,48 +845,18 @@ fn step<T: Scalar>(ctx: &Context<T>, t: usize, coarse: &Part<T>, fine: &Level) -
                 .map(|v| (v as u32, (tag.1 - level).min(1.0) as f64))
         })
         .collect();
-    let mut curve_vertices: Vec<CurveVertex> = Vec::new();
-    let (mut i, mut k) = (0, 0);
-    while i < ends.len() || k < active_tags.len() {
-        let v = match (ends.get(i), active_tags.get(k)) {
-            (Some(e), Some(tag)) => e.0.min(tag.0),
-            (Some(e), None) => e.0,
-            (None, Some(tag)) => tag.0,
-            (None, None) => unreachable!(),
-        };
-        let start = i;
-        while i < ends.len() && ends[i].0 == v {
-            i += 1;
-        }
-        let tag = if k < active_tags.len() && active_tags[k].0 == v {
-            k += 1;
-            active_tags[k - 1].1
-        } else {
-            0.0
-        };
-        let group = &ends[start..i];
-        let mean = if group.is_empty() {
-            0.0
-        } else {
-            group.iter().map(|g| g.2).sum::<f64>() / group.len() as f64
-        };
-        let uid = coarse.vert_uid[v as usize];
-        curve_vertices.push(if group.len() == 2 && tag == 0.0 {
+    let mut curve_vertices: Vec<CurveVertex> = old_curve_vertices(&ends, &active_tags)
+        .into_iter()
+        .map(|cv| {
+            let uid = coarse.vert_uid[cv.vertex as usize];
             CurveVertex {
-                vertex: v,
-                edges: Some([group[0].1, group[1].1]),
-                weight: mean,
-                cage: None,
+                vertex: cv.vertex,
+                edges: cv.edges,
+                weight: cv.weight,
+                cage: (cv.edges.is_none() && uid < nv0).then_some(uid as u32),
             }
-        } else {
-            CurveVertex {
-                vertex: v,
-                edges: None,
-                weight: mean.max(tag),
-                cage: (uid < nv0).then_some(uid as u32),
-            }
-        });
-    }
+        })
+        .collect();
     for &e in &parents {
         curve_vertices.push(CurveVertex {
             vertex: (nv + e) as u32,

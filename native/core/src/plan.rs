@@ -405,6 +405,57 @@ struct Parent {
     previous: u32,
 }
 
+/// The curve vertices among the old vertices of a step, merged from `ends` (vertex, index of a
+/// curve edge ending there, that edge's blend weight; sorted by vertex) and `tags` (tagged
+/// vertex, its blend weight; sorted by vertex): a vertex on exactly two curve edges and not
+/// tagged is a curve vertex on those edges, anything else a corner; the weight is the mean of
+/// its edges' weights (at least the tag's, for a corner).
+pub(crate) fn old_curve_vertices(
+    ends: &[(u32, u32, f64)],
+    tags: &[(u32, f64)],
+) -> Vec<CurveVertex> {
+    let mut curve_vertices = Vec::with_capacity(ends.len());
+    let (mut i, mut t) = (0, 0);
+    while i < ends.len() || t < tags.len() {
+        let v = match (ends.get(i), tags.get(t)) {
+            (Some(e), Some(tag)) => e.0.min(tag.0),
+            (Some(e), None) => e.0,
+            (None, Some(tag)) => tag.0,
+            (None, None) => unreachable!(),
+        };
+        let start = i;
+        while i < ends.len() && ends[i].0 == v {
+            i += 1;
+        }
+        let tag = if t < tags.len() && tags[t].0 == v {
+            t += 1;
+            tags[t - 1].1
+        } else {
+            0.0
+        };
+        let group = &ends[start..i];
+        let mean = if group.is_empty() {
+            0.0
+        } else {
+            group.iter().map(|g| g.2).sum::<f64>() / group.len() as f64
+        };
+        curve_vertices.push(if group.len() == 2 && tag == 0.0 {
+            CurveVertex {
+                vertex: v,
+                edges: Some([group[0].1, group[1].1]),
+                weight: mean,
+            }
+        } else {
+            CurveVertex {
+                vertex: v,
+                edges: None,
+                weight: mean.max(tag),
+            }
+        });
+    }
+    curve_vertices
+}
+
 /// Lays out the curve network of step `j` (coarse level `coarse`): the halves of the coarse
 /// curve edges, their vertices classified as curve vertices (two curve edges) or corners (one,
 /// three or more, or tagged), with blend weights for semi-sharp creases. Returns the step and
@@ -452,46 +503,7 @@ fn curve_step(
         .filter(|t| t.1 > level)
         .map(|t| (t.0, (t.1 - level).min(1.0) as f64))
         .collect();
-    let mut curve_vertices = Vec::with_capacity(ends.len() + parents.len());
-    let (mut i, mut t) = (0, 0);
-    while i < ends.len() || t < active_tags.len() {
-        let v = match (ends.get(i), active_tags.get(t)) {
-            (Some(e), Some(tag)) => e.0.min(tag.0),
-            (Some(e), None) => e.0,
-            (None, Some(tag)) => tag.0,
-            (None, None) => unreachable!(),
-        };
-        let start = i;
-        while i < ends.len() && ends[i].0 == v {
-            i += 1;
-        }
-        let tag = if t < active_tags.len() && active_tags[t].0 == v {
-            t += 1;
-            active_tags[t - 1].1
-        } else {
-            0.0
-        };
-        let group = &ends[start..i];
-        let mean = if group.is_empty() {
-            0.0
-        } else {
-            group.iter().map(|g| g.2).sum::<f64>() / group.len() as f64
-        };
-        let cv = if group.len() == 2 && tag == 0.0 {
-            CurveVertex {
-                vertex: v,
-                edges: Some([group[0].1, group[1].1]),
-                weight: mean,
-            }
-        } else {
-            CurveVertex {
-                vertex: v,
-                edges: None,
-                weight: mean.max(tag),
-            }
-        };
-        curve_vertices.push(cv);
-    }
+    let mut curve_vertices = old_curve_vertices(&ends, &active_tags);
     let first_mid = curve_vertices.len() as u32;
     for (i, p) in parents.iter().enumerate() {
         curve_vertices.push(CurveVertex {
