@@ -99,6 +99,31 @@ def snapshot(obj: Any) -> tuple[bytes, bytes, bytes, int]:
     return points.tobytes(), sizes.tobytes(), corners.tobytes(), len(obj.data.edges)
 
 
+def faces_while_rendering(scene: Any, result: Any) -> list[int]:
+    """Renders ``scene`` (Cycles, 1 sample, 16x16) and returns the face counts of ``result``
+    seen by a ``render_pre`` handler that runs after the add-on's."""
+    seen: list[int] = []
+
+    def probe(_scene: Any, *_args: Any) -> None:
+        seen.append(len(result.data.polygons))
+
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.location = (0.0, -8.0, 0.0)
+    camera.rotation_euler = (1.5708, 0.0, 0.0)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    scene.render.engine = "CYCLES"
+    scene.cycles.samples = 1
+    scene.cycles.device = "CPU"
+    scene.render.resolution_x = scene.render.resolution_y = 16
+    bpy.app.handlers.render_pre.append(probe)
+    try:
+        assert bpy.ops.render.render(write_still=False) == {"FINISHED"}
+    finally:
+        bpy.app.handlers.render_pre.remove(probe)
+    return seen
+
+
 def enable(obj: Any, **settings: Any) -> None:
     for key, value in settings.items():
         setattr(obj.bidegree, key, value)
@@ -335,25 +360,7 @@ def test_render_uses_render_levels(addon: ModuleType, scene: Any) -> None:
     enable(obj, levels=1, render_levels=2)
     result = obj.bidegree.result
     viewport_faces = len(result.data.polygons)
-    seen: list[int] = []
-
-    def probe(_scene: Any, *_args: Any) -> None:  # runs after the add-on's render_pre
-        seen.append(len(result.data.polygons))
-
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    camera.location = (0.0, -8.0, 0.0)
-    camera.rotation_euler = (1.5708, 0.0, 0.0)
-    scene.collection.objects.link(camera)
-    scene.camera = camera
-    scene.render.engine = "CYCLES"
-    scene.cycles.samples = 1
-    scene.cycles.device = "CPU"
-    scene.render.resolution_x = scene.render.resolution_y = 16
-    bpy.app.handlers.render_pre.append(probe)
-    try:
-        assert bpy.ops.render.render(write_still=False) == {"FINISHED"}
-    finally:
-        bpy.app.handlers.render_pre.remove(probe)
+    seen = faces_while_rendering(scene, result)
     assert seen == [viewport_faces * 4]
     assert len(result.data.polygons) == viewport_faces
 
@@ -552,25 +559,7 @@ def test_adaptive_viewport_renders_uniform(addon: ModuleType, scene: Any) -> Non
     result = obj.bidegree.result
     viewport_faces = len(result.data.polygons)
     assert all(p.loop_total == 3 for p in result.data.polygons)
-    seen: list[int] = []
-
-    def probe(_scene: Any, *_args: Any) -> None:  # runs after the add-on's render_pre
-        seen.append(len(result.data.polygons))
-
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    camera.location = (0.0, -8.0, 0.0)
-    camera.rotation_euler = (1.5708, 0.0, 0.0)
-    scene.collection.objects.link(camera)
-    scene.camera = camera
-    scene.render.engine = "CYCLES"
-    scene.cycles.samples = 1
-    scene.cycles.device = "CPU"
-    scene.render.resolution_x = scene.render.resolution_y = 16
-    bpy.app.handlers.render_pre.append(probe)
-    try:
-        assert bpy.ops.render.render(write_still=False) == {"FINISHED"}
-    finally:
-        bpy.app.handlers.render_pre.remove(probe)
+    seen = faces_while_rendering(scene, result)
     assert seen == [6 * 4**2]  # uniform level 2 quads
     assert len(result.data.polygons) == viewport_faces
 
