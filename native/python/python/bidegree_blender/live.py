@@ -23,7 +23,7 @@ import time
 import warnings
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import bidegree
 import numpy as np
@@ -82,6 +82,14 @@ class UpdateReport:
     result_faces: int
     result_vertices: int
     warnings: list[str] = field(default_factory=list)
+
+
+class _Fingerprints(NamedTuple):
+    """What an update consumes, hashed: topology with the settings, positions, face data."""
+
+    topology: tuple[str, Settings]
+    positions: str
+    face_data: str
 
 
 @dataclass
@@ -331,9 +339,13 @@ class LiveCache:
         """
         t0 = time.perf_counter()
         try:
-            if settings.adaptive:
-                return self._update_adaptive(key, cage, settings, mesh, materials, t0)
-            return self._update(key, cage, settings, mesh, materials, t0)
+            prints = _Fingerprints(
+                (cage.topology_fingerprint(use_creases=settings.use_creases), settings),
+                cage.positions_hash(),
+                face_data_fingerprint(cage, materials),
+            )
+            update = self._update_adaptive if settings.adaptive else self._update
+            return update(key, cage, settings, mesh, materials, t0, prints)
         except Exception:
             self.stats.errors += 1
             raise
@@ -346,10 +358,9 @@ class LiveCache:
         mesh: bpy.types.Mesh,
         materials: list[Any] | None,
         t0: float,
+        prints: _Fingerprints,
     ) -> UpdateReport:
-        topology = (cage.topology_fingerprint(use_creases=settings.use_creases), settings)
-        positions = cage.positions_hash()
-        face_data = face_data_fingerprint(cage, materials)
+        topology, positions, face_data = prints
         entry = self._entries.get(key)
         same_mesh = (
             entry is not None
@@ -416,12 +427,11 @@ class LiveCache:
         mesh: bpy.types.Mesh,
         materials: list[Any] | None,
         t0: float,
+        prints: _Fingerprints,
     ) -> UpdateReport:
         """The adaptive result: where it refines depends on the positions, so any change of
         topology, settings, positions or face data recomputes it (there is no plan to keep)."""
-        topology = (cage.topology_fingerprint(use_creases=settings.use_creases), settings)
-        positions = cage.positions_hash()
-        face_data = face_data_fingerprint(cage, materials)
+        topology, positions, face_data = prints
         entry = self._entries.get(key)
         if (
             entry is not None
