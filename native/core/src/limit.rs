@@ -330,9 +330,19 @@ fn build_stencils(
     if step.curve_vertices.iter().any(|cv| cv.weight < 1.0) {
         return Ok(None);
     }
-    let mut curve_edge_ids: Vec<u32> = step.curve_edges.iter().map(|e| e.edge).collect();
+    // (edge id, index in the step's curve edges), sorted by edge id.
+    let mut curve_edge_ids: Vec<(u32, u32)> = (step.curve_edges.iter())
+        .enumerate()
+        .map(|(i, e)| (e.edge, i as u32))
+        .collect();
     curve_edge_ids.sort_unstable();
-    let is_curve_edge = |e: u32| curve_edge_ids.binary_search(&e).is_ok();
+    let curve_index = |e: u32| {
+        curve_edge_ids
+            .binary_search_by_key(&e, |&(edge, _)| edge)
+            .ok()
+            .map(|at| curve_edge_ids[at].1)
+    };
+    let is_curve_edge = |e: u32| curve_index(e).is_some();
 
     // 1-D masks: odd degrees on curve vertices at offsets -N..=N, even degrees on curve edges
     // at offsets +-1/2 .. +-(N - 1/2).
@@ -515,14 +525,7 @@ fn build_stencils(
                 fan_items.push(last.corner_verts[last.prev(x)]);
             }
         } else {
-            let curve_item = |e: u32| -> u32 {
-                let at = step
-                    .curve_edges
-                    .iter()
-                    .position(|ce| ce.edge == e)
-                    .expect("a curve edge of the step");
-                (nf + at) as u32
-            };
+            let curve_item = |e: u32| nf as u32 + curve_index(e).expect("a curve edge of the step");
             if !closed {
                 fan_items.push(curve_item(last.corner_edges[start]));
             }
