@@ -79,7 +79,7 @@ use crate::error::{Error, Result};
 use crate::evaluate::{add, blend_weight, gather, reciprocal, scale, Scalar};
 use crate::mesh::{validate_geometry, Cage};
 use crate::plan::{old_curve_vertices, Boundary, Options, Plan};
-use crate::topology::{Level, NONE};
+use crate::topology::{Edges, Level, NONE};
 use crate::{DEFAULT_MEMORY_BUDGET, INFINITELY_SHARP, MAX_DEGREE, MAX_LEVELS};
 
 /// Hasher of uniform ids (u64 keys): one multiply and a fold, plenty for ids that are spread
@@ -200,11 +200,11 @@ impl<T> Part<T> {
         let level = &self.level;
         level.corners_of_vertex(v).iter().all(|&k| {
             let k = k as usize;
-            let out = level.corner_edges[k] as usize;
-            let inc = level.corner_edges[level.prev(k)] as usize;
+            let out = level.corner_edges()[k] as usize;
+            let inc = level.corner_edges()[level.prev(k)] as usize;
             [out, inc]
                 .into_iter()
-                .all(|e| level.edge_corners[e][1] != NONE || self.boundary[e])
+                .all(|e| level.edge_corners()[e][1] != NONE || self.boundary[e])
         })
     }
 }
@@ -412,7 +412,7 @@ fn curve_tags(
         .collect();
     if !cage.creases().is_empty() {
         let mut keys: Vec<(u64, u32)> = level0
-            .edge_verts
+            .edge_verts()
             .iter()
             .enumerate()
             .map(|(e, &[a, b])| (((a.min(b) as u64) << 32) | a.max(b) as u64, e as u32))
@@ -697,7 +697,7 @@ fn restrict(fine: &Level, keep: &[bool]) -> Sub {
     for &f in &faces {
         for k in 4 * f as usize..4 * f as usize + 4 {
             vert_map[fine.corner_verts[k] as usize] = 0;
-            edge_map[fine.corner_edges[k] as usize] = 0;
+            edge_map[fine.corner_edges()[k] as usize] = 0;
         }
     }
     let mut vertices = Vec::new();
@@ -719,17 +719,17 @@ fn restrict(fine: &Level, keep: &[bool]) -> Sub {
     for &f in &faces {
         for k in 4 * f as usize..4 * f as usize + 4 {
             corner_verts.push(vert_map[fine.corner_verts[k] as usize]);
-            corner_edges.push(edge_map[fine.corner_edges[k] as usize]);
+            corner_edges.push(edge_map[fine.corner_edges()[k] as usize]);
         }
     }
     let edge_verts = edges
         .iter()
-        .map(|&e| fine.edge_verts[e as usize].map(|v| vert_map[v as usize]))
+        .map(|&e| fine.edge_verts()[e as usize].map(|v| vert_map[v as usize]))
         .collect();
     let edge_corners = edges
         .iter()
         .map(|&e| {
-            let slots = fine.edge_corners[e as usize].map(|c| {
+            let slots = fine.edge_corners()[e as usize].map(|c| {
                 if c == NONE {
                     NONE
                 } else {
@@ -755,15 +755,17 @@ fn restrict(fine: &Level, keep: &[bool]) -> Sub {
         }
         vert_corner_offsets.push(vert_corners.len() as u32);
     }
-    // Built field by field: the level's lazily built tables stay private to the topology.
-    let mut level = Level::default();
-    level.num_vertices = vertices.len();
-    level.corner_verts = corner_verts;
-    level.corner_edges = corner_edges;
-    level.edge_verts = edge_verts;
-    level.edge_corners = edge_corners;
-    level.vert_corner_offsets = vert_corner_offsets;
-    level.vert_corners = vert_corners;
+    let level = Level::from_quad_tables(
+        vertices.len(),
+        corner_verts,
+        Edges {
+            corner_edges,
+            verts: edge_verts,
+            corners: edge_corners,
+        },
+        vert_corner_offsets,
+        vert_corners,
+    );
     Sub {
         level,
         faces,
@@ -818,7 +820,7 @@ fn step<T: Scalar>(ctx: &Context<T>, t: usize, coarse: &Part<T>, fine: &Level) -
     for &e in &parents {
         let w = coarse.sharp[e].min(1.0) as f64;
         for k in 0..2 {
-            let end = c.edge_verts[e][k] as usize;
+            let end = c.edge_verts()[e][k] as usize;
             edge_1d[2 * e + k] = if t == 0 {
                 ctx.cage[end]
             } else if odd {
@@ -896,7 +898,7 @@ fn step<T: Scalar>(ctx: &Context<T>, t: usize, coarse: &Part<T>, fine: &Level) -
                     .fold(zero(), |s, &k| add(s, faces[k as usize]));
                 scale(sum, reciprocal(corners.len()))
             } else if w < nv + ne {
-                match c.edge_corners[w - nv] {
+                match c.edge_corners()[w - nv] {
                     [a, NONE] => scale(add(faces[a as usize], faces[c.next(a as usize)]), half),
                     [a, b] => {
                         let (a, b) = (a as usize, b as usize);
@@ -934,7 +936,7 @@ fn step<T: Scalar>(ctx: &Context<T>, t: usize, coarse: &Part<T>, fine: &Level) -
             if w < nv {
                 data[w]
             } else if w < nv + ne {
-                let [a, b] = c.edge_verts[w - nv];
+                let [a, b] = c.edge_verts()[w - nv];
                 scale(add(data[a as usize], data[b as usize]), half)
             } else {
                 let corners = c.face_corners(w - nv - ne);
@@ -949,7 +951,7 @@ fn step<T: Scalar>(ctx: &Context<T>, t: usize, coarse: &Part<T>, fine: &Level) -
                 .fold(zero(), |s, &k| add(s, data[c.face_of(k as usize)]));
             scale(sum, reciprocal(corners.len()))
         } else if w < nv + ne {
-            match c.edge_corners[w - nv] {
+            match c.edge_corners()[w - nv] {
                 [a, NONE] => data[c.face_of(a as usize)],
                 [a, b] => scale(
                     add(data[c.face_of(a as usize)], data[c.face_of(b as usize)]),
@@ -1151,8 +1153,8 @@ fn triangulate<T: Scalar>(
             for k in 0..4 {
                 let corner = 4 * f + k;
                 slots[2 * k] = index[&part.vert_uid[level.corner_verts[corner] as usize]];
-                let e = level.corner_edges[corner] as usize;
-                let [a, b] = level.edge_corners[e];
+                let e = level.corner_edges()[corner] as usize;
+                let [a, b] = level.edge_corners()[e];
                 let other = if a as usize == corner { b } else { a };
                 if other == NONE || t == max_level {
                     continue;

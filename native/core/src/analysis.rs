@@ -105,7 +105,7 @@ impl<'a> SectorGrid<'a> {
             let last = *starts.last()?;
             // The next sector lies across the incoming edge of this sector's corner.
             let p = level.prev(last);
-            let next = other_corner(level, level.corner_edges[p] as usize, p)?;
+            let next = other_corner(level, level.corner_edges()[p] as usize, p)?;
             if next == first {
                 break;
             }
@@ -124,11 +124,11 @@ impl<'a> SectorGrid<'a> {
         let mut o = self.starts[s];
         for _ in 0..i {
             let n = l.next(o);
-            o = l.next(other_corner(l, l.corner_edges[n] as usize, n)?);
+            o = l.next(other_corner(l, l.corner_edges()[n] as usize, n)?);
         }
         for _ in 0..j {
             let n2 = l.next(l.next(o));
-            o = other_corner(l, l.corner_edges[n2] as usize, n2)?;
+            o = other_corner(l, l.corner_edges()[n2] as usize, n2)?;
         }
         Some(o)
     }
@@ -136,7 +136,7 @@ impl<'a> SectorGrid<'a> {
 
 /// The corner on the other side of edge `e` from corner `c`; `None` on a boundary.
 fn other_corner(level: &Level, e: usize, c: usize) -> Option<usize> {
-    let [a, b] = level.edge_corners[e];
+    let [a, b] = level.edge_corners()[e];
     let other = if a as usize == c { b } else { a };
     (other != NONE).then_some(other as usize)
 }
@@ -152,11 +152,11 @@ pub(crate) fn sector_frames(level: &Level, first: usize, last: usize) -> Option<
     let l = level;
     let step_i = |o: usize| -> Option<usize> {
         let n = l.next(o);
-        Some(l.next(other_corner(l, l.corner_edges[n] as usize, n)?))
+        Some(l.next(other_corner(l, l.corner_edges()[n] as usize, n)?))
     };
     let step_j = |o: usize| -> Option<usize> {
         let n2 = l.next(l.next(o));
-        other_corner(l, l.corner_edges[n2] as usize, n2)
+        other_corner(l, l.corner_edges()[n2] as usize, n2)
     };
     let mut frames = Vec::with_capacity(grid.valence() * (last + 1) * (last + 1));
     for &start in &grid.starts {

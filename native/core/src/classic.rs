@@ -184,18 +184,18 @@ pub fn doo_sabin_weight(i: usize, k: usize) -> f64 {
 pub fn vertex_edges(level: &Level, v: usize) -> impl Iterator<Item = u32> + '_ {
     level.corners_of_vertex(v).iter().flat_map(move |&c| {
         let c = c as usize;
-        let incoming = level.corner_edges[level.prev(c)];
+        let incoming = level.corner_edges()[level.prev(c)];
         let extra = level
             .is_boundary_edge(incoming as usize)
             .then_some(incoming);
-        std::iter::once(level.corner_edges[c]).chain(extra)
+        std::iter::once(level.corner_edges()[c]).chain(extra)
     })
 }
 
 /// The other end of edge `e` from `v`.
 #[inline]
 fn other_end(level: &Level, e: u32, v: usize) -> usize {
-    let [a, b] = level.edge_verts[e as usize];
+    let [a, b] = level.edge_verts()[e as usize];
     if a as usize == v {
         b as usize
     } else {
@@ -206,7 +206,7 @@ fn other_end(level: &Level, e: u32, v: usize) -> usize {
 /// The half (child edge at the next level) of edge `e` that contains its end `v`.
 #[inline]
 fn child_half(level: &Level, e: u32, v: usize) -> usize {
-    2 * e as usize + (level.edge_verts[e as usize][0] as usize != v) as usize
+    2 * e as usize + (level.edge_verts()[e as usize][0] as usize != v) as usize
 }
 
 /// Sharpness and rules of one level. Empty tables mean "all smooth" (no sharp edge or vertex).
@@ -395,7 +395,7 @@ impl Catmark {
                 match creasing {
                     Creasing::Uniform => decrement(s),
                     Creasing::Chaikin => {
-                        let v = coarse.edge_verts[e][child & 1] as usize;
+                        let v = coarse.edge_verts()[e][child & 1] as usize;
                         with_edge_sharpness(coarse, v, this, None, |p, _| {
                             subdivide_edge_sharpness(s, p, creasing)
                         })
@@ -418,6 +418,10 @@ impl Catmark {
             if next.vertices.iter().all(|&s| s <= 0.0) {
                 next.vertices = Vec::new();
             }
+        }
+        if !(next.edges.is_empty() && next.vertices.is_empty()) {
+            // The rules need the edges at each vertex (a plan's last level has none yet).
+            fine.complete_from(coarse);
         }
         next.classify(fine);
         next
@@ -624,7 +628,7 @@ fn dart_limit<T: Scalar, const N: usize>(
     for _ in 0..k {
         ring.push(at);
         let p = level.prev(at);
-        let [x, y] = level.edge_corners[level.corner_edges[p] as usize];
+        let [x, y] = level.edge_corners()[level.corner_edges()[p] as usize];
         at = if x as usize == p { y } else { x } as usize;
         if at == NONE as usize {
             // Not a closed ring (cannot happen for a dart): keep the vertex.
@@ -633,7 +637,7 @@ fn dart_limit<T: Scalar, const N: usize>(
     }
     let sharp = ring
         .iter()
-        .position(|&c| is_sharp(this.edge(level.corner_edges[c] as usize)))
+        .position(|&c| is_sharp(this.edge(level.corner_edges()[c] as usize)))
         .unwrap_or(0);
     let mask = dart_limit_mask(k, sharp);
     let mut out = scale(values[v], T::from_f64(mask[0]));
@@ -784,8 +788,8 @@ fn smooth_edge<T: Scalar, const N: usize>(
     values: &[[T; N]],
     faces: &[[T; N]],
 ) -> [T; N] {
-    let [a, b] = coarse.edge_verts[e];
-    let [c0, c1] = coarse.edge_corners[e];
+    let [a, b] = coarse.edge_verts()[e];
+    let [c0, c1] = coarse.edge_corners()[e];
     debug_assert!(c1 != NONE, "a smooth level has no boundary edge");
     // The operations of `edge_point` at sharpness 0 (bitwise equal).
     let f = add(
@@ -812,7 +816,7 @@ fn edge_point<T: Scalar, const N: usize>(
     values: &[[T; N]],
     faces: &[[T; N]],
 ) -> [T; N] {
-    let [a, b] = coarse.edge_verts[e];
+    let [a, b] = coarse.edge_verts()[e];
     let ends = add(values[a as usize], values[b as usize]);
     let s = this.edge(e);
     // `total` shared by the faces of the edge (OpenSubdiv's `0.5 / faceCount` each when smooth;
@@ -820,7 +824,7 @@ fn edge_point<T: Scalar, const N: usize>(
     let face_sum = |total: f64| {
         let mut sum = zero();
         let mut count = 0usize;
-        for &c in &coarse.edge_corners[e] {
+        for &c in &coarse.edge_corners()[e] {
             if c != NONE {
                 sum = add(sum, faces[coarse.face_of(c as usize)]);
                 count += 1;
@@ -892,7 +896,7 @@ pub fn doo_sabin_step<T: Scalar, const N: usize>(
                 out = mad(out, weight(i, k), before[coarse.face_of(at)]);
                 // Rotate around v: the other corner of the edge arriving at v in this face.
                 let p = coarse.prev(at);
-                let [x, y] = coarse.edge_corners[coarse.corner_edges[p] as usize];
+                let [x, y] = coarse.edge_corners()[coarse.corner_edges()[p] as usize];
                 at = if x as usize == p { y } else { x } as usize;
                 debug_assert!(at != NONE as usize, "interior vertex");
             }

@@ -274,7 +274,7 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
                 [nv, ne, fine.num_vertices - nv - ne],
                 |w| v[w],
                 |e| {
-                    let [a, b] = coarse.edge_verts[e];
+                    let [a, b] = coarse.edge_verts()[e];
                     scale(add(v[a as usize], v[b as usize]), half)
                 },
                 |f| {
@@ -302,7 +302,7 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
                         .fold(zero(), |s, &c| add(s, f[coarse.face_of(c as usize)]));
                     scale(sum, reciprocal(corners.len()))
                 },
-                |e| match coarse.edge_corners[e] {
+                |e| match coarse.edge_corners()[e] {
                     [c, NONE] => f[coarse.face_of(c as usize)],
                     [c, d] => scale(
                         add(f[coarse.face_of(c as usize)], f[coarse.face_of(d as usize)]),
@@ -341,7 +341,7 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
                     touched[coarse.face_of(c as usize)] = true;
                 }
             } else if w < nv + ne {
-                for &c in &coarse.edge_corners[w - nv] {
+                for &c in &coarse.edge_corners()[w - nv] {
                     if c != NONE {
                         touched[coarse.face_of(c as usize)] = true;
                     }
@@ -392,7 +392,7 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
                     if touched.get(f).copied().unwrap_or(false) {
                         for k in 0..4 {
                             p[k] = blended(q[k] as usize, p[k]);
-                            let e = coarse.corner_edges[4 * f + k] as usize;
+                            let e = coarse.corner_edges()[4 * f + k] as usize;
                             m[k] = blended(nv + e, m[k]);
                         }
                         centre = blended(nv + ne + f, centre);
@@ -426,7 +426,7 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
                 let sum = corners.iter().fold(zero(), |s, &c| add(s, f[c as usize]));
                 scale(sum, reciprocal(corners.len()))
             },
-            |e| match coarse.edge_corners[e] {
+            |e| match coarse.edge_corners()[e] {
                 [c, NONE] => scale(add(f[c as usize], f[coarse.next(c as usize)]), half),
                 [c, d] => {
                     let (c, d) = (c as usize, d as usize);
@@ -634,7 +634,7 @@ impl Plan {
         want_dual: bool,
     ) -> Final<T, N> {
         let degree = self.options().degree;
-        let levels = self.levels();
+        let levels = self.levels_as_built();
         if let Some(catmark) = self.catmark() {
             // Classic Catmull-Clark (crate::classic): primal data all the way, between two
             // buffers kept in the plan (the result is one of them; the other goes back).
@@ -749,9 +749,9 @@ impl Plan {
         values: &[T],
         channels: usize,
     ) -> Result<Vec<T>> {
-        check_values(values, channels, self.levels()[0].num_corners())?;
+        let levels = self.levels_as_built();
+        check_values(values, channels, levels[0].num_corners())?;
         let mut current: Vec<T> = values.to_vec();
-        let levels = self.levels();
         let half = T::from_f64(0.5);
         for level in &levels[..levels.len() - 1] {
             let centers: Vec<Vec<T>> = gather(level.num_faces(), |f| {
@@ -810,7 +810,7 @@ impl Plan {
             );
             run.vertices = Cow::Owned(values);
         } else {
-            let face_of_edge = |e: u32| coarse.face_of(coarse.edge_corners[e as usize][0] as usize);
+            let face_of_edge = |e: u32| coarse.face_of(coarse.edge_corners()[e as usize][0] as usize);
             run.curve = CurveData::Dual(
                 previous
                     .curve_edges

@@ -297,7 +297,7 @@ pub(crate) struct Stencils {
 
 /// The corner on the other side of edge `e` from corner `c` (`None` on a boundary).
 fn across(level: &Level, e: usize, c: usize) -> Option<usize> {
-    let [a, b] = level.edge_corners[e];
+    let [a, b] = level.edge_corners()[e];
     let other = if a as usize == c { b } else { a };
     (other != NONE).then_some(other as usize)
 }
@@ -483,7 +483,7 @@ fn build_stencils(
         let mut start = d;
         let mut closed = false;
         loop {
-            let e = last.corner_edges[start];
+            let e = last.corner_edges()[start];
             if is_curve_edge(e) {
                 break;
             }
@@ -505,7 +505,7 @@ fn build_stencils(
         loop {
             let x = *corners.last().expect("a corner");
             let p = last.prev(x);
-            let e = last.corner_edges[p];
+            let e = last.corner_edges()[p];
             if is_curve_edge(e) && !closed {
                 break;
             }
@@ -527,12 +527,12 @@ fn build_stencils(
         } else {
             let curve_item = |e: u32| nf as u32 + curve_index(e).expect("a curve edge of the step");
             if !closed {
-                fan_items.push(curve_item(last.corner_edges[start]));
+                fan_items.push(curve_item(last.corner_edges()[start]));
             }
             fan_items.extend(corners.iter().map(|&x| last.face_of(x) as u32));
             if !closed {
                 let x = *corners.last().expect("a corner");
-                fan_items.push(curve_item(last.corner_edges[last.prev(x)]));
+                fan_items.push(curve_item(last.corner_edges()[last.prev(x)]));
             }
         }
         let id = fan_closed.len() as u32;

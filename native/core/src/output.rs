@@ -38,7 +38,7 @@ impl OutputMesh {
     /// Builds the output topology of a plan whose levels and steps are laid out (the drawing
     /// mesh's own tables wait for their first use: evaluation does not need them).
     pub fn build(plan: &Plan) -> Result<OutputMesh> {
-        if plan.options().output == OutputKind::Dual && plan.levels().len() > 1 {
+        if plan.options().output == OutputKind::Dual && plan.levels_as_built().len() > 1 {
             let origin = face_origin(plan);
             let dual = dual_mesh(plan, &origin)?;
             return Ok(OutputMesh {
@@ -54,7 +54,7 @@ impl OutputMesh {
 /// Face offsets of the drawing mesh (`M_L`).
 fn primal_face_offsets(plan: &Plan) -> &[u32] {
     plan.output().face_offsets.get_or_init(|| {
-        let last = plan.levels().last().expect("at least one level");
+        let last = plan.levels_as_built().last().expect("at least one level");
         if last.is_quads() {
             gather_hinted(last.num_faces() + 1, |f| 4 * f as u32)
         } else {
@@ -71,7 +71,7 @@ fn primal_face_origin(plan: &Plan) -> &[u32] {
 /// Face f of M_L is corner f of M_{L-1}, inside face f/4 of M_{L-1} (for L-1 >= 1), down to a
 /// corner of the cage.
 fn face_origin(plan: &Plan) -> Vec<u32> {
-    let levels = plan.levels();
+    let levels = plan.levels_as_built();
     let last = levels.last().expect("at least one level");
     let depth = levels.len() - 1;
     if depth == 0 {
@@ -110,7 +110,7 @@ fn dual_mesh(plan: &Plan, face_origin: &[u32]) -> Result<DualMesh> {
         let starts = corners
             .iter()
             .copied()
-            .filter(|&c| last.is_boundary_edge(last.corner_edges[last.prev(c as usize)] as usize));
+            .filter(|&c| last.is_boundary_edge(last.corner_edges()[last.prev(c as usize)] as usize));
         let closed = corners.iter().copied();
         for start in starts.chain(closed) {
             if visited[start as usize] {
@@ -121,7 +121,7 @@ fn dual_mesh(plan: &Plan, face_origin: &[u32]) -> Result<DualMesh> {
             loop {
                 visited[c] = true;
                 fan.push(c as u32);
-                let [s0, s1] = last.edge_corners[last.corner_edges[c] as usize];
+                let [s0, s1] = last.edge_corners()[last.corner_edges()[c] as usize];
                 let other = if s0 as usize == c { s1 } else { s0 };
                 if other == NONE {
                     break;
@@ -132,10 +132,10 @@ fn dual_mesh(plan: &Plan, face_origin: &[u32]) -> Result<DualMesh> {
                 }
             }
             let open =
-                last.is_boundary_edge(last.corner_edges[*fan.last().unwrap() as usize] as usize);
+                last.is_boundary_edge(last.corner_edges()[*fan.last().unwrap() as usize] as usize);
             if open {
                 verts.push(point_of_edge(
-                    last.corner_edges[*fan.last().unwrap() as usize],
+                    last.corner_edges()[*fan.last().unwrap() as usize],
                 ));
                 sources.push(*fan.last().unwrap());
             }
@@ -144,7 +144,7 @@ fn dual_mesh(plan: &Plan, face_origin: &[u32]) -> Result<DualMesh> {
                 sources.push(c);
             }
             if open {
-                verts.push(point_of_edge(last.corner_edges[last.prev(fan[0] as usize)]));
+                verts.push(point_of_edge(last.corner_edges()[last.prev(fan[0] as usize)]));
                 sources.push(fan[0]);
             }
             offsets.push(verts.len() as u32);
@@ -177,7 +177,7 @@ impl Plan {
     pub fn num_output_vertices(&self) -> usize {
         match &self.output().dual {
             Some(d) => d.level.num_vertices,
-            None => self.levels().last().expect("a level").num_vertices,
+            None => self.levels_as_built().last().expect("a level").num_vertices,
         }
     }
 
@@ -185,14 +185,20 @@ impl Plan {
     pub fn num_output_faces(&self) -> usize {
         match &self.output().dual {
             Some(d) => d.level.num_faces(),
-            None => self.levels().last().expect("a level").num_faces(),
+            None => self.levels_as_built().last().expect("a level").num_faces(),
         }
     }
 
-    fn output_level(&self) -> &Level {
+    /// The output mesh as a level; `with_edges` completes the drawing mesh's edge tables.
+    fn output_level(&self, with_edges: bool) -> &Level {
+        let levels = if with_edges {
+            self.levels()
+        } else {
+            self.levels_as_built()
+        };
         match &self.output().dual {
             Some(d) => &d.level,
-            None => self.levels().last().expect("a level"),
+            None => levels.last().expect("a level"),
         }
     }
 
@@ -206,7 +212,7 @@ impl Plan {
 
     /// Vertex indices of the output faces, face after face, counter-clockwise like the cage.
     pub fn output_face_vertices(&self) -> &[u32] {
-        &self.output_level().corner_verts
+        &self.output_level(false).corner_verts
     }
 
     /// The cage face each output face comes from (for materials, shading, face attributes).
@@ -219,12 +225,12 @@ impl Plan {
 
     /// The edges of the output mesh.
     pub fn output_edges(&self) -> &[[u32; 2]] {
-        &self.output_level().edge_verts
+        self.output_level(true).edge_verts()
     }
 
     /// For each entry of [`Plan::output_face_vertices`], the edge to the next corner of its face.
     pub fn output_corner_edges(&self) -> &[u32] {
-        &self.output_level().corner_edges
+        self.output_level(true).corner_edges()
     }
 
     /// Turns the values of the last level into output vertex values.

@@ -244,7 +244,7 @@ impl Plan {
             .collect();
         if !cage.creases().is_empty() {
             let mut keys: Vec<(u64, u32)> = level0
-                .edge_verts
+                .edge_verts()
                 .iter()
                 .enumerate()
                 .map(|(e, &[a, b])| (((a.min(b) as u64) << 32) | a.max(b) as u64, e as u32))
@@ -292,10 +292,15 @@ impl Plan {
         let mut levels = vec![level0];
         let mut steps: Vec<Step> = Vec::with_capacity(options.levels as usize);
         for j in 0..options.levels {
-            // The last level's vertex -> corner table serves only the dual output (and is built
-            // on first use if anything else asks: limits, classic sharp edges).
-            let last = j + 1 == options.levels;
-            let fine = levels[j as usize].refine_with(!last || options.output == OutputKind::Dual);
+            // Evaluation reads the last level's faces only: its edges and vertex -> corner
+            // table wait for first use (`Plan::levels`, `Level::corners_of_vertex`), unless the
+            // dual output is built from them.
+            let coarse = &levels[j as usize];
+            let fine = if j + 1 == options.levels && options.output == OutputKind::Primal {
+                coarse.refine_faces()
+            } else {
+                coarse.refine()
+            };
             let (step, next) = curve_step(
                 &levels[j as usize],
                 &parents,
@@ -343,8 +348,18 @@ impl Plan {
         &self.isolated
     }
 
-    /// The refined levels `M_0..M_L`.
+    /// The refined levels `M_0..M_L`, every table built (the last level's edge tables are added
+    /// on the first call).
     pub fn levels(&self) -> &[Level] {
+        if let [.., parent, last] = self.levels.as_slice() {
+            last.complete_from(parent);
+        }
+        &self.levels
+    }
+
+    /// The levels as built: the last one may still lack its edge tables, which evaluation does
+    /// not read.
+    pub(crate) fn levels_as_built(&self) -> &[Level] {
         &self.levels
     }
 
@@ -474,7 +489,7 @@ fn curve_step(
     let mut ends: Vec<(u32, u32, f64)> = Vec::with_capacity(2 * parents.len());
     let mut curve_edges = Vec::with_capacity(2 * parents.len());
     for (i, p) in parents.iter().enumerate() {
-        let [a, b] = coarse.edge_verts[p.edge as usize];
+        let [a, b] = coarse.edge_verts()[p.edge as usize];
         let w = p.sharpness.min(1.0) as f64;
         for (k, end) in [a, b].into_iter().enumerate() {
             let index = (2 * i + k) as u32;
@@ -514,7 +529,7 @@ fn curve_step(
     }
     for (i, edge) in curve_edges.iter_mut().enumerate() {
         let p = &parents[i / 2];
-        let old = coarse.edge_verts[p.edge as usize][i % 2];
+        let old = coarse.edge_verts()[p.edge as usize][i % 2];
         let old_index = curve_vertices[..first_mid as usize]
             .binary_search_by_key(&old, |cv| cv.vertex)
             .expect("curve edge end is a curve vertex") as u32;

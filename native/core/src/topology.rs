@@ -4,8 +4,11 @@
 //! vertices, then one per edge, then one per face, its faces one quad per *corner* of `M_j`.
 //!
 //! Every table of `M_{j+1}` is a gather from `M_j`'s tables, computed in parallel; nothing here
-//! depends on the order in which threads run.
+//! depends on the order in which threads run. The last level of a plan is built with its faces
+//! only (as OpenSubdiv's `fullTopologyInLastLevel = false`): evaluation never reads its edges,
+//! which [`Level::complete_from`] adds, in the same numbering, when something asks for them.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::OnceLock;
 
 use rayon::prelude::*;
@@ -18,6 +21,17 @@ pub const NONE: u32 = u32::MAX;
 
 /// Items per parallel task in the gathers (large enough to amortise scheduling).
 pub(crate) const CHUNK: usize = 1 << 12;
+
+/// The edges of a level and their incidences.
+#[derive(Debug, Clone, Default)]
+pub struct Edges {
+    /// Edge from each corner to the next corner of its face.
+    pub corner_edges: Vec<u32>,
+    /// The two vertices of each edge.
+    pub verts: Vec<[u32; 2]>,
+    /// The corners whose outgoing edge is this edge, one per incident face; `NONE` on a boundary.
+    pub corners: Vec<[u32; 2]>,
+}
 
 /// One level of refinement: a polygon mesh as flat index tables.
 ///
@@ -33,15 +47,13 @@ pub struct Level {
     pub corner_faces: Vec<u32>,
     /// Vertex of each corner.
     pub corner_verts: Vec<u32>,
-    /// Edge from each corner to the next corner of its face.
-    pub corner_edges: Vec<u32>,
-    /// The two vertices of each edge.
-    pub edge_verts: Vec<[u32; 2]>,
-    /// The corners whose outgoing edge is this edge, one per incident face; `NONE` on a boundary.
-    pub edge_corners: Vec<[u32; 2]>,
+    /// Number of edges (known before the edge tables are).
+    num_edges: usize,
+    /// The edge tables; left empty by [`Level::refine_faces`] until [`Level::complete_from`].
+    edges: OnceLock<Edges>,
     /// Offsets of each vertex's corners in `vert_corners` (length vertices + 1). This table and
     /// `vert_corners` are empty on the last level of a plan whose output is the drawing mesh
-    /// (see [`Level::refine_with`]).
+    /// (see [`Level::refine_faces`]).
     pub vert_corner_offsets: Vec<u32>,
     /// The corners at each vertex: in increasing order on the cage level and for old vertices
     /// and face points of refined levels; an edge point lists, for each of its edge's corner
@@ -78,7 +90,66 @@ impl Level {
     /// Number of edges.
     #[inline]
     pub fn num_edges(&self) -> usize {
-        self.edge_verts.len()
+        self.num_edges
+    }
+
+    /// The edge tables. Panics on the faces-only last level of a plan before
+    /// [`Level::complete_from`] (`Plan::levels` completes it; only evaluation sees it bare).
+    #[inline]
+    pub fn edges(&self) -> &Edges {
+        self.edges
+            .get()
+            .expect("edge tables of a faces-only level are built by Level::complete_from")
+    }
+
+    /// Edge from each corner to the next corner of its face.
+    #[inline]
+    pub fn corner_edges(&self) -> &[u32] {
+        &self.edges().corner_edges
+    }
+
+    /// The two vertices of each edge.
+    #[inline]
+    pub fn edge_verts(&self) -> &[[u32; 2]] {
+        &self.edges().verts
+    }
+
+    /// The corners whose outgoing edge is each edge, one per incident face; `NONE` on a
+    /// boundary.
+    #[inline]
+    pub fn edge_corners(&self) -> &[[u32; 2]] {
+        &self.edges().corners
+    }
+
+    /// True when the edge tables are built (always, except on the last level of a plan before
+    /// [`Level::complete_from`]).
+    pub fn has_edges(&self) -> bool {
+        self.edges.get().is_some()
+    }
+
+    /// Adds the edge tables of a level built by `parent.refine_faces()` (numbered exactly as
+    /// [`Level::refine`] numbers them); nothing if they are there.
+    pub fn complete_from(&self, parent: &Level) {
+        self.edges.get_or_init(|| parent.child_edges());
+    }
+
+    /// A quad level from its tables (the adaptive partial levels).
+    pub fn from_quad_tables(
+        num_vertices: usize,
+        corner_verts: Vec<u32>,
+        edges: Edges,
+        vert_corner_offsets: Vec<u32>,
+        vert_corners: Vec<u32>,
+    ) -> Level {
+        Level {
+            num_vertices,
+            corner_verts,
+            num_edges: edges.verts.len(),
+            edges: OnceLock::from(edges),
+            vert_corner_offsets,
+            vert_corners,
+            ..Level::default()
+        }
     }
 
     /// The face a corner belongs to.
@@ -149,88 +220,145 @@ impl Level {
     /// True if edge `e` has a single face.
     #[inline]
     pub fn is_boundary_edge(&self, e: usize) -> bool {
-        self.edge_corners[e][1] == NONE
+        self.edge_corners()[e][1] == NONE
     }
 
     /// The child edge of `e` (at the next level) that contains the endpoint `v` of `e`.
     #[inline]
     fn child_half(&self, e: u32, v: u32) -> u32 {
-        2 * e + (self.edge_verts[e as usize][0] != v) as u32
+        2 * e + (self.edge_verts()[e as usize][0] != v) as u32
     }
 
     /// Builds a level from polygons (all vertices used), finding its edges. Fails with the
-    /// corners involved if an edge has more than two faces or two faces traverse it the same way.
+    /// corners involved if an edge has more than two faces or two faces traverse it the same way
+    /// (the first such edge in edge order).
+    ///
+    /// Edges are numbered by their (smaller, larger) vertex pair; each edge's corners are its
+    /// halves in increasing order. Every vertex finds the edges to larger vertices among its
+    /// own corners, so the work is parallel over vertices and needs no global sort.
     pub fn from_polygons(
         num_vertices: usize,
         face_offsets: Vec<u32>,
         corner_verts: Vec<u32>,
     ) -> std::result::Result<Level, EdgeProblem> {
-        let num_faces = face_offsets.len() - 1;
-        let num_corners = corner_verts.len();
-        let mut corner_faces = vec![0u32; num_corners];
-        for f in 0..num_faces {
-            corner_faces[face_offsets[f] as usize..face_offsets[f + 1] as usize].fill(f as u32);
-        }
+        let mut corner_faces = zeroed_hinted::<u32>(corner_verts.len());
+        fill_csr(&face_offsets, &mut corner_faces, |f, out| out.fill(f as u32));
+        let (vert_corner_offsets, vert_corners) = vertex_corners(num_vertices, &corner_verts);
         let mut level = Level {
             num_vertices,
             face_offsets,
             corner_faces,
             corner_verts,
+            vert_corner_offsets,
+            vert_corners,
             ..Level::default()
         };
-
-        // Half-edges sorted by their undirected key, so that equal edges are adjacent and edge
-        // ids come out in a fixed order.
-        let mut halves: Vec<(u64, u32)> = (0..num_corners)
-            .into_par_iter()
-            .map(|c| {
-                let a = level.corner_verts[c];
-                let b = level.corner_verts[level.next(c)];
-                (((a.min(b) as u64) << 32) | a.max(b) as u64, c as u32)
-            })
-            .collect();
-        halves.par_sort_unstable();
-
-        let mut corner_edges = vec![0u32; num_corners];
-        let mut edge_verts = Vec::with_capacity(num_corners / 2 + 1);
-        let mut edge_corners = Vec::with_capacity(num_corners / 2 + 1);
-        let mut i = 0;
-        while i < halves.len() {
-            let mut j = i + 1;
-            while j < halves.len() && halves[j].0 == halves[i].0 {
-                j += 1;
-            }
-            let c0 = halves[i].1 as usize;
-            if j - i > 2 {
-                return Err(EdgeProblem::NonManifold {
-                    corner: c0,
-                    faces: j - i,
-                });
-            }
-            let mut slots = [c0 as u32, NONE];
-            if j - i == 2 {
-                let c1 = halves[i + 1].1 as usize;
-                if level.corner_verts[c1] == level.corner_verts[c0] {
-                    return Err(EdgeProblem::Orientation { corners: [c0, c1] });
-                }
-                slots[1] = c1 as u32;
-            }
-            let e = edge_verts.len() as u32;
-            for &(_, c) in &halves[i..j] {
-                corner_edges[c as usize] = e;
-            }
-            edge_verts.push([level.corner_verts[c0], level.corner_verts[level.next(c0)]]);
-            edge_corners.push(slots);
-            i = j;
-        }
-        level.corner_edges = corner_edges;
-        level.edge_verts = edge_verts;
-        level.edge_corners = edge_corners;
-
-        let (offsets, vert_corners) = vertex_corners(num_vertices, &level.corner_verts);
-        level.vert_corner_offsets = offsets;
-        level.vert_corners = vert_corners;
+        let edges = level.find_edges()?;
+        level.num_edges = edges.verts.len();
+        level.edges = OnceLock::from(edges);
         Ok(level)
+    }
+
+    /// Calls `f` with the halves (corners) of the edges from `a` to vertices `b >= a`, as
+    /// `(b, corner)` in increasing order: the corners at `a` whose next vertex is `b`, and the
+    /// corners at `b` whose next vertex is `a` (the predecessors of corners at `a`).
+    fn owned_halves<R>(&self, a: usize, f: impl FnOnce(&[(u32, u32)]) -> R) -> R {
+        const STACK: usize = 64;
+        let corners = self.corners_of_vertex(a);
+        let a = a as u32;
+        let halves = corners.iter().flat_map(|&c| {
+            let c = c as usize;
+            let out_end = self.corner_verts[self.next(c)];
+            let p = self.prev(c);
+            let in_end = self.corner_verts[p];
+            let outgoing = (out_end >= a).then_some((out_end, c as u32));
+            let incoming = (in_end > a).then_some((in_end, p as u32));
+            outgoing.into_iter().chain(incoming)
+        });
+        if 2 * corners.len() <= STACK {
+            let mut buf = [(0u32, 0u32); STACK];
+            let mut n = 0;
+            for h in halves {
+                buf[n] = h;
+                n += 1;
+            }
+            buf[..n].sort_unstable();
+            f(&buf[..n])
+        } else {
+            let mut buf: Vec<(u32, u32)> = halves.collect();
+            buf.sort_unstable();
+            f(&buf)
+        }
+    }
+
+    /// The edge tables of a polygon level (see [`Level::from_polygons`]).
+    fn find_edges(&self) -> std::result::Result<Edges, EdgeProblem> {
+        let problem = |a: usize| {
+            self.owned_halves(a, |halves| {
+                halves.chunk_by(|x, y| x.0 == y.0).find_map(|group| {
+                    let c0 = group[0].1 as usize;
+                    if group.len() > 2 {
+                        return Some(EdgeProblem::NonManifold {
+                            corner: c0,
+                            faces: group.len(),
+                        });
+                    }
+                    let c1 = group.get(1).map(|h| h.1 as usize)?;
+                    (self.corner_verts[c0] == self.corner_verts[c1])
+                        .then_some(EdgeProblem::Orientation { corners: [c0, c1] })
+                })
+            })
+        };
+        let bad = AtomicBool::new(false);
+        let offsets = prefix_offsets(self.num_vertices, |a| {
+            self.owned_halves(a, |halves| {
+                let mut count = 0;
+                for group in halves.chunk_by(|x, y| x.0 == y.0) {
+                    let same_way = group.len() == 2
+                        && self.corner_verts[group[0].1 as usize]
+                            == self.corner_verts[group[1].1 as usize];
+                    if group.len() > 2 || same_way {
+                        bad.store(true, Ordering::Relaxed);
+                    }
+                    count += 1;
+                }
+                count
+            })
+        });
+        if bad.into_inner() {
+            let first = (0..self.num_vertices)
+                .into_par_iter()
+                .find_map_first(problem)
+                .expect("a vertex with a problem edge");
+            return Err(first);
+        }
+        let num_edges = offsets[self.num_vertices] as usize;
+        let mut corners = zeroed_hinted::<[u32; 2]>(num_edges);
+        fill_csr(&offsets, &mut corners, |a, out| {
+            self.owned_halves(a, |halves| {
+                for (slot, group) in out.iter_mut().zip(halves.chunk_by(|x, y| x.0 == y.0)) {
+                    *slot = [group[0].1, group.get(1).map_or(NONE, |h| h.1)];
+                }
+            })
+        });
+        let verts = gather_hinted(num_edges, |e| {
+            let c = corners[e][0] as usize;
+            [self.corner_verts[c], self.corner_verts[self.next(c)]]
+        });
+        // Each edge is among its smaller vertex's edges, which are sorted by the larger one.
+        let corner_edges = gather_hinted(self.num_corners(), |c| {
+            let (a, b) = (self.corner_verts[c], self.corner_verts[self.next(c)]);
+            let (lo, hi) = (a.min(b), a.max(b));
+            let range = offsets[lo as usize] as usize..offsets[lo as usize + 1] as usize;
+            let other = |e: &[u32; 2]| e[0] ^ e[1] ^ lo;
+            let at = verts[range.clone()].partition_point(|e| other(e) < hi);
+            (range.start + at) as u32
+        });
+        Ok(Edges {
+            corner_edges,
+            verts,
+            corners,
+        })
     }
 
     /// Builds the first level from a cage, with `corner_verts` renumbered so that every vertex
@@ -271,93 +399,105 @@ impl Level {
     /// Child edges: `2e` and `2e + 1` are the halves of edge `e` (containing its first and second
     /// vertex), `2E + c` joins the edge point of `c`'s outgoing edge to the face point.
     pub fn refine(&self) -> Level {
-        self.refine_with(true)
+        let child = self.refine_faces();
+        child.complete_from(self);
+        let (offsets, vert_corners) = self.child_vertex_corners(child.num_vertices);
+        Level {
+            vert_corner_offsets: offsets,
+            vert_corners,
+            ..child
+        }
     }
 
-    /// As [`Level::refine`]; without `vertex_corners` the child's `vert_corner_offsets` and
-    /// `vert_corners` stay empty (the last level of a plan needs them only for the dual output
-    /// and the classic rules; [`Level::corners_of_vertex`] builds them on first use).
-    pub fn refine_with(&self, vertex_corners: bool) -> Level {
+    /// As [`Level::refine`], the faces only: the edge tables wait for
+    /// [`Level::complete_from`], the vertex -> corner table for [`Level::corners_of_vertex`]
+    /// (in increasing order of corner). This is the last level of a plan, which evaluation
+    /// reads only through its faces and vertex count.
+    pub fn refine_faces(&self) -> Level {
+        let nv = self.num_vertices as u32;
+        let ne = self.num_edges() as u32;
+        let (corner_edges, quads) = (self.corner_edges(), self.is_quads());
+        let corner_verts = gather_hinted(self.num_corners(), |c| {
+            let f = if quads {
+                c >> 2
+            } else {
+                self.corner_faces[c] as usize
+            };
+            [
+                self.corner_verts[c],
+                nv + corner_edges[c],
+                nv + ne + f as u32,
+                nv + corner_edges[self.prev(c)],
+            ]
+        });
+        Level {
+            num_vertices: self.num_vertices + self.num_edges() + self.num_faces(),
+            corner_verts: corner_verts.into_flattened(),
+            num_edges: 2 * self.num_edges() + self.num_corners(),
+            ..Level::default()
+        }
+    }
+
+    /// The edge tables of this level's child (see [`Level::refine`] for their numbering).
+    fn child_edges(&self) -> Edges {
         let nv = self.num_vertices as u32;
         let ne = self.num_edges() as u32;
         let nc = self.num_corners();
-        let new_vertices = self.num_vertices + self.num_edges() + self.num_faces();
-
-        let mut quad_verts: Vec<[u32; 4]> = with_capacity_hinted(nc);
-        let mut quad_edges: Vec<[u32; 4]> = with_capacity_hinted(nc);
-        (0..nc)
-            .into_par_iter()
-            .with_min_len(CHUNK)
-            .map(|c| {
-                let v = self.corner_verts[c];
-                let p = self.prev(c);
-                let e_next = self.corner_edges[c];
-                let e_prev = self.corner_edges[p];
-                let f = self.face_of(c) as u32;
-                (
-                    [v, nv + e_next, nv + ne + f, nv + e_prev],
-                    [
-                        self.child_half(e_next, v),
-                        2 * ne + c as u32,
-                        2 * ne + p as u32,
-                        self.child_half(e_prev, v),
-                    ],
-                )
-            })
-            .unzip_into_vecs(&mut quad_verts, &mut quad_edges);
+        let Edges {
+            corner_edges,
+            verts: edge_verts,
+            corners: edge_corners,
+        } = self.edges();
+        let quad_edges = gather_hinted(nc, |c| {
+            let v = self.corner_verts[c];
+            let p = self.prev(c);
+            [
+                self.child_half(corner_edges[c], v),
+                2 * ne + c as u32,
+                2 * ne + p as u32,
+                self.child_half(corner_edges[p], v),
+            ]
+        });
 
         // Edges: the two halves of every old edge, then one interior edge per old corner.
         let total_edges = 2 * ne as usize + nc;
-        let mut edge_verts: Vec<[u32; 2]> = with_capacity_hinted(total_edges);
-        let mut edge_corners: Vec<[u32; 2]> = with_capacity_hinted(total_edges);
+        let mut verts: Vec<[u32; 2]> = with_capacity_hinted(total_edges);
+        let mut corners: Vec<[u32; 2]> = with_capacity_hinted(total_edges);
         (0..total_edges)
             .into_par_iter()
             .with_min_len(CHUNK)
             .map(|i| {
                 if i < 2 * ne as usize {
                     let (e, k) = (i >> 1, i & 1);
-                    let [a, b] = self.edge_verts[e];
+                    let [a, b] = edge_verts[e];
                     let mid = nv + e as u32;
-                    let verts = if k == 0 { [a, mid] } else { [mid, b] };
-                    let mut corners = [NONE; 2];
-                    for (slot, &c) in self.edge_corners[e].iter().enumerate() {
+                    let ends = if k == 0 { [a, mid] } else { [mid, b] };
+                    let mut slots = [NONE; 2];
+                    for (slot, &c) in edge_corners[e].iter().enumerate() {
                         if c != NONE {
                             let c = c as usize;
                             // The corner leaving `a` starts half 0 and ends half 1.
-                            corners[slot] = if (self.corner_verts[c] == a) == (k == 0) {
+                            slots[slot] = if (self.corner_verts[c] == a) == (k == 0) {
                                 4 * c as u32
                             } else {
                                 4 * self.next(c) as u32 + 3
                             };
                         }
                     }
-                    (verts, corners)
+                    (ends, slots)
                 } else {
                     let c = i - 2 * ne as usize;
                     (
-                        [nv + self.corner_edges[c], nv + ne + self.face_of(c) as u32],
+                        [nv + corner_edges[c], nv + ne + self.face_of(c) as u32],
                         [4 * c as u32 + 1, 4 * self.next(c) as u32 + 2],
                     )
                 }
             })
-            .unzip_into_vecs(&mut edge_verts, &mut edge_corners);
-
-        let (offsets, vert_corners) = if vertex_corners {
-            self.child_vertex_corners(new_vertices)
-        } else {
-            (Vec::new(), Vec::new())
-        };
-        Level {
-            num_vertices: new_vertices,
-            face_offsets: Vec::new(),
-            corner_faces: Vec::new(),
-            corner_verts: quad_verts.into_flattened(),
+            .unzip_into_vecs(&mut verts, &mut corners);
+        Edges {
             corner_edges: quad_edges.into_flattened(),
-            edge_verts,
-            edge_corners,
-            vert_corner_offsets: offsets,
-            vert_corners,
-            lazy_vertex_corners: OnceLock::new(),
+            verts,
+            corners,
         }
     }
 
@@ -386,7 +526,7 @@ impl Level {
                 }
             } else if w < nv + ne {
                 let mut k = 0;
-                for &c in &self.edge_corners[w - nv] {
+                for &c in &self.edge_corners()[w - nv] {
                     if c != NONE {
                         out[k] = 4 * c + 1;
                         out[k + 1] = 4 * self.next(c as usize) as u32 + 3;

@@ -45,7 +45,7 @@ fn comb(terms: &[(f64, P)]) -> P {
 fn edge_point(plan: &Plan, a: u32, b: u32) -> usize {
     let l0 = &plan.levels()[0];
     let e = l0
-        .edge_verts
+        .edge_verts()
         .iter()
         .position(|&[x, y]| (x, y) == (a, b) || (x, y) == (b, a))
         .expect("an edge");
@@ -221,7 +221,7 @@ fn doo_sabin_weights() {
         for i in 0..k {
             terms.push((doo_sabin_weight(i, k), out[l1.face_of(at)]));
             let prev = l1.prev(at);
-            let [x, y] = l1.edge_corners[l1.corner_edges[prev] as usize];
+            let [x, y] = l1.edge_corners()[l1.corner_edges()[prev] as usize];
             at = if x as usize == prev { y } else { x } as usize;
         }
         assert!(close(child, comb(&terms)), "level 2 corner {c}");
@@ -397,7 +397,7 @@ fn semi_sharp_decrement() {
     let plan = Plan::new(&t, &classic(3, 4)).unwrap();
     let catmark = plan.catmark().unwrap();
     let e0 = plan.levels()[0]
-        .edge_verts
+        .edge_verts()
         .iter()
         .position(|&[a, b]| (a, b) == (0, id(1, 0) as u32))
         .unwrap();

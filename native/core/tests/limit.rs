@@ -184,7 +184,7 @@ fn regular_limit_is_the_tensor_bspline_of_the_cage() {
             worst = worst.max(max_gap(&limit[3 * v..3 * v + 3], &e));
         }
         // Edge points at the midpoints (unwrapped), face points at the centres.
-        for (e, &[a, c]) in level0.edge_verts.iter().enumerate() {
+        for (e, &[a, c]) in level0.edge_verts().iter().enumerate() {
             let (pa, pc) = (param(a as usize), param(c as usize));
             let mid = |s: f64, t: f64, len: f64| {
                 if (s - t).abs() > 1.5 {

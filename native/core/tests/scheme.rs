@@ -167,7 +167,7 @@ fn boundary_loop(plan: &Plan, start: u32) -> Vec<u32> {
     let mut next = std::collections::HashMap::new();
     for e in 0..level.num_edges() {
         if level.is_boundary_edge(e) {
-            let c = level.edge_corners[e][0] as usize;
+            let c = level.edge_corners()[e][0] as usize;
             next.insert(level.corner_verts[c], level.corner_verts[level.next(c)]);
         }
     }
