@@ -810,7 +810,8 @@ impl Plan {
             );
             run.vertices = Cow::Owned(values);
         } else {
-            let face_of_edge = |e: u32| coarse.face_of(coarse.edge_corners()[e as usize][0] as usize);
+            let face_of_edge =
+                |e: u32| coarse.face_of(coarse.edge_corners()[e as usize][0] as usize);
             run.curve = CurveData::Dual(
                 previous
                     .curve_edges

@@ -107,10 +107,9 @@ fn dual_mesh(plan: &Plan, face_origin: &[u32]) -> Result<DualMesh> {
     for v in 0..last.num_vertices {
         let corners = last.corners_of_vertex(v);
         // Fans that start at a boundary come first; closed fans start anywhere.
-        let starts = corners
-            .iter()
-            .copied()
-            .filter(|&c| last.is_boundary_edge(last.corner_edges()[last.prev(c as usize)] as usize));
+        let starts = corners.iter().copied().filter(|&c| {
+            last.is_boundary_edge(last.corner_edges()[last.prev(c as usize)] as usize)
+        });
         let closed = corners.iter().copied();
         for start in starts.chain(closed) {
             if visited[start as usize] {
@@ -144,7 +143,9 @@ fn dual_mesh(plan: &Plan, face_origin: &[u32]) -> Result<DualMesh> {
                 sources.push(c);
             }
             if open {
-                verts.push(point_of_edge(last.corner_edges()[last.prev(fan[0] as usize)]));
+                verts.push(point_of_edge(
+                    last.corner_edges()[last.prev(fan[0] as usize)],
+                ));
                 sources.push(fan[0]);
             }
             offsets.push(verts.len() as u32);

@@ -8,7 +8,7 @@
 //! only (as OpenSubdiv's `fullTopologyInLastLevel = false`): evaluation never reads its edges,
 //! which [`Level::complete_from`] adds, in the same numbering, when something asks for them.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::OnceLock;
 
 use rayon::prelude::*;
@@ -242,7 +242,9 @@ impl Level {
         corner_verts: Vec<u32>,
     ) -> std::result::Result<Level, EdgeProblem> {
         let mut corner_faces = zeroed_hinted::<u32>(corner_verts.len());
-        fill_csr(&face_offsets, &mut corner_faces, |f, out| out.fill(f as u32));
+        fill_csr(&face_offsets, &mut corner_faces, |f, out| {
+            out.fill(f as u32)
+        });
         let (vert_corner_offsets, vert_corners) = vertex_corners(num_vertices, &corner_verts);
         let mut level = Level {
             num_vertices,
@@ -259,36 +261,58 @@ impl Level {
         Ok(level)
     }
 
+    /// The corners before and after `corner` around its face.
+    #[inline]
+    fn neighbours(&self, corner: usize) -> (usize, usize) {
+        if self.is_quads() {
+            (self.prev(corner), self.next(corner))
+        } else {
+            let r = self.face_corners(self.corner_faces[corner] as usize);
+            let prev = if corner == r.start {
+                r.end - 1
+            } else {
+                corner - 1
+            };
+            let next = if corner + 1 == r.end {
+                r.start
+            } else {
+                corner + 1
+            };
+            (prev, next)
+        }
+    }
+
     /// Calls `f` with the halves (corners) of the edges from `a` to vertices `b >= a`, as
     /// `(b, corner)` in increasing order: the corners at `a` whose next vertex is `b`, and the
     /// corners at `b` whose next vertex is `a` (the predecessors of corners at `a`).
     fn owned_halves<R>(&self, a: usize, f: impl FnOnce(&[(u32, u32)]) -> R) -> R {
         const STACK: usize = 64;
         let corners = self.corners_of_vertex(a);
+        let (mut stack, mut heap) = ([(0u32, 0u32); STACK], Vec::new());
+        let buf: &mut [(u32, u32)] = if 2 * corners.len() <= STACK {
+            &mut stack
+        } else {
+            heap.resize(2 * corners.len(), (0, 0));
+            &mut heap
+        };
         let a = a as u32;
-        let halves = corners.iter().flat_map(|&c| {
-            let c = c as usize;
-            let out_end = self.corner_verts[self.next(c)];
-            let p = self.prev(c);
-            let in_end = self.corner_verts[p];
-            let outgoing = (out_end >= a).then_some((out_end, c as u32));
-            let incoming = (in_end > a).then_some((in_end, p as u32));
-            outgoing.into_iter().chain(incoming)
-        });
-        if 2 * corners.len() <= STACK {
-            let mut buf = [(0u32, 0u32); STACK];
-            let mut n = 0;
-            for h in halves {
-                buf[n] = h;
+        let mut n = 0;
+        for &c in corners {
+            let (prev, next) = self.neighbours(c as usize);
+            let out_end = self.corner_verts[next];
+            if out_end >= a {
+                buf[n] = (out_end, c);
                 n += 1;
             }
-            buf[..n].sort_unstable();
-            f(&buf[..n])
-        } else {
-            let mut buf: Vec<(u32, u32)> = halves.collect();
-            buf.sort_unstable();
-            f(&buf)
+            let in_end = self.corner_verts[prev];
+            if in_end > a {
+                buf[n] = (in_end, prev as u32);
+                n += 1;
+            }
         }
+        let halves = &mut buf[..n];
+        halves.sort_unstable();
+        f(halves)
     }
 
     /// The edge tables of a polygon level (see [`Level::from_polygons`]).
@@ -334,28 +358,35 @@ impl Level {
         }
         let num_edges = offsets[self.num_vertices] as usize;
         let mut corners = zeroed_hinted::<[u32; 2]>(num_edges);
+        // Every corner is the half of exactly one edge, so each slot is stored once.
+        let corner_edges: Vec<AtomicU32> = gather_hinted(self.num_corners(), |_| AtomicU32::new(0));
         fill_csr(&offsets, &mut corners, |a, out| {
             self.owned_halves(a, |halves| {
-                for (slot, group) in out.iter_mut().zip(halves.chunk_by(|x, y| x.0 == y.0)) {
+                let first = offsets[a];
+                for (k, (slot, group)) in out
+                    .iter_mut()
+                    .zip(halves.chunk_by(|x, y| x.0 == y.0))
+                    .enumerate()
+                {
                     *slot = [group[0].1, group.get(1).map_or(NONE, |h| h.1)];
+                    for h in group {
+                        corner_edges[h.1 as usize].store(first + k as u32, Ordering::Relaxed);
+                    }
                 }
             })
         });
         let verts = gather_hinted(num_edges, |e| {
             let c = corners[e][0] as usize;
-            [self.corner_verts[c], self.corner_verts[self.next(c)]]
-        });
-        // Each edge is among its smaller vertex's edges, which are sorted by the larger one.
-        let corner_edges = gather_hinted(self.num_corners(), |c| {
-            let (a, b) = (self.corner_verts[c], self.corner_verts[self.next(c)]);
-            let (lo, hi) = (a.min(b), a.max(b));
-            let range = offsets[lo as usize] as usize..offsets[lo as usize + 1] as usize;
-            let other = |e: &[u32; 2]| e[0] ^ e[1] ^ lo;
-            let at = verts[range.clone()].partition_point(|e| other(e) < hi);
-            (range.start + at) as u32
+            [
+                self.corner_verts[c],
+                self.corner_verts[self.neighbours(c).1],
+            ]
         });
         Ok(Edges {
-            corner_edges,
+            corner_edges: corner_edges
+                .into_iter()
+                .map(AtomicU32::into_inner)
+                .collect(),
             verts,
             corners,
         })
@@ -684,4 +715,146 @@ pub(crate) fn fill_csr<T: Send>(
             fill(item, &mut piece[range]);
         }
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Edges the straightforward way: every half keyed by its (smaller, larger) vertex pair,
+    /// sorted, equal keys grouped; the first problem in key order is the error.
+    fn edges_by_sorting(level: &Level) -> std::result::Result<Edges, EdgeProblem> {
+        let mut halves: Vec<(u64, u32)> = (0..level.num_corners())
+            .map(|c| {
+                let (a, b) = (level.corner_verts[c], level.corner_verts[level.next(c)]);
+                (((a.min(b) as u64) << 32) | a.max(b) as u64, c as u32)
+            })
+            .collect();
+        halves.sort_unstable();
+        let mut edges = Edges {
+            corner_edges: vec![NONE; level.num_corners()],
+            ..Edges::default()
+        };
+        for group in halves.chunk_by(|x, y| x.0 == y.0) {
+            let c0 = group[0].1 as usize;
+            if group.len() > 2 {
+                return Err(EdgeProblem::NonManifold {
+                    corner: c0,
+                    faces: group.len(),
+                });
+            }
+            let c1 = group.get(1).map_or(NONE, |h| h.1);
+            if c1 != NONE && level.corner_verts[c1 as usize] == level.corner_verts[c0] {
+                return Err(EdgeProblem::Orientation {
+                    corners: [c0, c1 as usize],
+                });
+            }
+            for h in group {
+                edges.corner_edges[h.1 as usize] = edges.verts.len() as u32;
+            }
+            let ends = [level.corner_verts[c0], level.corner_verts[level.next(c0)]];
+            edges.verts.push(ends);
+            edges.corners.push([c0 as u32, c1]);
+        }
+        Ok(edges)
+    }
+
+    fn same_edges(a: &Edges, b: &Edges) -> bool {
+        a.corner_edges == b.corner_edges && a.verts == b.verts && a.corners == b.corners
+    }
+
+    /// Faces of 3 to 6 distinct vertices out of `vertices`, sometimes taken from a closed or open
+    /// grid (manifold), sometimes random (often non-manifold or inconsistently oriented).
+    fn polygons() -> impl Strategy<Value = (usize, Vec<u32>, Vec<u32>)> {
+        (4usize..40, 1usize..30, any::<u64>()).prop_map(|(vertices, faces, seed)| {
+            let mut state = seed | 1;
+            let mut next = move |n: usize| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                (state % n as u64) as u32
+            };
+            let mut offsets = vec![0u32];
+            let mut verts = Vec::new();
+            if seed % 2 == 0 {
+                // A (w x h) grid of quads, wrapped in one direction when seed % 4 == 0.
+                let (w, h) = (2 + next(5) as usize, 2 + next(5) as usize);
+                let wrap = seed % 4 == 0;
+                let cols = if wrap { w } else { w + 1 };
+                let id = |i: usize, j: usize| (j * cols + i % cols) as u32;
+                for j in 0..h {
+                    for i in 0..w {
+                        verts.extend([id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)]);
+                        offsets.push(verts.len() as u32);
+                    }
+                }
+                let used = cols * (h + 1);
+                return (used, offsets, verts);
+            }
+            for _ in 0..faces {
+                let size = 3 + next(4) as usize;
+                let start = verts.len();
+                while verts.len() - start < size.min(vertices) {
+                    let v = next(vertices);
+                    if !verts[start..].contains(&v) {
+                        verts.push(v);
+                    }
+                }
+                offsets.push(verts.len() as u32);
+            }
+            // Renumber so that every vertex is used.
+            let mut map = vec![NONE; vertices];
+            let mut used = 0;
+            for v in &mut verts {
+                if map[*v as usize] == NONE {
+                    map[*v as usize] = used;
+                    used += 1;
+                }
+                *v = map[*v as usize];
+            }
+            (used as usize, offsets, verts)
+        })
+    }
+
+    proptest! {
+        /// The per-vertex edge finder numbers edges, orders their corners and reports the first
+        /// problem exactly as sorting all halves does.
+        #[test]
+        fn edges_match_sorting((vertices, offsets, verts) in polygons()) {
+            let bare = Level {
+                num_vertices: vertices,
+                corner_faces: (0..offsets.len() - 1)
+                    .flat_map(|f| {
+                        std::iter::repeat_n(f as u32, (offsets[f + 1] - offsets[f]) as usize)
+                    })
+                    .collect(),
+                face_offsets: offsets.clone(),
+                corner_verts: verts.clone(),
+                ..Level::default()
+            };
+            let expected = edges_by_sorting(&bare);
+            match (Level::from_polygons(vertices, offsets, verts), expected) {
+                (Ok(level), Ok(edges)) => {
+                    prop_assert!(same_edges(level.edges(), &edges));
+                    // A faces-only child completed later equals the full refinement.
+                    let (full, faces_only) = (level.refine(), level.refine_faces());
+                    prop_assert!(!faces_only.has_edges());
+                    faces_only.complete_from(&level);
+                    prop_assert_eq!(&faces_only.corner_verts, &full.corner_verts);
+                    prop_assert_eq!(faces_only.num_edges(), full.num_edges());
+                    prop_assert!(same_edges(faces_only.edges(), full.edges()));
+                    let grand = full.refine();
+                    prop_assert_eq!(grand.num_edges(), grand.edge_verts().len());
+                }
+                (Err(found), Err(problem)) => prop_assert_eq!(found, problem),
+                (found, expected) => prop_assert!(
+                    false,
+                    "found {:?}, expected {:?}",
+                    found.map(|_| ()),
+                    expected.map(|_| ())
+                ),
+            }
+        }
+    }
 }
