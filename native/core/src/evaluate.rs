@@ -22,7 +22,7 @@ use rayon::prelude::*;
 use crate::classic;
 use crate::error::Result;
 use crate::mesh::check_values;
-use crate::plan::{CurveVertex, Plan, Rules, Step};
+use crate::plan::{in_pool, CurveVertex, Plan, Rules, Step};
 use crate::topology::{with_capacity_hinted, Level, CHUNK, NONE};
 
 /// Floating-point types that points and attributes can be given in: `f32` and `f64`.
@@ -723,13 +723,13 @@ impl Plan {
     /// in the user's numbering) and returns the values at the output vertices, interleaved.
     pub fn evaluate<T: Scalar>(&self, values: &[T], channels: usize) -> Result<Vec<T>> {
         check_values(values, channels, self.num_input_vertices())?;
-        Ok(match channels {
+        Ok(in_pool(|| match channels {
             1 => self.evaluate_n::<T, 1>(values),
             2 => self.evaluate_n::<T, 2>(values),
             3 => self.evaluate_n::<T, 3>(values),
             4 => self.evaluate_n::<T, 4>(values),
             _ => in_groups_of_four(values, channels, |group| self.evaluate_n::<T, 4>(&group)),
-        })
+        }))
     }
 
     fn evaluate_n<T: Scalar, const N: usize>(&self, values: &[T]) -> Vec<T> {

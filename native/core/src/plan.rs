@@ -195,6 +195,10 @@ impl Plan {
     /// Builds the plan: validates the cage topology and the options, checks the memory budget,
     /// then refines the topology level by level and lays out the curve networks.
     pub fn new(cage: &Cage, options: &Options) -> Result<Plan> {
+        in_pool(|| Plan::build(cage, options))
+    }
+
+    fn build(cage: &Cage, options: &Options) -> Result<Plan> {
         let est = estimate(cage, options)?;
         if est.bytes > options.memory_budget {
             return Err(Error::MemoryBudget {
@@ -297,7 +301,12 @@ impl Plan {
             // dual output is built from them.
             let coarse = &levels[j as usize];
             let fine = if j + 1 == options.levels && options.output == OutputKind::Primal {
-                coarse.refine_faces()
+                let fine = coarse.refine_faces();
+                if !(options.rules == Rules::Classic && options.degree == 3) {
+                    // The averaging passes read it at every level.
+                    fine.index_vertex_corners_from(coarse);
+                }
+                fine
             } else {
                 coarse.refine()
             };
@@ -399,6 +408,17 @@ impl Plan {
     /// True when the output is the true dual mesh.
     pub(crate) fn wants_dual(&self) -> bool {
         self.options.output == OutputKind::Dual && !self.steps.is_empty()
+    }
+}
+
+/// Runs `work` on a thread of rayon's pool. A run of many short parallel loops started from
+/// outside the pool hands every loop to the pool and waits for it (two thread wake-ups per
+/// loop); started from inside, the loops split and join there.
+pub(crate) fn in_pool<R: Send>(work: impl FnOnce() -> R + Send) -> R {
+    if rayon::current_thread_index().is_some() {
+        work()
+    } else {
+        rayon::scope(|_| work())
     }
 }
 

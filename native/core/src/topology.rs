@@ -133,6 +133,16 @@ impl Level {
         self.edges.get_or_init(|| parent.child_edges());
     }
 
+    /// Builds, in parallel from the parent, the vertex -> corner table that
+    /// [`Level::corners_of_vertex`] would build on first use on a level made by
+    /// `parent.refine_faces()` (the same table; nothing if it is there).
+    pub fn index_vertex_corners_from(&self, parent: &Level) {
+        if self.vert_corner_offsets.is_empty() {
+            self.lazy_vertex_corners
+                .get_or_init(|| parent.child_vertex_corners(self.num_vertices, true));
+        }
+    }
+
     /// A quad level from its tables (the adaptive partial levels).
     pub fn from_quad_tables(
         num_vertices: usize,
@@ -432,7 +442,7 @@ impl Level {
     pub fn refine(&self) -> Level {
         let child = self.refine_faces();
         child.complete_from(self);
-        let (offsets, vert_corners) = self.child_vertex_corners(child.num_vertices);
+        let (offsets, vert_corners) = self.child_vertex_corners(child.num_vertices, false);
         Level {
             vert_corner_offsets: offsets,
             vert_corners,
@@ -533,8 +543,10 @@ impl Level {
     }
 
     /// Vertex -> corners of the child level: an old vertex keeps one corner per old corner, an
-    /// edge point has two per incident face, a face point one per corner of its face.
-    fn child_vertex_corners(&self, new_vertices: usize) -> (Vec<u32>, Vec<u32>) {
+    /// edge point has two per incident face, a face point one per corner of its face; in
+    /// increasing order of corner when `increasing` (the order of [`Level::corners_of_vertex`]'s
+    /// table built on first use).
+    fn child_vertex_corners(&self, new_vertices: usize, increasing: bool) -> (Vec<u32>, Vec<u32>) {
         let (nv, ne) = (self.num_vertices, self.num_edges());
         let offsets = prefix_offsets(new_vertices, |w| {
             if w < nv {
@@ -568,6 +580,9 @@ impl Level {
                 for (o, c) in out.iter_mut().zip(self.face_corners(w - nv - ne)) {
                     *o = 4 * c as u32 + 2;
                 }
+            }
+            if increasing {
+                out.sort_unstable();
             }
         });
         (offsets, vert_corners)
@@ -841,6 +856,15 @@ mod tests {
                     let (full, faces_only) = (level.refine(), level.refine_faces());
                     prop_assert!(!faces_only.has_edges());
                     faces_only.complete_from(&level);
+                    // The vertex -> corner table built from the parent equals the counting sort.
+                    let indexed = level.refine_faces();
+                    indexed.index_vertex_corners_from(&level);
+                    let sorted = vertex_corners(full.num_vertices, &full.corner_verts);
+                    for v in 0..full.num_vertices {
+                        let expected = &sorted.1[sorted.0[v] as usize..sorted.0[v + 1] as usize];
+                        prop_assert_eq!(indexed.corners_of_vertex(v), expected);
+                        prop_assert_eq!(faces_only.corners_of_vertex(v), expected);
+                    }
                     prop_assert_eq!(&faces_only.corner_verts, &full.corner_verts);
                     prop_assert_eq!(faces_only.num_edges(), full.num_edges());
                     prop_assert!(same_edges(faces_only.edges(), full.edges()));
