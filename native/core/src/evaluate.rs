@@ -4,9 +4,9 @@
 //! Every pass is a parallel gather in a fixed order, so the output is bitwise the same whatever
 //! the number of threads.
 //!
-//! Performance notes: a step over a quad level runs its replication and first two averages as
-//! one pass over the coarse faces (nothing of the first average is stored), on primal and on
-//! dual data; the other passes gather through the coarse level's tables. The two working buffers are sized for
+//! Performance notes: a step on primal data over a quad level runs its replication and first
+//! two averages as one pass over the coarse faces (nothing of the first average is stored); the
+//! other passes gather through the coarse level's tables. The two working buffers are sized for
 //! the last level once, hinted to use huge pages, and kept in the plan between evaluations
 //! ([`Plan::release_buffers`] frees them), so that a cached re-evaluation pays page faults only
 //! for the array it returns.
@@ -315,15 +315,13 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
         self.finish_primal(out, step);
     }
 
-    /// Replication, the first dual -> primal and the first primal -> dual average of a step on a
-    /// quad level, in one pass over the coarse faces: each computes the nine child points of its
-    /// face in closed form (as [`Run::first_average`]; never stored) and the centroids of its
-    /// four child faces. Faces next to curve vertices use the blended points. The result is
-    /// bitwise that of the separate passes. Primal data (odd degrees) writes into the free face
-    /// buffer; dual data (even degrees) reads the face buffer and writes into the vertex buffer,
-    /// which then swap.
+    /// Replication, the first dual -> primal and the first primal -> dual average of a step whose
+    /// data is primal on a quad level, in one pass over the coarse faces: each computes the
+    /// nine child points of its face in closed form (as [`Run::first_average`], never stored)
+    /// and the centroids of its four child faces. Faces next to curve vertices use the blended
+    /// points. The result is bitwise that of the separate passes.
     fn first_average_to_dual(&mut self, coarse: &Level, fine: &Level, step: &Step) {
-        debug_assert!(coarse.is_quads());
+        debug_assert!(self.primal && coarse.is_quads());
         self.replicate_curves(step);
         let curve = self.curve_to_primal(step);
         let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
@@ -353,22 +351,16 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
             }
         }
         let n = fine.num_faces();
-        let primal = self.primal;
-        let mut out = if primal {
-            match std::mem::take(&mut self.faces) {
-                f if f.capacity() == 0 => self.fresh(),
-                f => f,
-            }
-        } else {
-            self.take_vertices()
+        let mut out = match std::mem::take(&mut self.faces) {
+            f if f.capacity() == 0 => self.fresh(),
+            f => f,
         };
         if out.len() < n {
             // Written in parallel, so that a new buffer's pages are touched by both threads.
             gather_into(&mut out, n, |_| zero());
         }
         out.truncate(n);
-        let (v, d) = (&self.vertices, &self.faces);
-        let (corner_edges, edge_corners) = (coarse.corner_edges(), coarse.edge_corners());
+        let v = &self.vertices;
         let half = T::from_f64(0.5);
         let quarter = T::from_f64(0.25);
         let blended = |w: usize, mut p: Value<T, N>| -> Value<T, N> {
@@ -380,46 +372,27 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
             }
             p
         };
-        // The nine child points of face f: old vertices, edge points of each corner's outgoing
-        // edge, face point.
-        let child_points = |f: usize,
-                            q: &[u32]|
-         -> ([Value<T, N>; 4], [Value<T, N>; 4], Value<T, N>) {
-            if primal {
-                let p: [Value<T, N>; 4] = std::array::from_fn(|k| v[q[k] as usize]);
-                let centre = scale(p.iter().fold(zero(), |s, &x| add(s, x)), reciprocal(4));
-                let m = std::array::from_fn(|k| scale(add(p[k], p[(k + 1) & 3]), half));
-                (p, m, centre)
-            } else {
-                let p = std::array::from_fn(|k| {
-                    let corners = coarse.corners_of_vertex(q[k] as usize);
-                    let sum = corners
-                        .iter()
-                        .fold(zero(), |s, &c| add(s, d[coarse.face_of(c as usize)]));
-                    scale(sum, reciprocal(corners.len()))
-                });
-                let m =
-                    std::array::from_fn(|k| match edge_corners[corner_edges[4 * f + k] as usize] {
-                        [c, NONE] => d[coarse.face_of(c as usize)],
-                        [c, e] => scale(
-                            add(d[coarse.face_of(c as usize)], d[coarse.face_of(e as usize)]),
-                            half,
-                        ),
-                    });
-                (p, m, d[f])
-            }
-        };
         out.par_chunks_mut(4 * CHUNK)
             .enumerate()
             .for_each(|(chunk, faces)| {
                 for (i, quad) in faces.chunks_exact_mut(4).enumerate() {
                     let f = chunk * CHUNK + i;
                     let q = &coarse.corner_verts[4 * f..4 * f + 4];
-                    let (mut p, mut m, mut centre) = child_points(f, q);
+                    let mut p = [
+                        v[q[0] as usize],
+                        v[q[1] as usize],
+                        v[q[2] as usize],
+                        v[q[3] as usize],
+                    ];
+                    let centre = scale(p.iter().fold(zero(), |s, &x| add(s, x)), reciprocal(4));
+                    // m[k]: the edge point of corner k's outgoing edge.
+                    let mut m: [Value<T, N>; 4] =
+                        std::array::from_fn(|k| scale(add(p[k], p[(k + 1) & 3]), half));
+                    let mut centre = centre;
                     if touched.get(f).copied().unwrap_or(false) {
                         for k in 0..4 {
                             p[k] = blended(q[k] as usize, p[k]);
-                            let e = corner_edges[4 * f + k] as usize;
+                            let e = coarse.corner_edges()[4 * f + k] as usize;
                             m[k] = blended(nv + e, m[k]);
                         }
                         centre = blended(nv + ne + f, centre);
@@ -430,12 +403,7 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
                     }
                 }
             });
-        if primal {
-            self.faces = out;
-        } else {
-            // The coarse face data is spent: its buffer serves the next primal data.
-            self.vertices = Cow::Owned(std::mem::replace(&mut self.faces, out));
-        }
+        self.faces = out;
         self.curve = CurveData::Dual(curve_to_dual(step, &curve));
         self.primal = false;
     }
@@ -501,7 +469,7 @@ impl<'a, T: Scalar, const N: usize> Run<'a, T, N> {
 
     /// One full step `coarse -> fine` of the given degree: replicate, then `degree` averages.
     fn step(&mut self, coarse: &Level, fine: &Level, step: &Step, degree: u32) {
-        let first = if degree >= 2 && coarse.is_quads() {
+        let first = if self.primal && degree >= 2 && coarse.is_quads() {
             self.first_average_to_dual(coarse, fine, step);
             3
         } else {
