@@ -73,6 +73,17 @@ def test_limit_refusals() -> None:
     assert bidegree.Plan(torus(), degree=4, levels=1).limit_extra_levels == 0
 
 
+def test_subdivide_to_the_limit_still_validates_the_geometry() -> None:
+    # With limit=True the plain refinement is skipped, not the checks of the points.
+    bad = cube().points.copy()
+    bad[3, 2] = np.nan
+    mesh = bidegree.Mesh(bad, face_sizes=cube().face_sizes, face_indices=cube().face_indices)
+    for normals in (False, True):
+        with pytest.raises(bidegree.NonFiniteError) as info:
+            bidegree.subdivide(mesh, degree=4, levels=1, limit=True, normals=normals)
+        assert info.value.vertex == 3
+
+
 def test_usd_carries_face_varying_limit_normals(tmp_path: Path) -> None:
     pxr = pytest.importorskip("pxr")
     from bidegree import usd

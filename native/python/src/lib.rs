@@ -715,25 +715,33 @@ fn evaluate_fresh<'py, T: Scalar + Element>(
     cage: &Cage,
     points: &PyReadonlyArray2<'_, T>,
     options: Options,
-) -> PyResult<(PyPlan, Bound<'py, PyAny>)> {
+    evaluate: bool,
+) -> PyResult<(PyPlan, Option<Bound<'py, PyAny>>)> {
     let channels = points.shape()[1];
     let data = contiguous(points, "points")?;
     let (plan, out) = run(py, || {
         if channels == 0 {
             return Err(invalid("points need at least one channel"));
         }
-        bidegree::subdivide(cage, data, channels, &options)
+        if evaluate {
+            let (plan, out) = bidegree::subdivide(cage, data, channels, &options)?;
+            return Ok((plan, Some(out)));
+        }
+        bidegree::mesh::validate_geometry(cage, data, channels)?;
+        Ok((Plan::new(cage, &options)?, None))
     })?;
-    Ok((
-        PyPlan { inner: plan },
-        array2(py, out, channels)?.into_any(),
-    ))
+    let out = match out {
+        Some(out) => Some(array2(py, out, channels)?.into_any()),
+        None => None,
+    };
+    Ok((PyPlan { inner: plan }, out))
 }
 
-/// Validates the geometry, builds the plan and evaluates the points in one call.
+/// Validates the geometry, builds the plan and (with `evaluate`) evaluates the points in one
+/// call; without `evaluate` the points are `None` (a caller that wants limit positions only).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (cage, points, degree, levels, output, boundary, memory_budget=None, rules="averaging", creasing="uniform"))]
+#[pyo3(signature = (cage, points, degree, levels, output, boundary, memory_budget=None, rules="averaging", creasing="uniform", evaluate=true))]
 fn subdivide<'py>(
     py: Python<'py>,
     cage: &Bound<'py, PyCage>,
@@ -745,7 +753,8 @@ fn subdivide<'py>(
     memory_budget: Option<u64>,
     rules: &str,
     creasing: &str,
-) -> PyResult<(PyPlan, Bound<'py, PyAny>)> {
+    evaluate: bool,
+) -> PyResult<(PyPlan, Option<Bound<'py, PyAny>>)> {
     let cage = &cage.get().inner;
     let options = options(
         degree,
@@ -758,8 +767,8 @@ fn subdivide<'py>(
     )
     .map_err(|e| to_py_err(py, e))?;
     match floats(points, "points")? {
-        Floats::F32(a) => evaluate_fresh(py, cage, &a, options),
-        Floats::F64(a) => evaluate_fresh(py, cage, &a, options),
+        Floats::F32(a) => evaluate_fresh(py, cage, &a, options, evaluate),
+        Floats::F64(a) => evaluate_fresh(py, cage, &a, options, evaluate),
     }
 }
 

@@ -862,6 +862,7 @@ def subdivide(
         _budget(memory_budget),
         _choice(rules, _RULES, "rules"),
         _choice(creasing, _CREASING, "creasing"),
+        evaluate=not limit,
     )
     plan = Plan._wrap(mesh, native)
     _warn_isolated(plan.isolated_vertices, stacklevel=2)

@@ -110,7 +110,8 @@ def subdivide(
     memory_budget: int | None = None,
     rules: str = "averaging",
     creasing: str = "uniform",
-) -> tuple[Plan, Any]: ...
+    evaluate: bool = True,
+) -> tuple[Plan, Any | None]: ...
 def estimate(
     cage: Cage, degree: int, levels: int, output: str = "primal", boundary: str = "edge-only"
 ) -> tuple[int, int, int]: ...
