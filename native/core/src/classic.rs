@@ -420,7 +420,8 @@ impl Catmark {
             }
         }
         if !(next.edges.is_empty() && next.vertices.is_empty()) {
-            // The rules need the edges at each vertex (a plan's last level has none yet).
+            // The rules need the edges at each vertex (a plan's last level has no edge or
+            // vertex -> corner tables yet).
             fine.complete_from(coarse);
         }
         next.classify(fine);

@@ -357,8 +357,8 @@ impl Plan {
         &self.isolated
     }
 
-    /// The refined levels `M_0..M_L`, every table built (the last level's edge tables are added
-    /// on the first call).
+    /// The refined levels `M_0..M_L`, every table built (the last level's edge and vertex ->
+    /// corner tables are added on the first call).
     pub fn levels(&self) -> &[Level] {
         if let [.., parent, last] = self.levels.as_slice() {
             last.complete_from(parent);

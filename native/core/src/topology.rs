@@ -127,9 +127,16 @@ impl Level {
         self.edges.get().is_some()
     }
 
-    /// Adds the edge tables of a level built by `parent.refine_faces()` (numbered exactly as
-    /// [`Level::refine`] numbers them); nothing if they are there.
+    /// Completes a level built by `parent.refine_faces()`: its edge tables (numbered exactly as
+    /// [`Level::refine`] numbers them) and its vertex -> corner table (as
+    /// [`Level::index_vertex_corners_from`]); nothing that is there is built again.
     pub fn complete_from(&self, parent: &Level) {
+        self.add_edges_from(parent);
+        self.index_vertex_corners_from(parent);
+    }
+
+    /// The edge tables of [`Level::complete_from`] alone.
+    fn add_edges_from(&self, parent: &Level) {
         self.edges.get_or_init(|| parent.child_edges());
     }
 
@@ -441,7 +448,7 @@ impl Level {
     /// vertex), `2E + c` joins the edge point of `c`'s outgoing edge to the face point.
     pub fn refine(&self) -> Level {
         let child = self.refine_faces();
-        child.complete_from(self);
+        child.add_edges_from(self);
         let (offsets, vert_corners) = self.child_vertex_corners(child.num_vertices, false);
         Level {
             vert_corner_offsets: offsets,
