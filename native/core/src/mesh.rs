@@ -101,17 +101,19 @@ impl Cage {
             )));
         }
         let mut verts = Vec::with_capacity(face_vertices.len());
+        // The last face each vertex was seen in (linear in the corners, whatever the face sizes).
+        let mut seen_in = vec![u32::MAX; num_vertices];
         for face in 0..face_sizes.len() {
             let range = face_offsets[face] as usize..face_offsets[face + 1] as usize;
-            let start = verts.len();
             for &index in &face_vertices[range] {
                 let v = check_index(|| format!("face {face}"), index, num_vertices)?;
-                if verts[start..].contains(&v) {
+                if seen_in[v as usize] == face as u32 {
                     return Err(Error::RepeatedVertex {
                         face,
                         vertex: v as usize,
                     });
                 }
+                seen_in[v as usize] = face as u32;
                 verts.push(v);
             }
         }

@@ -27,6 +27,26 @@ fn topology_errors_name_the_offender() {
         err(Cage::from_indices(4, &[3, 3], &[0, 1, 2, 2, 3, 2])),
         Error::RepeatedVertex { face: 1, vertex: 2 }
     );
+    // A vertex may come back in a later face, not in its own: also in a very large polygon,
+    // whose check is linear in its size.
+    let n = 200_000;
+    let big: Vec<i64> = (0..n).collect();
+    let big_cage = Cage::from_indices(n as usize, &[n], &big).unwrap();
+    assert_eq!(big_cage.num_faces(), 1);
+    let mut repeated = big.clone();
+    repeated[n as usize - 1] = 7;
+    assert_eq!(
+        err(Cage::from_indices(
+            n as usize,
+            &[3, n],
+            &[7, 8, 9]
+                .iter()
+                .copied()
+                .chain(repeated)
+                .collect::<Vec<_>>()
+        )),
+        Error::RepeatedVertex { face: 1, vertex: 7 }
+    );
     assert!(matches!(
         err(Cage::from_indices(3, &[3], &[0, 1, 3])),
         Error::IndexOutOfRange { index: 3, .. }
