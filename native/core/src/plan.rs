@@ -366,8 +366,8 @@ impl Plan {
         &self.levels
     }
 
-    /// The levels as built: the last one may still lack its edge tables, which evaluation does
-    /// not read.
+    /// The levels as built: the last one may still lack its edge tables (and, for the classic
+    /// rules, its vertex -> corner table), which evaluation does not read.
     pub(crate) fn levels_as_built(&self) -> &[Level] {
         &self.levels
     }
