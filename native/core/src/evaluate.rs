@@ -570,6 +570,21 @@ pub(crate) fn blend_weight<T: Scalar, const N: usize>(
     }
 }
 
+/// Fills `out`, rows of `row` values, with `fill(i, row_i)` in parallel chunks of rows (each
+/// row written by one task, whatever the number of threads).
+fn fill_rows<T: Send>(out: &mut [T], row: usize, fill: impl Fn(usize, &mut [T]) + Sync) {
+    if row == 0 {
+        return;
+    }
+    out.par_chunks_mut(row * CHUNK)
+        .enumerate()
+        .for_each(|(chunk, rows)| {
+            for (i, values) in rows.chunks_exact_mut(row).enumerate() {
+                fill(chunk * CHUNK + i, values);
+            }
+        });
+}
+
 /// `out[i] = f(i)` for `i < n`, in parallel chunks.
 pub(crate) fn gather<V: Send, F: Fn(usize) -> V + Sync + Send>(n: usize, f: F) -> Vec<V> {
     let mut out = Vec::new();
@@ -751,34 +766,42 @@ impl Plan {
     ) -> Result<Vec<T>> {
         let levels = self.levels_as_built();
         check_values(values, channels, levels[0].num_corners())?;
-        let mut current: Vec<T> = values.to_vec();
         let half = T::from_f64(0.5);
-        for level in &levels[..levels.len() - 1] {
-            let centers: Vec<Vec<T>> = gather(level.num_faces(), |f| {
-                let corners = level.face_corners(f);
-                let w = reciprocal::<T>(corners.len());
-                (0..channels)
-                    .map(|k| {
-                        corners
+        let current = in_pool(|| {
+            let mut current: Vec<T> = values.to_vec();
+            for level in &levels[..levels.len() - 1] {
+                let mut centres = vec![T::default(); level.num_faces() * channels];
+                fill_rows(&mut centres, channels, |f, centre| {
+                    let corners = level.face_corners(f);
+                    let w = reciprocal::<T>(corners.len());
+                    for (k, out) in centre.iter_mut().enumerate() {
+                        let sum = corners
                             .clone()
-                            .fold(T::default(), |s, c| s + current[c * channels + k])
-                            * w
-                    })
-                    .collect()
-            });
-            let next: Vec<Vec<T>> = gather(level.num_corners(), |c| {
-                let at = |c: usize, k: usize| current[c * channels + k];
-                let (n, p) = (level.next(c), level.prev(c));
-                let center = &centers[level.face_of(c)];
-                let mut quad = Vec::with_capacity(4 * channels);
-                quad.extend((0..channels).map(|k| at(c, k)));
-                quad.extend((0..channels).map(|k| (at(c, k) + at(n, k)) * half));
-                quad.extend_from_slice(center);
-                quad.extend((0..channels).map(|k| (at(p, k) + at(c, k)) * half));
-                quad
-            });
-            current = next.concat();
-        }
+                            .fold(T::default(), |s, c| s + current[c * channels + k]);
+                        *out = sum * w;
+                    }
+                });
+                // Corner c of this level becomes the quad c, midpoint(c, next), centre,
+                // midpoint(prev, c) of the next one.
+                let mut next = vec![T::default(); 4 * level.num_corners() * channels];
+                fill_rows(&mut next, 4 * channels, |c, quad| {
+                    let at = |c: usize, k: usize| current[c * channels + k];
+                    let (n, p) = (level.next(c), level.prev(c));
+                    let centre = &centres[level.face_of(c) * channels..][..channels];
+                    let (own, rest) = quad.split_at_mut(channels);
+                    let (to_next, rest) = rest.split_at_mut(channels);
+                    let (middle, from_prev) = rest.split_at_mut(channels);
+                    for k in 0..channels {
+                        own[k] = at(c, k);
+                        to_next[k] = (at(c, k) + at(n, k)) * half;
+                        middle[k] = centre[k];
+                        from_prev[k] = (at(p, k) + at(c, k)) * half;
+                    }
+                });
+                current = next;
+            }
+            current
+        });
         Ok(self.face_varying_output(current, channels))
     }
 }

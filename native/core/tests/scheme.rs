@@ -391,3 +391,52 @@ fn bitwise_identical_for_any_thread_count() {
         }
     }
 }
+
+/// Face-varying values are interpolated linearly: values that are one per vertex, repeated at
+/// each of its corners, come out as the bilinear (degree 1) refinement of those vertex values,
+/// on triangles, quads and a pentagon, across boundaries, for 1 to 5 channels.
+#[test]
+fn face_varying_values_are_the_bilinear_refinement() {
+    let mixed = cage(
+        8,
+        &[
+            vec![0, 1, 2, 3, 4],
+            vec![1, 5, 6, 2],
+            vec![2, 6, 7],
+            vec![2, 7, 3],
+        ],
+    );
+    let (grid_cage, _) = grid(3, 2);
+    let (cube_cage, _) = cube();
+    for cage in [mixed, grid_cage, cube_cage] {
+        for channels in 1..=5 {
+            let mut r = Random(channels as u64);
+            let per_vertex: Vec<f64> = (0..cage.num_vertices() * channels)
+                .map(|_| r.next())
+                .collect();
+            let per_corner: Vec<f64> = cage
+                .face_vertices()
+                .iter()
+                .flat_map(|&v| per_vertex[v as usize * channels..][..channels].to_vec())
+                .collect();
+            for levels in 0..=3 {
+                let bilinear = plan(&cage, 1, levels);
+                let at_vertices = bilinear.evaluate(&per_vertex, channels).unwrap();
+                let at_corners = plan(&cage, 4, levels)
+                    .evaluate_face_varying(&per_corner, channels)
+                    .unwrap();
+                let corners = bilinear.output_face_vertices();
+                assert_eq!(at_corners.len(), corners.len() * channels);
+                for (c, &v) in corners.iter().enumerate() {
+                    for k in 0..channels {
+                        let (fv, vv) = (
+                            at_corners[c * channels + k],
+                            at_vertices[v as usize * channels + k],
+                        );
+                        assert!((fv - vv).abs() < 1e-12, "corner {c}: {fv} vs {vv}");
+                    }
+                }
+            }
+        }
+    }
+}
