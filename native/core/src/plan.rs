@@ -293,6 +293,8 @@ impl Plan {
                 previous: NONE,
             })
             .collect();
+        // Classic degree 3 evaluates through `Catmark`; every other scheme through the averages.
+        let catmark_rules = options.rules == Rules::Classic && options.degree == 3;
         let mut levels = vec![level0];
         let mut steps: Vec<Step> = Vec::with_capacity(options.levels as usize);
         for j in 0..options.levels {
@@ -302,7 +304,7 @@ impl Plan {
             let coarse = &levels[j as usize];
             let fine = if j + 1 == options.levels && options.output == OutputKind::Primal {
                 let fine = coarse.refine_faces();
-                if !(options.rules == Rules::Classic && options.degree == 3) {
+                if !catmark_rules {
                     // The averaging passes read it at every level.
                     fine.index_vertex_corners_from(coarse);
                 }
@@ -323,8 +325,8 @@ impl Plan {
             parents = next;
         }
 
-        let catmark = (options.rules == Rules::Classic && options.degree == 3)
-            .then(|| Catmark::new(&levels, &sharpness, &tags, options.creasing));
+        let catmark =
+            catmark_rules.then(|| Catmark::new(&levels, &sharpness, &tags, options.creasing));
         let mut plan = Plan {
             options: *options,
             num_input_vertices: n,

@@ -278,27 +278,6 @@ impl Level {
         Ok(level)
     }
 
-    /// The corners before and after `corner` around its face.
-    #[inline]
-    fn neighbours(&self, corner: usize) -> (usize, usize) {
-        if self.is_quads() {
-            (self.prev(corner), self.next(corner))
-        } else {
-            let r = self.face_corners(self.corner_faces[corner] as usize);
-            let prev = if corner == r.start {
-                r.end - 1
-            } else {
-                corner - 1
-            };
-            let next = if corner + 1 == r.end {
-                r.start
-            } else {
-                corner + 1
-            };
-            (prev, next)
-        }
-    }
-
     /// Calls `f` with the halves (corners) of the edges from `a` to vertices `b >= a`, as
     /// `(b, corner)` in increasing order: the corners at `a` whose next vertex is `b`, and the
     /// corners at `b` whose next vertex is `a` (the predecessors of corners at `a`).
@@ -315,7 +294,7 @@ impl Level {
         let a = a as u32;
         let mut n = 0;
         for &c in corners {
-            let (prev, next) = self.neighbours(c as usize);
+            let (prev, next) = (self.prev(c as usize), self.next(c as usize));
             let out_end = self.corner_verts[next];
             if out_end >= a {
                 buf[n] = (out_end, c);
@@ -334,31 +313,25 @@ impl Level {
 
     /// The edge tables of a polygon level (see [`Level::from_polygons`]).
     fn find_edges(&self) -> std::result::Result<Edges, EdgeProblem> {
-        let problem = |a: usize| {
-            self.owned_halves(a, |halves| {
-                halves.chunk_by(|x, y| x.0 == y.0).find_map(|group| {
-                    let c0 = group[0].1 as usize;
-                    if group.len() > 2 {
-                        return Some(EdgeProblem::NonManifold {
-                            corner: c0,
-                            faces: group.len(),
-                        });
-                    }
-                    let c1 = group.get(1).map(|h| h.1 as usize)?;
-                    (self.corner_verts[c0] == self.corner_verts[c1])
-                        .then_some(EdgeProblem::Orientation { corners: [c0, c1] })
-                })
-            })
+        // The halves of one edge (sorted by corner): more than two, or two the same way round.
+        let edge_problem = |group: &[(u32, u32)]| {
+            let c0 = group[0].1 as usize;
+            if group.len() > 2 {
+                return Some(EdgeProblem::NonManifold {
+                    corner: c0,
+                    faces: group.len(),
+                });
+            }
+            let c1 = group.get(1).map(|h| h.1 as usize)?;
+            (self.corner_verts[c0] == self.corner_verts[c1])
+                .then_some(EdgeProblem::Orientation { corners: [c0, c1] })
         };
         let bad = AtomicBool::new(false);
         let offsets = prefix_offsets(self.num_vertices, |a| {
             self.owned_halves(a, |halves| {
                 let mut count = 0;
                 for group in halves.chunk_by(|x, y| x.0 == y.0) {
-                    let same_way = group.len() == 2
-                        && self.corner_verts[group[0].1 as usize]
-                            == self.corner_verts[group[1].1 as usize];
-                    if group.len() > 2 || same_way {
+                    if edge_problem(group).is_some() {
                         bad.store(true, Ordering::Relaxed);
                     }
                     count += 1;
@@ -369,7 +342,11 @@ impl Level {
         if bad.into_inner() {
             let first = (0..self.num_vertices)
                 .into_par_iter()
-                .find_map_first(problem)
+                .find_map_first(|a| {
+                    self.owned_halves(a, |halves| {
+                        halves.chunk_by(|x, y| x.0 == y.0).find_map(edge_problem)
+                    })
+                })
                 .expect("a vertex with a problem edge");
             return Err(first);
         }
@@ -394,10 +371,7 @@ impl Level {
         });
         let verts = gather_hinted(num_edges, |e| {
             let c = corners[e][0] as usize;
-            [
-                self.corner_verts[c],
-                self.corner_verts[self.neighbours(c).1],
-            ]
+            [self.corner_verts[c], self.corner_verts[self.next(c)]]
         });
         Ok(Edges {
             corner_edges: corner_edges
@@ -464,17 +438,12 @@ impl Level {
     pub fn refine_faces(&self) -> Level {
         let nv = self.num_vertices as u32;
         let ne = self.num_edges() as u32;
-        let (corner_edges, quads) = (self.corner_edges(), self.is_quads());
+        let corner_edges = self.corner_edges();
         let corner_verts = gather_hinted(self.num_corners(), |c| {
-            let f = if quads {
-                c >> 2
-            } else {
-                self.corner_faces[c] as usize
-            };
             [
                 self.corner_verts[c],
                 nv + corner_edges[c],
-                nv + ne + f as u32,
+                nv + ne + self.face_of(c) as u32,
                 nv + corner_edges[self.prev(c)],
             ]
         });
