@@ -75,12 +75,15 @@
 use std::collections::{HashMap, HashSet};
 use std::hash::{BuildHasherDefault, Hasher};
 
+use crate::curves::{CageFeatures, Curve, CurveNetwork};
 use crate::error::{Error, Result};
-use crate::evaluate::{add, blend_weight, gather, reciprocal, scale, Scalar};
 use crate::mesh::{validate_geometry, Cage};
-use crate::plan::{old_curve_vertices, Boundary, Options, Plan};
+use crate::options::{check_degree, check_levels, Boundary, Options, DEFAULT_MEMORY_BUDGET};
+use crate::refinement::Refinement;
+use crate::scalar::Scalar;
+use crate::scheme::Scheme;
+use crate::step::{LevelData, Step};
 use crate::topology::{Edges, Level, NONE};
-use crate::{DEFAULT_MEMORY_BUDGET, INFINITELY_SHARP, MAX_DEGREE, MAX_LEVELS};
 
 /// Hasher of uniform ids (u64 keys): one multiply and a fold, plenty for ids that are spread
 /// over the whole range anyway. Iteration order never reaches a result (sets are sorted first).
@@ -177,11 +180,15 @@ struct Part<T> {
     edge_uid: Vec<u64>,
     /// Per edge: a boundary edge of the uniform level.
     boundary: Vec<bool>,
-    /// Per edge: its sharpness as a curve edge of the step from this level (0: no curve).
-    sharp: Vec<f32>,
+    /// The curve edges of the step from this level, with their sharpness.
+    curves: Vec<Curve>,
+    /// The curve network of the step that made this level, restricted to it (`None` at
+    /// level 0).
+    network: Option<CurveNetwork>,
     /// Scheme data: per vertex (odd degree) or per face (even degree); the cage at level 0.
     data: Vec<P<T>>,
-    /// 1-D curve data of the step that made this level: per vertex (odd) or per edge (even).
+    /// 1-D curve data of the step that made this level: per curve vertex (odd) or curve edge
+    /// (even) of `network`.
     curve: Vec<P<T>>,
     /// Drawing points per vertex (empty at level 0).
     points: Vec<P<T>>,
@@ -213,8 +220,8 @@ impl<T> Part<T> {
 struct Context<T> {
     cage: Vec<P<T>>,
     level0: Level,
-    sharp0: Vec<f32>,
-    tags: Vec<(u32, f32)>,
+    features: CageFeatures,
+    scheme: Scheme,
     degree: u32,
     margin: usize,
     budget: u64,
@@ -245,18 +252,8 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
     options: &AdaptiveOptions,
     margin: usize,
 ) -> Result<AdaptiveMesh<T>> {
-    if options.degree < 1 || options.degree > MAX_DEGREE {
-        return Err(Error::DegreeOutOfRange {
-            degree: options.degree as i64,
-            max: MAX_DEGREE,
-        });
-    }
-    if options.max_level < 1 || options.max_level > MAX_LEVELS {
-        return Err(Error::LevelOutOfRange {
-            levels: options.max_level as i64,
-            max: MAX_LEVELS,
-        });
-    }
+    check_degree(options.degree)?;
+    check_levels(options.max_level, 1)?;
     if !options.tolerance.is_finite() || options.tolerance < 0.0 {
         return Err(Error::InvalidInput(format!(
             "the tolerance must be finite and at least 0, not {}",
@@ -264,24 +261,20 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
         )));
     }
     validate_geometry(cage, points, 3)?;
-    // The cage level, its vertex compaction and the crease checks, as the uniform plan has them.
-    let base = Plan::new(
-        cage,
-        &Options {
-            degree: options.degree,
-            levels: 0,
-            boundary: options.boundary,
-            memory_budget: options.memory_budget,
-            ..Options::default()
-        },
-    )?;
-    let (given, _) = points.as_chunks::<3>();
-    let compact: Vec<P<T>> = match base.vertex_map() {
-        None => given.to_vec(),
-        Some(map) => map.iter().map(|&v| given[v as usize]).collect(),
+    // The cage level, its vertex compaction and its curve features, as the uniform plan has
+    // them.
+    let options0 = Options {
+        degree: options.degree,
+        levels: 0,
+        boundary: options.boundary,
+        memory_budget: options.memory_budget,
+        ..Options::default()
     };
+    let base = Refinement::new(cage, &options0)?;
+    let (given, _) = points.as_chunks::<3>();
+    let compact: Vec<P<T>> = base.compact(given).into_owned();
     let level0 = base.levels()[0].clone();
-    let (sharp0, tags) = curve_tags(cage, &level0, base.vertex_map(), options.boundary);
+    let features = base.features().clone();
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     for p in &compact {
@@ -294,8 +287,8 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
     let ctx = Context {
         cage: compact,
         level0,
-        sharp0,
-        tags,
+        features,
+        scheme: Scheme::new(&options0),
         degree: options.degree,
         margin,
         budget: options.memory_budget,
@@ -375,75 +368,6 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
         mesh.max_error = max_error;
         mesh
     })
-}
-
-/// Sharpness of the cage's edges (boundaries infinite, creases) and the corner tags, exactly as
-/// [`Plan::new`] lays them out.
-fn curve_tags(
-    cage: &Cage,
-    level0: &Level,
-    vertex_map: Option<&[u32]>,
-    boundary: Boundary,
-) -> (Vec<f32>, Vec<(u32, f32)>) {
-    let sharp_or_inf = |s: f32| {
-        if s >= INFINITELY_SHARP {
-            f32::INFINITY
-        } else {
-            s
-        }
-    };
-    let mut compact_of: Option<Vec<u32>> = None;
-    if let Some(map) = vertex_map {
-        let mut c = vec![NONE; cage.num_vertices()];
-        for (i, &v) in map.iter().enumerate() {
-            c[v as usize] = i as u32;
-        }
-        compact_of = Some(c);
-    }
-    let compact = |v: u32| compact_of.as_ref().map_or(v, |m| m[v as usize]);
-    let mut sharpness: Vec<f32> = (0..level0.num_edges())
-        .map(|e| {
-            if level0.is_boundary_edge(e) {
-                f32::INFINITY
-            } else {
-                0.0
-            }
-        })
-        .collect();
-    if !cage.creases().is_empty() {
-        let mut keys: Vec<(u64, u32)> = level0
-            .edge_verts()
-            .iter()
-            .enumerate()
-            .map(|(e, &[a, b])| (((a.min(b) as u64) << 32) | a.max(b) as u64, e as u32))
-            .collect();
-        keys.sort_unstable();
-        for crease in cage.creases() {
-            let (a, b) = (compact(crease.a), compact(crease.b));
-            let key = ((a.min(b) as u64) << 32) | a.max(b) as u64;
-            // The plan has already refused creases that are not edges.
-            if let Ok(at) = keys.binary_search_by_key(&key, |k| k.0) {
-                let e = keys[at].1 as usize;
-                sharpness[e] = sharpness[e].max(sharp_or_inf(crease.sharpness));
-            }
-        }
-    }
-    let mut tags: Vec<(u32, f32)> = cage
-        .corners()
-        .iter()
-        .map(|c| (compact(c.vertex), sharp_or_inf(c.sharpness)))
-        .collect();
-    if boundary == Boundary::EdgeAndCorner {
-        for v in 0..level0.num_vertices {
-            if level0.corners_of_vertex(v).len() == 1 {
-                tags.push((v as u32, f32::INFINITY));
-            }
-        }
-    }
-    tags.sort_by(|x, y| x.0.cmp(&y.0).then(y.1.total_cmp(&x.1)));
-    tags.dedup_by_key(|t| t.0);
-    tags.retain(|t| t.1 > 0.0);
-    (sharpness, tags)
 }
 
 /// The nodes at level `t` (sorted uniform ids): every face of `M_1` at level 1, the children of
@@ -537,7 +461,8 @@ fn cage_part<T: Scalar>(ctx: &Context<T>) -> Part<T> {
         boundary: (0..level0.num_edges())
             .map(|e| level0.is_boundary_edge(e))
             .collect(),
-        sharp: ctx.sharp0.clone(),
+        curves: ctx.features.curves(),
+        network: None,
         data: ctx.cage.clone(),
         curve: Vec::new(),
         points: Vec::new(),
@@ -589,22 +514,52 @@ fn refine_part<T: Scalar>(
     let boundary: Vec<bool> = (0..fine.num_edges())
         .map(|i| i < 2 * cne && coarse.boundary[i >> 1])
         .collect();
-    let sharp: Vec<f32> = (0..fine.num_edges())
-        .map(|i| {
-            let s = if i < 2 * cne {
-                coarse.sharp[i >> 1]
-            } else {
-                0.0
-            };
-            if s > 1.0 {
-                s - 1.0
-            } else {
-                0.0
-            }
+
+    // The step, as the uniform plan makes it: the curve network of this partial level (its
+    // corners are the cage's tagged vertices that it has; a corner keeps the point of its cage
+    // vertex), then the step primitive.
+    let nv0 = ctx.level0.num_vertices as u64;
+    let corners: Vec<(u32, f32)> = (ctx.features.corners.iter())
+        .filter_map(|&(v, s)| {
+            let at = coarse.vert_uid.binary_search(&(v as u64)).ok()?;
+            Some((at as u32, s))
         })
         .collect();
-
-    let (data, curve, points) = step(ctx, t, coarse, &fine);
+    let pin = |v: u32| {
+        let uid = coarse.vert_uid[v as usize];
+        if uid < nv0 {
+            uid as u32
+        } else {
+            NONE
+        }
+    };
+    let odd = ctx.degree % 2 == 1;
+    let network = CurveNetwork::build(
+        c,
+        &coarse.curves,
+        &corners,
+        t as u32,
+        coarse.network.as_ref(),
+        odd,
+        pin,
+    );
+    let step = Step {
+        scheme: ctx.scheme,
+        coarse: c,
+        fine: &fine,
+        curves: &network,
+        sharpness: None,
+    };
+    let mut data = if t == 0 {
+        LevelData::new(&ctx.cage)
+    } else {
+        LevelData::on_level(&ctx.cage, odd, &coarse.data, coarse.curve.clone())
+    };
+    data.step(&step);
+    // The drawing points: the primal data, or one more dual -> primal average.
+    let drawing = (!odd).then(|| data.drawing_points(&step));
+    let (data, curve) = data.into_parts();
+    let points = drawing.as_deref().unwrap_or(&data);
 
     // The seeds and the margin rings around them.
     let mut keep = vec![false; fine.num_faces()];
@@ -642,8 +597,8 @@ fn refine_part<T: Scalar>(
         frontier = next;
     }
 
-    let odd = ctx.degree % 2 == 1;
     let sub = restrict(&fine, &keep);
+    let (network, kept_vertices, kept_edges) = network.restrict(&sub.vertex_map, &sub.edge_map);
     let pick = |values: &[u64], map: &[u32]| -> Vec<u64> {
         map.iter().map(|&i| values[i as usize]).collect()
     };
@@ -654,29 +609,32 @@ fn refine_part<T: Scalar>(
         vert_uid: pick(&vert_uid, &sub.vertices),
         edge_uid: pick(&edge_uid, &sub.edges),
         boundary: sub.edges.iter().map(|&e| boundary[e as usize]).collect(),
-        sharp: sub.edges.iter().map(|&e| sharp[e as usize]).collect(),
+        curves: network.next_curves(),
+        network: Some(network),
         data: if odd {
             sub.vertices.iter().map(|&v| data[v as usize]).collect()
         } else {
             sub.faces.iter().map(|&f| data[f as usize]).collect()
         },
-        curve: if odd {
-            sub.vertices.iter().map(|&v| curve[v as usize]).collect()
-        } else {
-            sub.edges.iter().map(|&e| curve[e as usize]).collect()
-        },
+        curve: if odd { kept_vertices } else { kept_edges }
+            .iter()
+            .map(|&i| curve[i as usize])
+            .collect(),
         points: sub.vertices.iter().map(|&v| points[v as usize]).collect(),
         counts,
         level,
     })
 }
 
-/// A level restricted to some of its faces, with the old ids of what it kept.
+/// A level restricted to some of its faces, with the old ids of what it kept and the new id of
+/// every old vertex and edge (`NONE` if dropped).
 struct Sub {
     level: Level,
     faces: Vec<u32>,
     vertices: Vec<u32>,
     edges: Vec<u32>,
+    vertex_map: Vec<u32>,
+    edge_map: Vec<u32>,
 }
 
 /// The quad level `fine` restricted to the faces marked in `keep`, numbered in the order of the
@@ -771,221 +729,8 @@ fn restrict(fine: &Level, keep: &[bool]) -> Sub {
         faces,
         vertices,
         edges,
-    }
-}
-
-/// A vertex of the curve network of one step, on the fine level (as [`crate::plan::CurveVertex`]).
-struct CurveVertex {
-    vertex: u32,
-    /// Its two curve edges (fine edge ids), or `None` for a corner.
-    edges: Option<[u32; 2]>,
-    weight: f64,
-    /// For a corner: the cage vertex whose point it keeps (`None` only for a vertex cut off by the
-    /// partial level, whose value is outside the exact region).
-    cage: Option<u32>,
-}
-
-#[inline(always)]
-fn zero<T: Scalar>() -> P<T> {
-    [T::default(); 3]
-}
-
-/// What one step produces on the fine level: the scheme data, the 1-D data, the drawing points.
-type Stepped<T> = (Vec<P<T>>, Vec<P<T>>, Vec<P<T>>);
-
-/// One step of degree n from `coarse` (level t) to `fine = coarse.level.refine()`: replication
-/// and n averages with the 1-D scheme on the curves, the same operations in the same order as
-/// `evaluate::Run::step` (whose fused first pass is bitwise the separate passes used here).
-/// Returns the scheme data, the 1-D data and the drawing points of the fine level.
-fn step<T: Scalar>(ctx: &Context<T>, t: usize, coarse: &Part<T>, fine: &Level) -> Stepped<T> {
-    let c = &coarse.level;
-    let (nv, ne) = (c.num_vertices, c.num_edges());
-    let nfv = fine.num_vertices;
-    let odd = ctx.degree % 2 == 1;
-    let half = T::from_f64(0.5);
-    let quarter = T::from_f64(0.25);
-
-    // The curve network of this step (plan::curve_step on the partial level).
-    let parents: Vec<usize> = (0..ne).filter(|&e| coarse.sharp[e] > 0.0).collect();
-    let mut edge_1d = vec![
-        zero::<T>();
-        if parents.is_empty() {
-            0
-        } else {
-            fine.num_edges()
-        }
-    ];
-    let mut curve_edges: Vec<(usize, [usize; 2])> = Vec::with_capacity(2 * parents.len());
-    let mut ends: Vec<(u32, u32, f64)> = Vec::with_capacity(2 * parents.len());
-    for &e in &parents {
-        let w = coarse.sharp[e].min(1.0) as f64;
-        for k in 0..2 {
-            let end = c.edge_verts()[e][k] as usize;
-            edge_1d[2 * e + k] = if t == 0 {
-                ctx.cage[end]
-            } else if odd {
-                coarse.curve[end]
-            } else {
-                coarse.curve[e]
-            };
-            curve_edges.push((2 * e + k, [end, nv + e]));
-            ends.push((end as u32, (2 * e + k) as u32, w));
-        }
-    }
-    ends.sort_unstable_by(|x, y| x.0.cmp(&y.0).then(x.1.cmp(&y.1)));
-    let level = t as f32;
-    let nv0 = ctx.level0.num_vertices as u64;
-    let active_tags: Vec<(u32, f64)> = ctx
-        .tags
-        .iter()
-        .filter(|tag| tag.1 > level)
-        .filter_map(|tag| {
-            coarse
-                .vert_uid
-                .binary_search(&(tag.0 as u64))
-                .ok()
-                .map(|v| (v as u32, (tag.1 - level).min(1.0) as f64))
-        })
-        .collect();
-    let mut curve_vertices: Vec<CurveVertex> = old_curve_vertices(&ends, &active_tags)
-        .into_iter()
-        .map(|cv| {
-            let uid = coarse.vert_uid[cv.vertex as usize];
-            CurveVertex {
-                vertex: cv.vertex,
-                edges: cv.edges,
-                weight: cv.weight,
-                cage: (cv.edges.is_none() && uid < nv0).then_some(uid as u32),
-            }
-        })
-        .collect();
-    for &e in &parents {
-        curve_vertices.push(CurveVertex {
-            vertex: (nv + e) as u32,
-            edges: Some([2 * e as u32, 2 * e as u32 + 1]),
-            weight: coarse.sharp[e].min(1.0) as f64,
-            cage: None,
-        });
-    }
-    // 1-D primal data per fine vertex (valid at the curve vertices).
-    let mut vertex_1d = vec![zero::<T>(); if curve_vertices.is_empty() { 0 } else { nfv }];
-    let finish_primal = |vertices: &mut [P<T>], edge_1d: &[P<T>], vertex_1d: &mut [P<T>]| {
-        for cv in &curve_vertices {
-            let w = cv.vertex as usize;
-            let value = match (cv.edges, cv.cage) {
-                (Some([a, b]), _) => scale(add(edge_1d[a as usize], edge_1d[b as usize]), half),
-                (None, Some(u)) => ctx.cage[u as usize],
-                (None, None) => {
-                    vertex_1d[w] = vertices[w];
-                    continue;
-                }
-            };
-            blend_weight(&mut vertices[w], value, cv.weight);
-            vertex_1d[w] = value;
-        }
-    };
-    let to_dual_1d = |vertex_1d: &[P<T>], edge_1d: &mut [P<T>]| {
-        for &(e, [a, b]) in &curve_edges {
-            edge_1d[e] = scale(add(vertex_1d[a], vertex_1d[b]), half);
-        }
-    };
-    let average_to_primal = |faces: &[P<T>]| -> Vec<P<T>> {
-        gather(nfv, |w| {
-            if w < nv {
-                let corners = c.corners_of_vertex(w);
-                let sum = corners
-                    .iter()
-                    .fold(zero(), |s, &k| add(s, faces[k as usize]));
-                scale(sum, reciprocal(corners.len()))
-            } else if w < nv + ne {
-                match c.edge_corners()[w - nv] {
-                    [a, NONE] => scale(add(faces[a as usize], faces[c.next(a as usize)]), half),
-                    [a, b] => {
-                        let (a, b) = (a as usize, b as usize);
-                        let s = add(
-                            add(faces[a], faces[c.next(a)]),
-                            add(faces[b], faces[c.next(b)]),
-                        );
-                        scale(s, quarter)
-                    }
-                }
-            } else {
-                let corners = c.face_corners(w - nv - ne);
-                let k = corners.len();
-                let sum = faces[corners].iter().fold(zero(), |s, &x| add(s, x));
-                scale(sum, reciprocal(k))
-            }
-        })
-    };
-    let average_to_dual = |v: &[P<T>]| -> Vec<P<T>> {
-        gather(fine.num_faces(), |f| {
-            let q = &fine.corner_verts[4 * f..4 * f + 4];
-            let s = add(
-                add(v[q[0] as usize], v[q[1] as usize]),
-                add(v[q[2] as usize], v[q[3] as usize]),
-            );
-            scale(s, quarter)
-        })
-    };
-
-    // Replication and the first dual -> primal average in closed form.
-    let data = &coarse.data;
-    let coarse_primal = t == 0 || odd;
-    let mut vertices: Vec<P<T>> = gather(nfv, |w| {
-        if coarse_primal {
-            if w < nv {
-                data[w]
-            } else if w < nv + ne {
-                let [a, b] = c.edge_verts()[w - nv];
-                scale(add(data[a as usize], data[b as usize]), half)
-            } else {
-                let corners = c.face_corners(w - nv - ne);
-                let k = corners.len();
-                let sum = corners.fold(zero(), |s, k| add(s, data[c.corner_verts[k] as usize]));
-                scale(sum, reciprocal(k))
-            }
-        } else if w < nv {
-            let corners = c.corners_of_vertex(w);
-            let sum = corners
-                .iter()
-                .fold(zero(), |s, &k| add(s, data[c.face_of(k as usize)]));
-            scale(sum, reciprocal(corners.len()))
-        } else if w < nv + ne {
-            match c.edge_corners()[w - nv] {
-                [a, NONE] => data[c.face_of(a as usize)],
-                [a, b] => scale(
-                    add(data[c.face_of(a as usize)], data[c.face_of(b as usize)]),
-                    half,
-                ),
-            }
-        } else {
-            data[w - nv - ne]
-        }
-    });
-    finish_primal(&mut vertices, &edge_1d, &mut vertex_1d);
-    let mut faces: Vec<P<T>> = Vec::new();
-    for a in 2..=ctx.degree {
-        if a % 2 == 1 {
-            vertices = average_to_primal(&faces);
-            finish_primal(&mut vertices, &edge_1d, &mut vertex_1d);
-        } else {
-            faces = average_to_dual(&vertices);
-            to_dual_1d(&vertex_1d, &mut edge_1d);
-        }
-    }
-    if odd {
-        let points = vertices.clone();
-        let n = vertices.len();
-        vertex_1d.resize(n, zero());
-        (vertices, vertex_1d, points)
-    } else {
-        // The drawing step: one more dual -> primal average, with the 1-D values.
-        let mut points = average_to_primal(&faces);
-        let mut scratch = vertex_1d;
-        finish_primal(&mut points, &edge_1d, &mut scratch);
-        let n = fine.num_edges();
-        edge_1d.resize(n, zero());
-        (faces, edge_1d, points)
+        vertex_map: vert_map,
+        edge_map,
     }
 }
 

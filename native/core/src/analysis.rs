@@ -1,7 +1,7 @@
 //! Analysis of the schemes (the paper's §4), computed from the engine itself: the subdivision
 //! matrix of the invariant neighbourhood of an irregular vertex (odd degrees) or face (even
-//! degrees) of valence k, obtained by running unit impulses through one step of a plan, and its
-//! eigenvalues.
+//! degrees) of valence k, obtained by running unit impulses through one step of the step
+//! primitive on a refinement, and its eigenvalues.
 //!
 //! Ordering of the neighbourhood (the paper's Fig. 16). Let `N = degree / 2` (even degrees) or
 //! `(degree - 1) / 2` (odd). The neighbourhood is split into `k` sectors `s = 0..k`, counter-
@@ -12,14 +12,17 @@
 //! - Odd degrees (primal data, one value per vertex): the centre at index 0, then vertices
 //!   `(s, i, j)`, `1 <= i <= N+1`, `0 <= j <= N+1`, at `1 + s (N+1)(N+2) + (i-1)(N+2) + j`.
 //!
-//! On top of the matrix (see [`SubdivisionMatrix::fourier_blocks`], [`SubdivisionMatrix::report`]
-//! and [`characteristic_map`]):
+//! On top of the matrix (see [`SubdivisionMatrix::fourier_blocks`], [`SubdivisionMatrix::report`],
+//! [`characteristic_map`] and [`vertex_masks`]):
 //! - the Fourier block structure: the rotational symmetry makes `A[(s,a),(t,b)]` depend on
 //!   `t - s` only, so the modes `m = 0..k` of the discrete Fourier transform over the sectors
 //!   decouple into `k` complex blocks `B_m = sum_d C_d w^(d m)`, `w = exp(2 pi i / k)`, of one
 //!   sector's size (plus the centre in `B_0` for primal schemes). The spectrum of the matrix is
 //!   the union of the blocks' spectra; the blocks are small, so their eigenvalues are the
 //!   accurate route;
+//! - the limit masks at a vertex of valence k ([`vertex_masks`]): the dominant left eigenvector
+//!   (limit position) and the subdominant pair (tangents), which the limit evaluation uses, and
+//!   on curves the 1-D B-spline [`cardinal_bspline`];
 //! - the paper's checks (§4.3, §4.4): `lambda0 = 1` simple, the subdominant pair real and equal,
 //!   coming from the modes `1` and `k - 1`, isolated from the rest of the spectrum; the
 //!   characteristic map (the control net of the subdominant eigenvectors, refined by the engine)
@@ -27,12 +30,19 @@
 //!   which together give C1 (the paper's Theorem 2); and the third eigenvalue against the square
 //!   of the subdominant one, which excludes C2 when it is larger.
 
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, OnceLock};
+
 use nalgebra::{Complex, DMatrix, DVector, Schur};
 
 use crate::error::{Error, Result};
 use crate::mesh::Cage;
-use crate::plan::{Options, Plan};
-use crate::topology::{Level, NONE};
+use crate::options::Options;
+use crate::refinement::Refinement;
+use crate::step::LevelData;
+use crate::topology::Level;
+
+pub use crate::scheme::{cardinal_bspline, cardinal_bspline_derivative};
 
 /// A subdivision matrix with the ordering of the module documentation.
 #[derive(Debug, Clone)]
@@ -105,7 +115,7 @@ impl<'a> SectorGrid<'a> {
             let last = *starts.last()?;
             // The next sector lies across the incoming edge of this sector's corner.
             let p = level.prev(last);
-            let next = other_corner(level, level.corner_edges()[p] as usize, p)?;
+            let next = level.opposite(level.corner_edges()[p] as usize, p)?;
             if next == first {
                 break;
             }
@@ -124,21 +134,14 @@ impl<'a> SectorGrid<'a> {
         let mut o = self.starts[s];
         for _ in 0..i {
             let n = l.next(o);
-            o = l.next(other_corner(l, l.corner_edges()[n] as usize, n)?);
+            o = l.next(l.opposite(l.corner_edges()[n] as usize, n)?);
         }
         for _ in 0..j {
             let n2 = l.next(l.next(o));
-            o = other_corner(l, l.corner_edges()[n2] as usize, n2)?;
+            o = l.opposite(l.corner_edges()[n2] as usize, n2)?;
         }
         Some(o)
     }
-}
-
-/// The corner on the other side of edge `e` from corner `c`; `None` on a boundary.
-fn other_corner(level: &Level, e: usize, c: usize) -> Option<usize> {
-    let [a, b] = level.edge_corners()[e];
-    let other = if a as usize == c { b } else { a };
-    (other != NONE).then_some(other as usize)
 }
 
 /// A neighbourhood item: its label `(sector, i, j)` and its index in the level.
@@ -152,11 +155,11 @@ pub(crate) fn sector_frames(level: &Level, first: usize, last: usize) -> Option<
     let l = level;
     let step_i = |o: usize| -> Option<usize> {
         let n = l.next(o);
-        Some(l.next(other_corner(l, l.corner_edges()[n] as usize, n)?))
+        Some(l.next(l.opposite(l.corner_edges()[n] as usize, n)?))
     };
     let step_j = |o: usize| -> Option<usize> {
         let n2 = l.next(l.next(o));
-        other_corner(l, l.corner_edges()[n2] as usize, n2)
+        l.opposite(l.corner_edges()[n2] as usize, n2)
     };
     let mut frames = Vec::with_capacity(grid.valence() * (last + 1) * (last + 1));
     for &start in &grid.starts {
@@ -242,7 +245,7 @@ pub fn subdivision_matrix(degree: u32, valence: usize) -> Result<SubdivisionMatr
     }
     let n = neighbourhood_size(degree);
     let cage = polar_cage(valence, n + 3)?;
-    let plan = Plan::new(
+    let plan = Refinement::new(
         &cage,
         &Options {
             degree,
@@ -264,7 +267,7 @@ pub fn subdivision_matrix(degree: u32, valence: usize) -> Result<SubdivisionMatr
     let mut impulse = vec![0.0; size];
     for (col, &(_, item)) in columns.iter().enumerate() {
         impulse[item] = 1.0;
-        let out = plan.step_scalar(1, &impulse);
+        let out = step_scalar(&plan, 1, &impulse);
         impulse[item] = 0.0;
         for (row, &(_, at)) in rows.iter().enumerate() {
             matrix[(row, col)] = out[at];
@@ -276,6 +279,210 @@ pub fn subdivision_matrix(degree: u32, valence: usize) -> Result<SubdivisionMatr
         labels: rows.into_iter().map(|r| r.0).collect(),
         matrix,
     })
+}
+
+/// One step `M_j -> M_{j+1}` (`j >= 1`) of `refinement` applied to arbitrary scalar data of
+/// the kind the scheme carries at level `j` (per vertex for odd degrees, per face for even
+/// ones), through the step primitive: the subdivision matrices are built from it. Curve 1-D
+/// data is read off the 2-D data (vertex values, or the value of an edge's face); corners are
+/// pinned at zero.
+fn step_scalar(refinement: &Refinement, j: usize, data: &[f64]) -> Vec<f64> {
+    let (levels, networks) = (refinement.levels(), refinement.curve_networks());
+    assert!(
+        j >= 1 && j < networks.len(),
+        "step_scalar needs 1 <= j < levels"
+    );
+    let (coarse, previous) = (&levels[j], &networks[j - 1]);
+    let cage = vec![[0.0f64]; levels[0].num_vertices];
+    let values: Vec<[f64; 1]> = data.iter().map(|&x| [x]).collect();
+    let primal = refinement.scheme().is_primal();
+    let curve = if primal {
+        (previous.vertices().iter())
+            .map(|cv| values[cv.vertex as usize])
+            .collect()
+    } else {
+        let face_of_edge = |e: u32| coarse.face_of(coarse.edge_corners()[e as usize][0] as usize);
+        (previous.edges().iter())
+            .map(|ce| values[face_of_edge(ce.edge)])
+            .collect()
+    };
+    let mut data = LevelData::on_level(&cage, primal, &values, curve);
+    data.step(&refinement.step(j));
+    data.into_parts().0.into_iter().map(|[x]| x).collect()
+}
+
+/// Limit masks of one degree at an interior vertex of one valence, over the minimal
+/// neighbourhood in the order of this module's neighbourhoods with `rings = N`.
+#[derive(Debug, Clone)]
+pub struct VertexMasks {
+    /// Degree of the scheme.
+    pub degree: u32,
+    /// Valence of the vertex.
+    pub valence: usize,
+    /// Subdominant eigenvalue (the tangents' eigenvalue).
+    pub lambda1: f64,
+    /// Limit position mask (dominant left eigenvector, summing to 1).
+    pub position: Vec<f64>,
+    /// Two tangent masks (subdominant left eigenvectors), ordered so that their cross product
+    /// points to the side the faces' orientation makes the outside.
+    pub tangents: [Vec<f64>; 2],
+}
+
+/// The planar, counter-clockwise embedding of a polar neighbourhood item: vertex `(s, i, j)`
+/// at `i e(s) + j e(s+1)`, face `(s, i, j)` at its centre, `e(s)` the unit vector at `2 pi s/k`.
+fn planar(label: (usize, usize, usize), valence: usize, primal: bool) -> [f64; 2] {
+    let (s, i, j) = label;
+    let e = |s: usize| {
+        let a = 2.0 * std::f64::consts::PI * (s % valence) as f64 / valence as f64;
+        [a.cos(), a.sin()]
+    };
+    let (a, b) = (e(s), e(s + 1));
+    let off = if primal { 0.0 } else { 0.5 };
+    let (x, y) = (i as f64 + off, j as f64 + off);
+    [x * a[0] + y * b[0], x * a[1] + y * b[1]]
+}
+
+/// Computes the masks of `degree` at valence `valence` from the engine's subdivision matrix
+/// (its Fourier blocks 0 and 1). Every eigenvector is checked against the full matrix.
+pub fn vertex_masks(degree: u32, valence: usize) -> Result<VertexMasks> {
+    let internal = |what: &str| {
+        Error::Internal(format!(
+            "limit masks of degree {degree} at valence {valence}: {what}"
+        ))
+    };
+    let sm = subdivision_matrix(degree, valence)?;
+    let primal = sm.is_primal();
+    let blocks = sm.fourier_blocks();
+    let (k, p) = (valence, sm.sector_size());
+    let w =
+        |e: usize| C64::from_polar(1.0, -2.0 * std::f64::consts::PI * (e % k) as f64 / k as f64);
+    // Left eigenvector of block m for eigenvalue `lambda`, spread over the sectors:
+    // l(s, a) = w^(-s m) u_a with u^T B_m = lambda u^T (see the derivation in the tests).
+    let left = |m: usize, lambda: C64| -> Result<(C64, Vec<C64>)> {
+        let bt = blocks[m].matrix.transpose();
+        let (value, u) = eigenvector(&bt, lambda).ok_or_else(|| internal("no eigenvector"))?;
+        let off = usize::from(primal && m == 0);
+        let mut l = Vec::with_capacity(sm.labels.len());
+        if primal {
+            l.push(if m == 0 { u[0] } else { C64::from(0.0) });
+        }
+        for s in 0..k {
+            for a in 0..p {
+                l.push(w(s * m) * u[off + a]);
+            }
+        }
+        Ok((value, l))
+    };
+    let residual = |l: &[f64], lambda: f64| -> f64 {
+        let row = DMatrix::from_row_slice(1, l.len(), l);
+        let scale = l.iter().map(|x| x.abs()).fold(0.0, f64::max);
+        ((&row * &sm.matrix) - &row * lambda).amax() / scale
+    };
+
+    // Dominant: mode 0, eigenvalue 1; the centre weighs u_0 against u_a / k per sector item
+    // (mode 0's centre row sums over the sectors), fixed by checking the residual.
+    let (_, dominant) = left(0, C64::from(1.0))?;
+    let mut position: Vec<f64> = dominant.iter().map(|z| z.re).collect();
+    if primal {
+        for x in &mut position[1..] {
+            *x /= k as f64;
+        }
+    }
+    let total: f64 = position.iter().sum();
+    if total.abs() < 1e-12 {
+        return Err(internal("the dominant eigenvector sums to zero"));
+    }
+    position.iter_mut().for_each(|x| *x /= total);
+    if residual(&position, 1.0) > 1e-9 {
+        return Err(internal("the dominant eigenvector does not check"));
+    }
+
+    // Subdominant: the largest eigenvalue of mode 1 (real for these schemes).
+    let spectrum = complex_eigenvalues(&blocks[1 % k].matrix)
+        .ok_or_else(|| internal("the eigenvalue iteration did not converge"))?;
+    let (lambda1, sub) = left(1 % k, spectrum[0])?;
+    if lambda1.im.abs() > 1e-9 {
+        return Err(internal("the subdominant eigenvalue is not real"));
+    }
+    let lambda1 = lambda1.re;
+    let mut t0: Vec<f64> = sub.iter().map(|z| z.re).collect();
+    let mut t1: Vec<f64> = sub.iter().map(|z| z.im).collect();
+    for t in [&t0, &t1] {
+        if residual(t, lambda1) > 1e-8 {
+            return Err(internal("a subdominant eigenvector does not check"));
+        }
+    }
+    // Orientation: on the planar counter-clockwise embedding the normal must point up.
+    let tangent = |mask: &[f64]| {
+        mask.iter()
+            .zip(&sm.labels)
+            .fold([0.0; 2], |acc, (&m, &label)| {
+                let q = planar(label, k, primal);
+                [acc[0] + m * q[0], acc[1] + m * q[1]]
+            })
+    };
+    let (a, b) = (tangent(&t0), tangent(&t1));
+    let cross = a[0] * b[1] - a[1] * b[0];
+    let scale = (a[0].hypot(a[1]) * b[0].hypot(b[1])).max(1e-300);
+    if cross.abs() < 1e-6 * scale {
+        return Err(internal("the tangent masks are degenerate"));
+    }
+    if cross < 0.0 {
+        t1.iter_mut().for_each(|x| *x = -*x);
+    }
+    // Normalise the tangents to unit planar length (the scale carries no meaning).
+    let (la, lb) = (a[0].hypot(a[1]), b[0].hypot(b[1]));
+    t0.iter_mut().for_each(|x| *x /= la);
+    t1.iter_mut().for_each(|x| *x /= lb);
+
+    // Restrict to the minimal neighbourhood; what lies outside must vanish.
+    let n = neighbourhood_size(degree);
+    let minimal = |&(_, i, j): &(usize, usize, usize)| {
+        if primal {
+            i <= n && j <= n
+        } else {
+            i < n && j < n
+        }
+    };
+    let mut restricted = [Vec::new(), Vec::new(), Vec::new()];
+    for (idx, label) in sm.labels.iter().enumerate() {
+        let masks = [&position, &t0, &t1];
+        if minimal(label) {
+            for (r, m) in restricted.iter_mut().zip(masks) {
+                r.push(m[idx]);
+            }
+        } else if masks.iter().any(|m| m[idx].abs() > 1e-9) {
+            return Err(internal("a mask reaches beyond the minimal neighbourhood"));
+        }
+    }
+    let [position, t0, t1] = restricted;
+    Ok(VertexMasks {
+        degree,
+        valence,
+        lambda1,
+        position,
+        tangents: [t0, t1],
+    })
+}
+
+/// [`vertex_masks`], computed once per `(degree, valence)` for the whole process.
+pub(crate) fn cached_vertex_masks(degree: u32, valence: usize) -> Result<Arc<VertexMasks>> {
+    type Cache = Mutex<HashMap<(u32, usize), Arc<VertexMasks>>>;
+    static CACHE: OnceLock<Cache> = OnceLock::new();
+    let cache = CACHE.get_or_init(Default::default);
+    if let Some(m) = cache
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .get(&(degree, valence))
+    {
+        return Ok(m.clone());
+    }
+    let masks = Arc::new(vertex_masks(degree, valence)?);
+    cache
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .insert((degree, valence), masks.clone());
+    Ok(masks)
 }
 
 impl SubdivisionMatrix {
@@ -723,7 +930,7 @@ pub fn refine(
     // Enough rings (level 0) for the data (N + 1 level-1 rings) and the read-out, plus margin.
     let rings = ((extent.max((n + 1) as f64) / 2.0).ceil() as usize) + 2;
     let cage = polar_cage(valence, rings)?;
-    let plan = Plan::new(
+    let plan = Refinement::new(
         &cage,
         &Options {
             degree,
@@ -776,7 +983,7 @@ pub fn refine(
                 data[item] = x;
             }
             for j in 1..=steps {
-                data = plan.step_scalar(j, &data);
+                data = step_scalar(&plan, j, &data);
             }
             at.iter()
                 .map(|at| at.iter().map(|&i| data[i]).collect())

@@ -22,7 +22,7 @@ use std::path::Path;
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::plan::Boundary;
+use crate::options::Boundary;
 
 /// A polygon mesh as read from an OBJ file. Indices are 0-based.
 #[derive(Debug, Clone, Default)]

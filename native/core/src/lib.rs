@@ -6,17 +6,18 @@
 //! (data on vertices), even degrees dual (data on faces), all in one code path. The paper proves
 //! C1 continuity at irregular points for degrees up to 9; higher degrees are allowed but unproven.
 //!
-//! Layout:
-//! - [`mesh`]: the input cage (topology, creases, corners) and its validation;
-//! - [`topology`]: refined topology per level (`M_j -> M_{j+1}`), flat structure-of-arrays tables;
-//! - [`plan`]: everything that depends only on topology and options (levels, curve networks);
-//! - [`evaluate`]: running points and attributes through a plan (parallel gathers);
-//! - [`output`]: output meshes (drawing mesh, true dual mesh, edges, face origins);
-//! - [`limit`]: limit positions and normals at the output vertices, every degree;
-//! - [`adaptive`]: adaptive subdivision on a quadtree forest with crack-free triangles (§3);
-//! - [`classic`]: OpenSubdiv's Catmull-Clark and the original Doo-Sabin rules;
-//! - [`analysis`]: subdivision matrices, their spectra and the C1 report (the paper's §4);
-//! - [`io`]: OBJ reading and writing.
+//! Layers (each module imports only those below it; see `docs/ARCHITECTURE.md`):
+//! - ground floor: `error`, `scalar` (the [`Scalar`] trait), `parallel` (fixed-chunk gathers),
+//!   `mesh` (the input [`Cage`] and its checks), `topology` (refined [`Level`]s), `options`;
+//! - rules: `scheme` (the rule sets: averaging of any degree, classic Catmull-Clark,
+//!   Doo-Sabin and bilinear, OpenSubdiv's `Sdc` role) and `curves` (boundaries, creases and
+//!   corners on the levels: [`CurveNetwork`]s and classic sharpness);
+//! - refinement: `refinement` (levels, curve networks, sharpness of one cage and scheme) and
+//!   `step` (the step primitive, on full and partial levels);
+//! - evaluation: `evaluate`, `output` (drawing and dual mesh), [`analysis`] (the paper's §4),
+//!   `limit` (limit positions and normals), `adaptive` (the quadtree forest of §3);
+//! - the facade: [`Plan`] (a refinement with its caches), [`subdivide`],
+//!   [`subdivide_adaptive`], and [`io`] (OBJ).
 //!
 //! ```
 //! use bidegree::{Cage, Options, Plan};
@@ -28,33 +29,44 @@
 //! assert_eq!(refined.len(), 3 * plan.num_output_vertices());
 //! ```
 
-pub mod adaptive;
+mod adaptive;
 pub mod analysis;
-pub mod classic;
-pub mod error;
-pub mod evaluate;
+mod curves;
+mod error;
+mod evaluate;
 pub mod io;
-pub mod limit;
-pub mod mesh;
-pub mod output;
-pub mod plan;
-pub mod topology;
+mod limit;
+mod mesh;
+mod options;
+mod output;
+mod parallel;
+mod plan;
+mod refinement;
+mod scalar;
+mod scheme;
+mod step;
+#[cfg(test)]
+mod tests;
+mod topology;
 
-pub use adaptive::{subdivide_adaptive, AdaptiveMesh, AdaptiveOptions};
-pub use classic::Creasing;
+// The integration tests' cages (`tests/common`) name the crate; its unit tests share them.
+#[cfg(test)]
+extern crate self as bidegree;
+
+pub use adaptive::{
+    margin_rings, subdivide_adaptive, subdivide_adaptive_with_margin, triangle_template,
+    AdaptiveMesh, AdaptiveOptions,
+};
+pub use curves::CurveNetwork;
 pub use error::{Error, Result};
-pub use evaluate::Scalar;
-pub use mesh::{Cage, Corner, Crease};
-pub use plan::{estimate, Boundary, Estimate, Options, OutputKind, Plan, Rules};
-
-/// Highest supported degree (number of averaging steps per level).
-pub const MAX_DEGREE: u32 = 31;
-/// Highest number of levels accepted before the memory estimate is even made.
-pub const MAX_LEVELS: u32 = 16;
-/// Default memory budget of a request: 4 GiB.
-pub const DEFAULT_MEMORY_BUDGET: u64 = 4 << 30;
-/// Sharpness at or above which a crease or corner is infinitely sharp (as in OpenSubdiv).
-pub const INFINITELY_SHARP: f32 = 10.0;
+pub use mesh::{validate_geometry, Cage, Corner, Crease, INFINITELY_SHARP};
+pub use options::{
+    estimate, Boundary, Creasing, Estimate, Options, OutputKind, Rules, DEFAULT_MEMORY_BUDGET,
+    MAX_DEGREE, MAX_LEVELS,
+};
+pub use plan::Plan;
+pub use scalar::Scalar;
+pub use topology::Level;
 
 /// Subdivides `points` (interleaved, `channels` per cage vertex) in one go: validates the
 /// geometry (finite values, no zero-area face), builds the plan and evaluates it.
@@ -64,7 +76,7 @@ pub fn subdivide<T: Scalar>(
     channels: usize,
     options: &Options,
 ) -> Result<(Plan, Vec<T>)> {
-    mesh::validate_geometry(cage, points, channels)?;
+    validate_geometry(cage, points, channels)?;
     let plan = Plan::new(cage, options)?;
     let refined = plan.evaluate(points, channels)?;
     Ok((plan, refined))

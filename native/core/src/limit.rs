@@ -28,236 +28,40 @@
 //! eigenvectors of the boundary subdivision matrices). Degree 1 is bilinear: positions are the
 //! refined points, normals those of each face's bilinear patch at its corner.
 //!
-//! Everything topological (the extended plan, the stencils, the fans) is built on first use and
-//! kept in the plan, so re-evaluating a deformed cage costs one evaluation of the extended plan
-//! plus one small gather per vertex.
+//! Everything topological (the extended refinement, the stencils, the fans) is built on first
+//! use and kept in the plan ([`LimitCache`]), so re-evaluating a deformed cage costs one
+//! evaluation of the extended refinement plus one small gather per vertex.
+//!
+//! Classic Catmull-Clark limit positions use OpenSubdiv's limit masks (`catmark_limit`).
 
-use std::borrow::Cow;
 use std::collections::HashMap;
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, Mutex};
 
 use glam::DVec3;
-use nalgebra::DMatrix;
 
-use crate::analysis::{self, frame_items, neighbourhood_size, sector_frames, C64};
+use crate::analysis::{
+    cached_vertex_masks, frame_items, neighbourhood_size, sector_frames, VertexMasks,
+};
+use crate::curves::LevelSharpness;
 use crate::error::{Error, Result};
-use crate::evaluate::{gather, in_groups_of_four, Final, Scalar};
-use crate::mesh::check_values;
-use crate::plan::{Options, OutputKind, Plan, Rules};
+use crate::evaluate::{in_groups_of_four, run};
+use crate::options::{Options, OutputKind};
+use crate::parallel::gather;
+use crate::refinement::Refinement;
+use crate::scalar::{add, mad, scale, zero, Scalar, Value};
+use crate::scheme::catmark::{
+    dart_limit_mask, smooth_limit_weights, VertexRule, CREASE_LIMIT_WEIGHTS,
+};
+use crate::scheme::{cardinal_bspline, is_infinitely_sharp, is_semi_sharp, is_sharp, LimitRule};
+use crate::step::{Final, Scratch};
 use crate::topology::{Level, NONE};
-use crate::INFINITELY_SHARP;
 
 /// Extra levels tried at most beyond the first guess before giving up.
 const MAX_EXTRA_LEVELS: u32 = 8;
 
-/// The centred cardinal B-spline of degree `n` (support `[-(n+1)/2, (n+1)/2]`, integral 1) at
-/// `t`, by the Cox–de Boor recursion (stable for every degree).
-pub fn cardinal_bspline(n: u32, t: f64) -> f64 {
-    // x in the support [0, n+1] of the uncentred spline; values[i] holds N_d(x - i).
-    let x = t + (n as f64 + 1.0) / 2.0;
-    let n = n as usize;
-    let mut values: Vec<f64> = (0..=n)
-        .map(|i| {
-            let y = x - i as f64;
-            if (0.0..1.0).contains(&y) {
-                1.0
-            } else {
-                0.0
-            }
-        })
-        .collect();
-    for d in 1..=n {
-        for i in 0..=n - d {
-            let y = x - i as f64;
-            values[i] = (y * values[i] + (d as f64 + 1.0 - y) * values[i + 1]) / d as f64;
-        }
-    }
-    values[0]
-}
-
-/// Derivative of [`cardinal_bspline`] with respect to `t` (`n >= 1`).
-pub fn cardinal_bspline_derivative(n: u32, t: f64) -> f64 {
-    cardinal_bspline(n - 1, t + 0.5) - cardinal_bspline(n - 1, t - 0.5)
-}
-
-/// Limit masks of one degree at an interior vertex of one valence, over the minimal
-/// neighbourhood in the order of [`crate::analysis`]'s neighbourhoods with `rings = N`.
-#[derive(Debug, Clone)]
-pub struct VertexMasks {
-    /// Degree of the scheme.
-    pub degree: u32,
-    /// Valence of the vertex.
-    pub valence: usize,
-    /// Subdominant eigenvalue (the tangents' eigenvalue).
-    pub lambda1: f64,
-    /// Limit position mask (dominant left eigenvector, summing to 1).
-    pub position: Vec<f64>,
-    /// Two tangent masks (subdominant left eigenvectors), ordered so that their cross product
-    /// points to the side the faces' orientation makes the outside.
-    pub tangents: [Vec<f64>; 2],
-}
-
-/// The planar, counter-clockwise embedding of a polar neighbourhood item: vertex `(s, i, j)`
-/// at `i e(s) + j e(s+1)`, face `(s, i, j)` at its centre, `e(s)` the unit vector at `2 pi s/k`.
-fn planar(label: (usize, usize, usize), valence: usize, primal: bool) -> [f64; 2] {
-    let (s, i, j) = label;
-    let e = |s: usize| {
-        let a = 2.0 * std::f64::consts::PI * (s % valence) as f64 / valence as f64;
-        [a.cos(), a.sin()]
-    };
-    let (a, b) = (e(s), e(s + 1));
-    let off = if primal { 0.0 } else { 0.5 };
-    let (x, y) = (i as f64 + off, j as f64 + off);
-    [x * a[0] + y * b[0], x * a[1] + y * b[1]]
-}
-
-/// Computes the masks of `degree` at valence `valence` from the engine's subdivision matrix
-/// (its Fourier blocks 0 and 1). Every eigenvector is checked against the full matrix.
-pub fn vertex_masks(degree: u32, valence: usize) -> Result<VertexMasks> {
-    let internal = |what: &str| {
-        Error::Internal(format!(
-            "limit masks of degree {degree} at valence {valence}: {what}"
-        ))
-    };
-    let sm = analysis::subdivision_matrix(degree, valence)?;
-    let primal = sm.is_primal();
-    let blocks = sm.fourier_blocks();
-    let (k, p) = (valence, sm.sector_size());
-    let w =
-        |e: usize| C64::from_polar(1.0, -2.0 * std::f64::consts::PI * (e % k) as f64 / k as f64);
-    // Left eigenvector of block m for eigenvalue `lambda`, spread over the sectors:
-    // l(s, a) = w^(-s m) u_a with u^T B_m = lambda u^T (see the derivation in the tests).
-    let left = |m: usize, lambda: C64| -> Result<(C64, Vec<C64>)> {
-        let bt = blocks[m].matrix.transpose();
-        let (value, u) =
-            analysis::eigenvector(&bt, lambda).ok_or_else(|| internal("no eigenvector"))?;
-        let off = usize::from(primal && m == 0);
-        let mut l = Vec::with_capacity(sm.labels.len());
-        if primal {
-            l.push(if m == 0 { u[0] } else { C64::from(0.0) });
-        }
-        for s in 0..k {
-            for a in 0..p {
-                l.push(w(s * m) * u[off + a]);
-            }
-        }
-        Ok((value, l))
-    };
-    let residual = |l: &[f64], lambda: f64| -> f64 {
-        let row = DMatrix::from_row_slice(1, l.len(), l);
-        let scale = l.iter().map(|x| x.abs()).fold(0.0, f64::max);
-        ((&row * &sm.matrix) - &row * lambda).amax() / scale
-    };
-
-    // Dominant: mode 0, eigenvalue 1; the centre weighs u_0 against u_a / k per sector item
-    // (mode 0's centre row sums over the sectors), fixed by checking the residual.
-    let (_, dominant) = left(0, C64::from(1.0))?;
-    let mut position: Vec<f64> = dominant.iter().map(|z| z.re).collect();
-    if primal {
-        for x in &mut position[1..] {
-            *x /= k as f64;
-        }
-    }
-    let total: f64 = position.iter().sum();
-    if total.abs() < 1e-12 {
-        return Err(internal("the dominant eigenvector sums to zero"));
-    }
-    position.iter_mut().for_each(|x| *x /= total);
-    if residual(&position, 1.0) > 1e-9 {
-        return Err(internal("the dominant eigenvector does not check"));
-    }
-
-    // Subdominant: the largest eigenvalue of mode 1 (real for these schemes).
-    let spectrum = analysis::complex_eigenvalues(&blocks[1 % k].matrix)
-        .ok_or_else(|| internal("the eigenvalue iteration did not converge"))?;
-    let (lambda1, sub) = left(1 % k, spectrum[0])?;
-    if lambda1.im.abs() > 1e-9 {
-        return Err(internal("the subdominant eigenvalue is not real"));
-    }
-    let lambda1 = lambda1.re;
-    let mut t0: Vec<f64> = sub.iter().map(|z| z.re).collect();
-    let mut t1: Vec<f64> = sub.iter().map(|z| z.im).collect();
-    for t in [&t0, &t1] {
-        if residual(t, lambda1) > 1e-8 {
-            return Err(internal("a subdominant eigenvector does not check"));
-        }
-    }
-    // Orientation: on the planar counter-clockwise embedding the normal must point up.
-    let tangent = |mask: &[f64]| {
-        mask.iter()
-            .zip(&sm.labels)
-            .fold([0.0; 2], |acc, (&m, &label)| {
-                let q = planar(label, k, primal);
-                [acc[0] + m * q[0], acc[1] + m * q[1]]
-            })
-    };
-    let (a, b) = (tangent(&t0), tangent(&t1));
-    let cross = a[0] * b[1] - a[1] * b[0];
-    let scale = (a[0].hypot(a[1]) * b[0].hypot(b[1])).max(1e-300);
-    if cross.abs() < 1e-6 * scale {
-        return Err(internal("the tangent masks are degenerate"));
-    }
-    if cross < 0.0 {
-        t1.iter_mut().for_each(|x| *x = -*x);
-    }
-    // Normalise the tangents to unit planar length (the scale carries no meaning).
-    let (la, lb) = (a[0].hypot(a[1]), b[0].hypot(b[1]));
-    t0.iter_mut().for_each(|x| *x /= la);
-    t1.iter_mut().for_each(|x| *x /= lb);
-
-    // Restrict to the minimal neighbourhood; what lies outside must vanish.
-    let n = neighbourhood_size(degree);
-    let minimal = |&(_, i, j): &(usize, usize, usize)| {
-        if primal {
-            i <= n && j <= n
-        } else {
-            i < n && j < n
-        }
-    };
-    let mut restricted = [Vec::new(), Vec::new(), Vec::new()];
-    for (idx, label) in sm.labels.iter().enumerate() {
-        let masks = [&position, &t0, &t1];
-        if minimal(label) {
-            for (r, m) in restricted.iter_mut().zip(masks) {
-                r.push(m[idx]);
-            }
-        } else if masks.iter().any(|m| m[idx].abs() > 1e-9) {
-            return Err(internal("a mask reaches beyond the minimal neighbourhood"));
-        }
-    }
-    let [position, t0, t1] = restricted;
-    Ok(VertexMasks {
-        degree,
-        valence,
-        lambda1,
-        position,
-        tangents: [t0, t1],
-    })
-}
-
-/// [`vertex_masks`], computed once per `(degree, valence)` for the whole process.
-fn cached_masks(degree: u32, valence: usize) -> Result<Arc<VertexMasks>> {
-    type Cache = Mutex<HashMap<(u32, usize), Arc<VertexMasks>>>;
-    static CACHE: OnceLock<Cache> = OnceLock::new();
-    let cache = CACHE.get_or_init(Default::default);
-    if let Some(m) = cache
-        .lock()
-        .unwrap_or_else(|e| e.into_inner())
-        .get(&(degree, valence))
-    {
-        return Ok(m.clone());
-    }
-    let masks = Arc::new(vertex_masks(degree, valence)?);
-    cache
-        .lock()
-        .unwrap_or_else(|e| e.into_inner())
-        .insert((degree, valence), masks.clone());
-    Ok(masks)
-}
-
-/// How the limit at one output vertex is computed.
+/// Which mask gives the limit at one output vertex.
 #[derive(Debug, Clone, Copy, PartialEq)]
-enum Rule {
+enum LimitMask {
     /// An interior vertex: masks of its valence (index into `Stencils::masks`).
     Interior(u32),
     /// A curve vertex: the 1-D B-spline mask along the curve.
@@ -269,15 +73,16 @@ enum Rule {
 /// Everything topological the limit needs, built once per plan (see the module documentation).
 #[derive(Debug)]
 pub(crate) struct Stencils {
-    /// The plan extended by `extra_levels` levels (`None` when the plan itself is enough).
-    extended: Option<Plan>,
+    /// The refinement extended by `extra_levels` levels and its evaluation buffers (`None` when
+    /// the plan's own refinement is enough).
+    extended: Option<(Refinement, Scratch)>,
     /// Levels added to the plan.
     extra_levels: u32,
-    /// Rule of each output vertex.
-    rules: Vec<Rule>,
+    /// Mask of each output vertex.
+    masks_of: Vec<LimitMask>,
     /// Offsets into `items` per output vertex.
     offsets: Vec<u32>,
-    /// Indices into the data the stencils read (see [`Plan::limit_data`]).
+    /// Indices into the data the stencils read (see `Limit::limit_data`).
     items: Vec<u32>,
     /// Interior masks by valence.
     masks: Vec<Arc<VertexMasks>>,
@@ -295,53 +100,31 @@ pub(crate) struct Stencils {
     fan_items: Vec<u32>,
 }
 
-/// The corner on the other side of edge `e` from corner `c` (`None` on a boundary).
-fn across(level: &Level, e: usize, c: usize) -> Option<usize> {
-    let [a, b] = level.edge_corners()[e];
-    let other = if a as usize == c { b } else { a };
-    (other != NONE).then_some(other as usize)
-}
-
-/// Builds the stencils with the plan `plan` (the user's or an extended one) for the first
+/// Builds the stencils with `refinement` (the plan's or an extended one) for the first
 /// `outputs` vertices of its last level, the output corners `output_corners` (corner `c` of
 /// the output is corner `c * 4^extra` of the last level). `None` when some vertex is not clean.
 fn build_stencils(
-    plan: &Plan,
+    refinement: &Refinement,
     outputs: usize,
     output_corners: usize,
     extra: u32,
 ) -> Result<Option<Stencils>> {
-    let degree = plan.options().degree;
+    let degree = refinement.options().degree;
     let primal = degree % 2 == 1;
     let n = neighbourhood_size(degree);
-    let last = plan.levels().last().expect("a level");
-    let step = plan.steps().last().expect("a step");
+    let last = refinement.levels().last().expect("a level");
+    let curves = refinement.curve_networks().last().expect("a step");
     let nf = last.num_faces();
-    let nc = step.curve_edges.len();
-    // Data layout (see Plan::limit_data): odd degrees, the vertices; even degrees, the faces,
+    let nc = curves.edges().len();
+    // Data layout (see `limit_data`): odd degrees, the vertices; even degrees, the faces,
     // then the last step's curve edges, then the cage points (for corners).
     let cage_item = |v: usize| if primal { v } else { nf + nc + v };
     // Curve vertex of each vertex id (index into the step's curve vertices).
-    let curve_of = |v: usize| {
-        step.curve_vertices
-            .binary_search_by_key(&(v as u32), |cv| cv.vertex)
-            .ok()
-    };
-    if step.curve_vertices.iter().any(|cv| cv.weight < 1.0) {
+    let curve_of = |v: usize| curves.vertex_index(v as u32).map(|i| i as usize);
+    if curves.vertices().iter().any(|cv| cv.weight < 1.0) {
         return Ok(None);
     }
-    // (edge id, index in the step's curve edges), sorted by edge id.
-    let mut curve_edge_ids: Vec<(u32, u32)> = (step.curve_edges.iter())
-        .enumerate()
-        .map(|(i, e)| (e.edge, i as u32))
-        .collect();
-    curve_edge_ids.sort_unstable();
-    let curve_index = |e: u32| {
-        curve_edge_ids
-            .binary_search_by_key(&e, |&(edge, _)| edge)
-            .ok()
-            .map(|at| curve_edge_ids[at].1)
-    };
+    let curve_index = |e: u32| curves.edge_index(e);
     let is_curve_edge = |e: u32| curve_index(e).is_some();
 
     // 1-D masks: odd degrees on curve vertices at offsets -N..=N, even degrees on curve edges
@@ -358,29 +141,29 @@ fn build_stencils(
 
     let mut valences: Vec<usize> = Vec::new();
     // Per vertex: rule and items, or None when not clean.
-    let per_vertex: Vec<Option<(Rule, Vec<u32>)>> = gather(outputs, |v| {
+    let per_vertex: Vec<Option<(LimitMask, Vec<u32>)>> = gather(outputs, |v| {
         if let Some(i) = curve_of(v) {
-            let cv = &step.curve_vertices[i];
+            let cv = &curves.vertices()[i];
             let Some([a, _]) = cv.edges else {
-                return Some((Rule::Corner, vec![cage_item(v) as u32]));
+                return Some((LimitMask::Corner, vec![cage_item(cv.pin as usize) as u32]));
             };
             // Walk the polyline both ways: curve vertices (odd) or edges (even).
             let walk = |first_edge: u32, from: usize, count: usize| -> Option<Vec<u32>> {
                 let mut out = Vec::with_capacity(count);
                 let (mut edge, mut at) = (first_edge as usize, from);
                 for _ in 0..count {
-                    let ends = step.curve_edges[edge].ends;
+                    let ends = curves.edges()[edge].ends;
                     let next = if ends[0] as usize == at {
                         ends[1]
                     } else {
                         ends[0]
                     } as usize;
                     if primal {
-                        out.push(step.curve_vertices[next].vertex);
+                        out.push(curves.vertices()[next].vertex);
                     } else {
                         out.push((nf + edge) as u32);
                     }
-                    let [x, y] = step.curve_vertices[next].edges?;
+                    let [x, y] = curves.vertices()[next].edges?;
                     edge = if x as usize == edge { y } else { x } as usize;
                     at = next;
                 }
@@ -405,7 +188,7 @@ fn build_stencils(
             let mut sorted = items.clone();
             sorted.sort_unstable();
             sorted.dedup();
-            return (sorted.len() == items.len()).then_some((Rule::Curve, items));
+            return (sorted.len() == items.len()).then_some((LimitMask::Curve, items));
         }
         // Interior: the vertices up to N rings away must be clean.
         let first = last.corners_of_vertex(v)[0] as usize;
@@ -431,20 +214,20 @@ fn build_stencils(
         };
         let valence = frames.len() / ((n + 1) * (n + 1));
         Some((
-            Rule::Interior(valence as u32),
+            LimitMask::Interior(valence as u32),
             items.iter().map(|&(_, i)| i as u32).collect(),
         ))
     });
     if per_vertex.iter().any(Option::is_none) {
         return Ok(None);
     }
-    let mut rules = Vec::with_capacity(outputs);
+    let mut masks_of = Vec::with_capacity(outputs);
     let mut offsets = Vec::with_capacity(outputs + 1);
     let mut items = Vec::new();
     offsets.push(0u32);
-    for (rule, its) in per_vertex.into_iter().flatten() {
-        let rule = match rule {
-            Rule::Interior(k) => {
+    for (mask, its) in per_vertex.into_iter().flatten() {
+        let mask = match mask {
+            LimitMask::Interior(k) => {
                 let at = match valences.iter().position(|&x| x == k as usize) {
                     Some(at) => at,
                     None => {
@@ -452,17 +235,17 @@ fn build_stencils(
                         valences.len() - 1
                     }
                 };
-                Rule::Interior(at as u32)
+                LimitMask::Interior(at as u32)
             }
-            r => r,
+            m => m,
         };
-        rules.push(rule);
+        masks_of.push(mask);
         items.extend(its);
         offsets.push(items.len() as u32);
     }
     let masks = valences
         .iter()
-        .map(|&k| cached_masks(degree, k))
+        .map(|&k| cached_vertex_masks(degree, k))
         .collect::<Result<Vec<_>>>()?;
 
     // Fans at curve vertices and corners, one per output corner there.
@@ -476,7 +259,7 @@ fn build_stencils(
     for (c, fan) in corner_fan.iter_mut().enumerate() {
         let d = c * spread;
         let v = last.corner_verts[d] as usize;
-        if v >= outputs || !matches!(rules[v], Rule::Curve | Rule::Corner) {
+        if v >= outputs || !matches!(masks_of[v], LimitMask::Curve | LimitMask::Corner) {
             continue;
         }
         // Clockwise to the fan's start: across outgoing edges until a curve edge.
@@ -487,7 +270,7 @@ fn build_stencils(
             if is_curve_edge(e) {
                 break;
             }
-            match across(last, e as usize, start) {
+            match last.opposite(e as usize, start) {
                 Some(o) => start = last.next(o),
                 None => break,
             }
@@ -509,7 +292,7 @@ fn build_stencils(
             if is_curve_edge(e) && !closed {
                 break;
             }
-            match across(last, e as usize, p) {
+            match last.opposite(e as usize, p) {
                 Some(o) if o != start => corners.push(o),
                 _ => break,
             }
@@ -545,7 +328,7 @@ fn build_stencils(
     Ok(Some(Stencils {
         extended: None,
         extra_levels: extra,
-        rules,
+        masks_of,
         offsets,
         items,
         masks,
@@ -558,188 +341,208 @@ fn build_stencils(
     }))
 }
 
-impl Plan {
-    /// The stencils of this plan, built on first use (see the module documentation).
-    fn limit_stencils(&self) -> Result<Arc<Stencils>> {
-        let mut kept = self.limit_cache().lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(st) = kept.as_ref() {
-            return Ok(st.clone());
-        }
-        let options = *self.options();
-        let levels = options.levels;
-        let n = neighbourhood_size(options.degree) as u32;
-        // Semi-sharp features must have become smooth by the last level.
-        let cage = self.cage();
-        let finite = cage
-            .creases()
-            .iter()
-            .map(|c| c.sharpness)
-            .chain(cage.corners().iter().map(|c| c.sharpness))
-            .filter(|&s| s > 0.0 && s < INFINITELY_SHARP)
-            .fold(0.0f32, f32::max);
-        let first = (finite.ceil() as u32)
-            .saturating_sub(levels)
-            .max(u32::from(levels == 0));
-        // Enough doubling to put N rings between a vertex and its nearest neighbour.
-        let clean = (1..).find(|&m| (1u32 << m) > n).unwrap_or(1);
-        let mut candidates = vec![first, first.max(clean)];
-        candidates.extend((1..=MAX_EXTRA_LEVELS).map(|i| first.max(clean) + i));
-        candidates.dedup();
-        let outputs = self.levels().last().expect("a level").num_vertices;
-        let output_corners = self.levels().last().expect("a level").num_corners();
-        for m in candidates {
-            let built = if m == 0 {
-                build_stencils(self, outputs, output_corners, 0)?
-            } else {
-                let extended = Plan::new(
-                    cage,
-                    &Options {
-                        levels: levels + m,
-                        output: OutputKind::Primal,
-                        ..options
-                    },
-                )?;
-                build_stencils(&extended, outputs, output_corners, m)?.map(|mut st| {
-                    st.extended = Some(extended);
-                    st
-                })
-            };
-            if let Some(st) = built {
-                let st = Arc::new(st);
-                *kept = Some(st.clone());
-                return Ok(st);
-            }
-        }
-        Err(Error::Internal(format!(
-            "no clean neighbourhood for the limit within {MAX_EXTRA_LEVELS} extra levels"
-        )))
-    }
+/// The limit's part of a plan: the stencils, built on first use and kept.
+#[derive(Debug, Default)]
+pub(crate) struct LimitCache(Mutex<Option<Arc<Stencils>>>);
 
-    /// Levels the limit evaluation adds to this plan (built on first use).
-    pub fn limit_extra_levels(&self) -> Result<u32> {
-        self.check_limit(false)?;
-        if self.options().degree == 1 || self.catmark().is_some() {
-            return Ok(0);
-        }
-        Ok(self.limit_stencils()?.extra_levels)
+/// The stencils of `refinement`, built on first use (see the module documentation).
+fn stencils(refinement: &Refinement, cache: &LimitCache) -> Result<Arc<Stencils>> {
+    let mut kept = cache.0.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(st) = kept.as_ref() {
+        return Ok(st.clone());
     }
-
-    fn check_limit(&self, normals: bool) -> Result<()> {
-        if self.options().output != OutputKind::Primal {
-            return Err(Error::InvalidInput(
-                "limit positions and normals are given at the drawing mesh's vertices: use the \
-                 primal output"
-                    .into(),
-            ));
-        }
-        if self.options().rules == Rules::Classic {
-            if self.options().degree != 3 {
-                return Err(Error::InvalidInput(
-                    "limit positions with classic rules exist for degree 3 (Catmull-Clark) only"
-                        .into(),
-                ));
-            }
-            if normals {
-                return Err(Error::InvalidInput(
-                    "limit normals with classic rules are not implemented; use the averaging \
-                     rules"
-                        .into(),
-                ));
-            }
-            if self.steps().is_empty() {
-                return Err(Error::InvalidInput(
-                    "classic limit positions need at least one level".into(),
-                ));
-            }
-        }
-        Ok(())
-    }
-
-    /// Limit positions at the output vertices (the drawing mesh's), for any per-vertex data of
-    /// the cage (`channels` interleaved values per cage vertex, as [`Plan::evaluate`]). Old
-    /// vertices keep their ids, so the first values are the limits at the cage vertices.
-    /// Averaging rules: every degree (see the module documentation); classic rules: degree 3
-    /// (OpenSubdiv's limit masks).
-    pub fn limit_positions<T: Scalar>(&self, values: &[T], channels: usize) -> Result<Vec<T>> {
-        check_values(values, channels, self.num_input_vertices())?;
-        self.check_limit(false)?;
-        let per_group = |group: &[T], n: usize| -> Result<Vec<T>> {
-            Ok(match n {
-                1 => self.limit_n::<T, 1>(group, false)?.0,
-                2 => self.limit_n::<T, 2>(group, false)?.0,
-                3 => self.limit_n::<T, 3>(group, false)?.0,
-                _ => self.limit_n::<T, 4>(group, false)?.0,
+    let options = *refinement.options();
+    let levels = options.levels;
+    let n = neighbourhood_size(options.degree) as u32;
+    // Semi-sharp features must have become smooth by the last level (corners on isolated
+    // vertices are no features: they have no place in the surface).
+    let cage = refinement.cage();
+    let finite = cage
+        .creases()
+        .iter()
+        .map(|c| c.sharpness)
+        .chain(refinement.features().corners.iter().map(|c| c.1))
+        .filter(|&s| is_semi_sharp(s))
+        .fold(0.0f32, f32::max);
+    let first = (finite.ceil() as u32)
+        .saturating_sub(levels)
+        .max(u32::from(levels == 0));
+    // Enough doubling to put N rings between a vertex and its nearest neighbour.
+    let clean = (1..).find(|&m| (1u32 << m) > n).unwrap_or(1);
+    let mut candidates = vec![first, first.max(clean)];
+    candidates.extend((1..=MAX_EXTRA_LEVELS).map(|i| first.max(clean) + i));
+    candidates.dedup();
+    let outputs = refinement.levels().last().expect("a level").num_vertices;
+    let output_corners = refinement.levels().last().expect("a level").num_corners();
+    for m in candidates {
+        let built = if m == 0 {
+            build_stencils(refinement, outputs, output_corners, 0)?
+        } else {
+            let extended = Refinement::new(
+                cage,
+                &Options {
+                    levels: levels + m,
+                    output: OutputKind::Primal,
+                    ..options
+                },
+            )?;
+            build_stencils(&extended, outputs, output_corners, m)?.map(|mut st| {
+                st.extended = Some((extended, Scratch::default()));
+                st
             })
         };
-        if channels <= 4 {
-            return per_group(values, channels);
-        }
-        let error = Mutex::new(None);
-        let out = in_groups_of_four(values, channels, |group| {
-            per_group(&group, 4).unwrap_or_else(|e| {
-                *error.lock().unwrap_or_else(|e| e.into_inner()) = Some(e);
-                vec![T::default(); 4 * self.num_output_vertices()]
-            })
-        });
-        match error.into_inner().unwrap_or_else(|e| e.into_inner()) {
-            Some(e) => Err(e),
-            None => Ok(out),
+        if let Some(st) = built {
+            let st = Arc::new(st);
+            *kept = Some(st.clone());
+            return Ok(st);
         }
     }
+    Err(Error::Internal(format!(
+        "no clean neighbourhood for the limit within {MAX_EXTRA_LEVELS} extra levels"
+    )))
+}
 
-    /// Limit positions (3 channels) and unit limit normals of the surface of `points` (3 per
-    /// cage vertex): one normal per output face corner (in the order of
-    /// [`Plan::output_face_vertices`]), the same for every corner of a smooth vertex and one
-    /// per side at curve vertices and corners (split normals). Degenerate geometry gives zero
-    /// vectors.
-    pub fn limit_surface<T: Scalar>(&self, points: &[T]) -> Result<(Vec<T>, Vec<T>)> {
-        check_values(points, 3, self.num_input_vertices())?;
-        self.check_limit(true)?;
-        let (positions, normals) = self.limit_n::<T, 3>(points, true)?;
-        Ok((positions, normals.expect("normals were asked for")))
+/// How the limit of `refinement` is found, or why it cannot be (`normals`: normals too).
+fn check(refinement: &Refinement, normals: bool) -> Result<LimitRule> {
+    if refinement.options().output != OutputKind::Primal {
+        return Err(Error::InvalidInput(
+            "limit positions and normals are given at the drawing mesh's vertices: use the \
+             primal output"
+                .into(),
+        ));
     }
+    let rule = refinement.scheme().limit(normals)?;
+    if rule == LimitRule::CatmullClark && refinement.curve_networks().is_empty() {
+        return Err(Error::InvalidInput(
+            "classic limit positions need at least one level".into(),
+        ));
+    }
+    Ok(rule)
+}
 
+/// Levels the limit evaluation adds to the plan of `refinement` (built on first use).
+pub(crate) fn extra_levels(refinement: &Refinement, cache: &LimitCache) -> Result<u32> {
+    match check(refinement, false)? {
+        LimitRule::Interpolating | LimitRule::CatmullClark => Ok(0),
+        LimitRule::Eigen => Ok(stencils(refinement, cache)?.extra_levels),
+    }
+}
+
+/// Limit positions at the output vertices (the drawing mesh's) of any per-vertex data of the
+/// cage (`channels` interleaved values per cage vertex, checked). Old vertices keep their ids,
+/// so the first values are the limits at the cage vertices.
+pub(crate) fn positions<T: Scalar>(
+    refinement: &Refinement,
+    scratch: &Scratch,
+    cache: &LimitCache,
+    values: &[T],
+    channels: usize,
+) -> Result<Vec<T>> {
+    let rule = check(refinement, false)?;
+    let per_group = |group: &[T], n: usize| -> Result<Vec<T>> {
+        let limit = Limit {
+            refinement,
+            scratch,
+            cache,
+            rule,
+        };
+        Ok(match n {
+            1 => limit.of::<T, 1>(group, false)?.0,
+            2 => limit.of::<T, 2>(group, false)?.0,
+            3 => limit.of::<T, 3>(group, false)?.0,
+            _ => limit.of::<T, 4>(group, false)?.0,
+        })
+    };
+    if channels <= 4 {
+        return per_group(values, channels);
+    }
+    let error = Mutex::new(None);
+    let out = in_groups_of_four(values, channels, |group| {
+        per_group(&group, 4).unwrap_or_else(|e| {
+            *error.lock().unwrap_or_else(|e| e.into_inner()) = Some(e);
+            Vec::new()
+        })
+    });
+    match error.into_inner().unwrap_or_else(|e| e.into_inner()) {
+        Some(e) => Err(e),
+        None => Ok(out),
+    }
+}
+
+/// Limit positions (3 channels) and unit limit normals of the surface of `points` (3 per cage
+/// vertex, checked): one normal per output face corner, the same for every corner of a smooth
+/// vertex and one per side at curve vertices and corners (split normals). Degenerate geometry
+/// gives zero vectors.
+pub(crate) fn surface<T: Scalar>(
+    refinement: &Refinement,
+    scratch: &Scratch,
+    cache: &LimitCache,
+    points: &[T],
+) -> Result<(Vec<T>, Vec<T>)> {
+    let rule = check(refinement, true)?;
+    let limit = Limit {
+        refinement,
+        scratch,
+        cache,
+        rule,
+    };
+    let (positions, normals) = limit.of::<T, 3>(points, true)?;
+    Ok((positions, normals.expect("normals were asked for")))
+}
+
+/// One limit request on a plan's refinement.
+struct Limit<'a> {
+    refinement: &'a Refinement,
+    scratch: &'a Scratch,
+    cache: &'a LimitCache,
+    rule: LimitRule,
+}
+
+impl Limit<'_> {
     /// Limit positions (and normals) of `N`-channel values.
-    fn limit_n<T: Scalar, const N: usize>(
+    fn of<T: Scalar, const N: usize>(
         &self,
         values: &[T],
         normals: bool,
     ) -> Result<(Vec<T>, Option<Vec<T>>)> {
+        let r = self.refinement;
         let (points, _) = values.as_chunks::<N>();
-        let compact: Cow<[[T; N]]> = match self.vertex_map() {
-            None => Cow::Borrowed(points),
-            Some(map) => Cow::Owned(map.iter().map(|&v| points[v as usize]).collect()),
-        };
-        if let Some(catmark) = self.catmark() {
-            let Final::Primal(last) = self.run(&compact, false) else {
-                unreachable!("primal classic run")
-            };
-            let j = self.levels().len() - 1;
-            let out = catmark.limit(j, &self.levels()[j], &last);
-            return Ok((out.into_flattened(), None));
+        let compact = r.compact(points);
+        match self.rule {
+            LimitRule::CatmullClark => {
+                let Final::Primal(last) = run(r, Some(self.scratch), &compact, false) else {
+                    unreachable!("primal classic run")
+                };
+                let j = r.levels().len() - 1;
+                let sharpness = r.sharpness(j).expect("Catmull-Clark levels have sharpness");
+                let out = catmark_limit(&r.levels()[j], sharpness, &last);
+                Ok((out.into_flattened(), None))
+            }
+            LimitRule::Interpolating => {
+                // Bilinear: the surface interpolates the refined points; each face's patch has
+                // its own normal at its corners.
+                let Final::Primal(last) = run(r, Some(self.scratch), &compact, false) else {
+                    unreachable!("degree 1 is primal")
+                };
+                let normals = normals.then(|| face_corner_normals(r.last_level(), &last));
+                Ok((last.into_flattened(), normals))
+            }
+            LimitRule::Eigen => {
+                let st = stencils(r, self.cache)?;
+                let data = self.limit_data(&st, &compact);
+                let positions: Vec<[T; N]> = gather(st.masks_of.len(), |v| {
+                    let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
+                    let weights: &[f64] = match st.masks_of[v] {
+                        LimitMask::Interior(m) => &st.masks[m as usize].position,
+                        LimitMask::Curve => &st.curve_mask,
+                        LimitMask::Corner => return data[items[0] as usize],
+                    };
+                    combine(&data, items, weights)
+                });
+                let normals = normals.then(|| self.stencil_normals(&st, &data, &positions));
+                Ok((positions.into_flattened(), normals))
+            }
         }
-        if self.options().degree == 1 {
-            // Bilinear: the surface interpolates the refined points; each face's patch has its
-            // own normal at its corners.
-            let Final::Primal(last) = self.run(&compact, false) else {
-                unreachable!("degree 1 is primal")
-            };
-            let normals = normals.then(|| self.face_corner_normals(&last));
-            return Ok((last.into_flattened(), normals));
-        }
-        let st = self.limit_stencils()?;
-        let data = self.limit_data(&st, &compact);
-        let positions: Vec<[T; N]> = gather(st.rules.len(), |v| {
-            let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
-            let weights: &[f64] = match st.rules[v] {
-                Rule::Interior(m) => &st.masks[m as usize].position,
-                Rule::Curve => &st.curve_mask,
-                Rule::Corner => return data[items[0] as usize],
-            };
-            combine(&data, items, weights)
-        });
-        let normals = normals.then(|| self.stencil_normals(&st, &data, &positions));
-        Ok((positions.into_flattened(), normals))
     }
 
     /// The data the stencils read: the last level's vertex values (odd degrees), or its face
@@ -749,8 +552,12 @@ impl Plan {
         st: &Stencils,
         compact: &[[T; N]],
     ) -> Vec<[T; N]> {
-        let plan = st.extended.as_ref().unwrap_or(self);
-        match plan.run(compact, self.options().degree.is_multiple_of(2)) {
+        let (refinement, scratch) = match &st.extended {
+            Some((r, s)) => (r, s),
+            None => (self.refinement, self.scratch),
+        };
+        let even = self.refinement.options().degree.is_multiple_of(2);
+        match run(refinement, Some(scratch), compact, even) {
             Final::Primal(vertices) => vertices,
             Final::Dual {
                 mut faces,
@@ -763,7 +570,7 @@ impl Plan {
         }
     }
 
-    /// Unit normals per output corner from the stencils (see [`Plan::limit_surface`]).
+    /// Unit normals per output corner from the stencils (see [`surface`]).
     fn stencil_normals<T: Scalar, const N: usize>(
         &self,
         st: &Stencils,
@@ -771,8 +578,8 @@ impl Plan {
         positions: &[[T; N]],
     ) -> Vec<T> {
         let at = |x: &[T; N]| DVec3::new(x[0].to_f64(), x[1].to_f64(), x[2].to_f64());
-        let vertex_normals: Vec<DVec3> = gather(st.rules.len(), |v| {
-            let Rule::Interior(m) = st.rules[v] else {
+        let vertex_normals: Vec<DVec3> = gather(st.masks_of.len(), |v| {
+            let LimitMask::Interior(m) = st.masks_of[v] else {
                 return DVec3::ZERO;
             };
             let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
@@ -793,7 +600,7 @@ impl Plan {
                 .sum::<DVec3>()
                 .normalize_or_zero()
         });
-        let corners = self.output_face_vertices();
+        let corners = &self.refinement.last_level().corner_verts;
         let mut out = Vec::with_capacity(3 * corners.len());
         for (c, &v) in corners.iter().enumerate() {
             let n = match st.corner_fan[c] {
@@ -804,31 +611,123 @@ impl Plan {
         }
         out
     }
+}
 
-    /// Unit normals of each output face's bilinear patch at its corners.
-    fn face_corner_normals<T: Scalar, const N: usize>(&self, points: &[[T; N]]) -> Vec<T> {
-        let at = |v: u32| {
-            let x = &points[v as usize];
-            DVec3::new(x[0].to_f64(), x[1].to_f64(), x[2].to_f64())
-        };
-        let (offsets, verts) = (self.output_face_offsets(), self.output_face_vertices());
-        let mut out = Vec::with_capacity(3 * verts.len());
-        for f in 0..offsets.len() - 1 {
-            let face = &verts[offsets[f] as usize..offsets[f + 1] as usize];
-            let k = face.len();
-            for i in 0..k {
-                let p = at(face[i]);
-                let (next, prev) = (at(face[(i + 1) % k]) - p, at(face[(i + k - 1) % k]) - p);
-                out.extend(
-                    next.cross(prev)
-                        .normalize_or_zero()
-                        .to_array()
-                        .map(T::from_f64),
-                );
-            }
+/// Unit normals of each face's bilinear patch at its corners, face after face.
+fn face_corner_normals<T: Scalar, const N: usize>(level: &Level, points: &[[T; N]]) -> Vec<T> {
+    let at = |v: u32| {
+        let x = &points[v as usize];
+        DVec3::new(x[0].to_f64(), x[1].to_f64(), x[2].to_f64())
+    };
+    let mut out = Vec::with_capacity(3 * level.num_corners());
+    for f in 0..level.num_faces() {
+        let face = &level.corner_verts[level.face_corners(f)];
+        let k = face.len();
+        for i in 0..k {
+            let p = at(face[i]);
+            let (next, prev) = (at(face[(i + 1) % k]) - p, at(face[(i + k - 1) % k]) - p);
+            out.extend(
+                next.cross(prev)
+                    .normalize_or_zero()
+                    .to_array()
+                    .map(T::from_f64),
+            );
         }
-        out
     }
+    out
+}
+
+/// Classic Catmull-Clark limit positions at the vertices of `level`, which must be a quad level
+/// (`j >= 1`): OpenSubdiv's limit masks (regular `[1 4 1]^T [1 4 1] / 36`, extraordinary
+/// smooth, crease `(1/6, 2/3, 1/6)`, corners interpolated; at a level where a semi-sharp
+/// feature is still sharp, its current rule is used, as OpenSubdiv's `PrimvarRefiner::Limit`
+/// does). An interior vertex of valence 2 takes the general smooth mask (its true limit, which
+/// Blender's limit surface gives), where Sdc's limit mask would keep the vertex itself. At an
+/// infinitely sharp dart the mask is the dominant left eigenvector of the dart's 1-ring
+/// subdivision matrix ([`dart_limit_mask`]), not Sdc's smooth mask.
+fn catmark_limit<T: Scalar, const N: usize>(
+    level: &Level,
+    this: &LevelSharpness,
+    values: &[Value<T, N>],
+) -> Vec<Value<T, N>> {
+    assert!(level.is_quads(), "limit positions need a quad level");
+    gather(level.num_vertices, |v| match this.rule(v) {
+        VertexRule::Dart
+            if level
+                .vertex_edges(v)
+                .any(|e| is_infinitely_sharp(this.edge(e as usize))) =>
+        {
+            // A dart for good (a semi-sharp dart becomes smooth later: smooth mask).
+            dart_limit(level, this, v, values)
+        }
+        VertexRule::Smooth | VertexRule::Dart => {
+            let corners = level.corners_of_vertex(v);
+            let (fw, ew, vw) = smooth_limit_weights(corners.len());
+            let mut sum = zero();
+            let mut opposite = zero();
+            for &c in corners {
+                let n = level.next(c as usize);
+                sum = add(sum, values[level.corner_verts[n] as usize]);
+                opposite = add(opposite, values[level.corner_verts[level.next(n)] as usize]);
+            }
+            let out = scale(values[v], T::from_f64(vw));
+            let out = mad(out, T::from_f64(ew), sum);
+            mad(out, T::from_f64(fw), opposite)
+        }
+        VertexRule::Crease => {
+            let ends = level.sharp_neighbours(v, |e| is_sharp(this.edge(e as usize)));
+            let (vertex, neighbour) = CREASE_LIMIT_WEIGHTS;
+            let out = scale(values[v], T::from_f64(vertex));
+            mad(
+                out,
+                T::from_f64(neighbour),
+                add(values[ends[0]], values[ends[1]]),
+            )
+        }
+        VertexRule::Corner => values[v],
+    })
+}
+
+/// The limit of an infinitely sharp dart `v` of a quad level from its 1-ring.
+fn dart_limit<T: Scalar, const N: usize>(
+    level: &Level,
+    this: &LevelSharpness,
+    v: usize,
+    values: &[Value<T, N>],
+) -> Value<T, N> {
+    // The ring in rotation order: corner c_i has edge neighbour e_i = next(c_i), opposite
+    // f_i = next(next(c_i)), and face i is (v, e_i, f_i, e_{i+1}).
+    let k = level.corners_of_vertex(v).len();
+    let mut ring = Vec::with_capacity(k);
+    let mut at = level.corners_of_vertex(v)[0] as usize;
+    for _ in 0..k {
+        ring.push(at);
+        let Some(next) = level.next_around_vertex(at) else {
+            // Not a closed ring (cannot happen for a dart): keep the vertex.
+            return values[v];
+        };
+        at = next;
+    }
+    let sharp = ring
+        .iter()
+        .position(|&c| is_sharp(this.edge(level.corner_edges()[c] as usize)))
+        .unwrap_or(0);
+    let mask = dart_limit_mask(k, sharp);
+    let mut out = scale(values[v], T::from_f64(mask[0]));
+    for (i, &c) in ring.iter().enumerate() {
+        let n = level.next(c);
+        out = mad(
+            out,
+            T::from_f64(mask[1 + i]),
+            values[level.corner_verts[n] as usize],
+        );
+        out = mad(
+            out,
+            T::from_f64(mask[1 + k + i]),
+            values[level.corner_verts[level.next(n)] as usize],
+        );
+    }
+    out
 }
 
 /// `sum w_i data[items_i]`, accumulated in f64.

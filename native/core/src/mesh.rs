@@ -2,10 +2,15 @@
 //! that need no refinement (index ranges, face sizes, repeated vertices, geometry).
 
 use crate::error::{Error, Result};
-use crate::evaluate::Scalar;
+use crate::scalar::Scalar;
+
+/// Sharpness at or above which a crease or corner is infinitely sharp (as in OpenSubdiv); the
+/// cage stores larger values, and infinity, as this.
+pub const INFINITELY_SHARP: f32 = 10.0;
 
 /// An edge crease between cage vertices `a` and `b`. Sharpness 0 is smooth; at or above
-/// [`crate::INFINITELY_SHARP`] (or infinite) the crease is sharp at every level.
+/// [`INFINITELY_SHARP`] (or infinite) the crease is sharp at every level, and is stored as
+/// [`INFINITELY_SHARP`] (the one convention of the core, OpenSubdiv's).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Crease {
     /// First vertex of the edge.
@@ -139,7 +144,11 @@ impl Cage {
                     b: b as usize,
                 });
             }
-            self.creases.push(Crease { a, b, sharpness: s });
+            self.creases.push(Crease {
+                a,
+                b,
+                sharpness: s.min(INFINITELY_SHARP),
+            });
         }
         Ok(self)
     }
@@ -151,7 +160,7 @@ impl Cage {
             check_sharpness("corner", i, s)?;
             self.corners.push(Corner {
                 vertex,
-                sharpness: s,
+                sharpness: s.min(INFINITELY_SHARP),
             });
         }
         Ok(self)

@@ -5,22 +5,25 @@
 use std::sync::OnceLock;
 
 use crate::error::{Error, Result};
-use crate::evaluate::{Final, Scalar};
-use crate::plan::{OutputKind, Plan};
-use crate::topology::{gather_hinted, Level, NONE};
+use crate::options::OutputKind;
+use crate::parallel::gather_hinted;
+use crate::refinement::Refinement;
+use crate::scalar::{Scalar, Value};
+use crate::step::Final;
+use crate::topology::Level;
 
 /// The dual mesh of the last level, as a polygon level plus where its data comes from.
 #[derive(Debug, Default)]
-pub(crate) struct DualMesh {
+struct DualMesh {
     /// Its polygons, edges and adjacency.
-    pub level: Level,
+    level: Level,
     /// Indices (among the last step's curve edges) of the boundary curve edges whose 1-D points
     /// follow the face points among the output vertices.
-    pub boundary_points: Vec<u32>,
+    boundary_points: Vec<u32>,
     /// For each corner of the dual mesh, the corner of `M_L` whose face-varying value it takes.
-    pub corner_source: Vec<u32>,
+    corner_source: Vec<u32>,
     /// Cage face of each dual face.
-    pub face_origin: Vec<u32>,
+    face_origin: Vec<u32>,
 }
 
 /// Output topology that is not a table of the last level itself.
@@ -31,16 +34,17 @@ pub(crate) struct OutputMesh {
     /// Cage face of each face of the drawing mesh, built on first use.
     face_origin: OnceLock<Vec<u32>>,
     /// The dual mesh, when asked for.
-    pub dual: Option<DualMesh>,
+    dual: Option<DualMesh>,
 }
 
 impl OutputMesh {
-    /// Builds the output topology of a plan whose levels and steps are laid out (the drawing
-    /// mesh's own tables wait for their first use: evaluation does not need them).
-    pub fn build(plan: &Plan) -> Result<OutputMesh> {
-        if plan.options().output == OutputKind::Dual && plan.levels_as_built().len() > 1 {
-            let origin = face_origin(plan);
-            let dual = dual_mesh(plan, &origin)?;
+    /// Builds the output topology of a refinement (the drawing mesh's own tables wait for their
+    /// first use: evaluation does not need them).
+    pub(crate) fn build(refinement: &Refinement) -> Result<OutputMesh> {
+        if refinement.options().output == OutputKind::Dual && refinement.levels_as_built().len() > 1
+        {
+            let origin = face_origin(refinement);
+            let dual = dual_mesh(refinement, &origin)?;
             return Ok(OutputMesh {
                 face_origin: OnceLock::from(origin),
                 dual: Some(dual),
@@ -49,30 +53,114 @@ impl OutputMesh {
         }
         Ok(OutputMesh::default())
     }
-}
 
-/// Face offsets of the drawing mesh (`M_L`).
-fn primal_face_offsets(plan: &Plan) -> &[u32] {
-    plan.output().face_offsets.get_or_init(|| {
-        let last = plan.levels_as_built().last().expect("at least one level");
-        if last.is_quads() {
-            gather_hinted(last.num_faces() + 1, |f| 4 * f as u32)
-        } else {
-            last.face_offsets.clone()
+    /// Number of output vertices.
+    pub(crate) fn num_vertices(&self, refinement: &Refinement) -> usize {
+        match &self.dual {
+            Some(d) => d.level.num_vertices,
+            None => refinement.last_level().num_vertices,
         }
-    })
-}
+    }
 
-/// The cage face of every face of the drawing mesh.
-fn primal_face_origin(plan: &Plan) -> &[u32] {
-    plan.output().face_origin.get_or_init(|| face_origin(plan))
+    /// Number of output faces.
+    pub(crate) fn num_faces(&self, refinement: &Refinement) -> usize {
+        match &self.dual {
+            Some(d) => d.level.num_faces(),
+            None => refinement.last_level().num_faces(),
+        }
+    }
+
+    /// The output mesh as a level; `with_edges` completes the drawing mesh's edge tables.
+    fn level<'a>(&'a self, refinement: &'a Refinement, with_edges: bool) -> &'a Level {
+        match &self.dual {
+            Some(d) => &d.level,
+            None if with_edges => refinement.levels().last().expect("a level"),
+            None => refinement.last_level(),
+        }
+    }
+
+    /// Offsets of each output face's vertices in [`OutputMesh::face_vertices`] (faces + 1).
+    pub(crate) fn face_offsets<'a>(&'a self, refinement: &'a Refinement) -> &'a [u32] {
+        match &self.dual {
+            Some(d) => &d.level.face_offsets,
+            None => self.face_offsets.get_or_init(|| {
+                let last = refinement.last_level();
+                if last.is_quads() {
+                    gather_hinted(last.num_faces() + 1, |f| 4 * f as u32)
+                } else {
+                    last.face_offsets.clone()
+                }
+            }),
+        }
+    }
+
+    /// Vertex indices of the output faces, face after face, counter-clockwise like the cage.
+    pub(crate) fn face_vertices<'a>(&'a self, refinement: &'a Refinement) -> &'a [u32] {
+        &self.level(refinement, false).corner_verts
+    }
+
+    /// The cage face each output face comes from.
+    pub(crate) fn face_origin<'a>(&'a self, refinement: &'a Refinement) -> &'a [u32] {
+        match &self.dual {
+            Some(d) => &d.face_origin,
+            None => self.face_origin.get_or_init(|| face_origin(refinement)),
+        }
+    }
+
+    /// The edges of the output mesh.
+    pub(crate) fn edges<'a>(&'a self, refinement: &'a Refinement) -> &'a [[u32; 2]] {
+        self.level(refinement, true).edge_verts()
+    }
+
+    /// For each entry of [`OutputMesh::face_vertices`], the edge to the next corner of its face.
+    pub(crate) fn corner_edges<'a>(&'a self, refinement: &'a Refinement) -> &'a [u32] {
+        self.level(refinement, true).corner_edges()
+    }
+
+    /// Turns the values of the last level into output vertex values.
+    pub(crate) fn finish<T: Scalar, const N: usize>(
+        &self,
+        result: Final<T, N>,
+    ) -> Vec<Value<T, N>> {
+        match result {
+            Final::Primal(points) => points,
+            Final::Dual {
+                mut faces,
+                curve_edges,
+            } => {
+                let dual = self.dual.as_ref().expect("dual output has a dual mesh");
+                faces.extend(
+                    dual.boundary_points
+                        .iter()
+                        .map(|&i| curve_edges[i as usize]),
+                );
+                faces
+            }
+        }
+    }
+
+    /// Turns face-varying values at the corners of `M_L` into values at the output corners.
+    pub(crate) fn face_varying<T: Scalar>(&self, values: Vec<T>, channels: usize) -> Vec<T> {
+        match &self.dual {
+            None => values,
+            Some(d) => d
+                .corner_source
+                .iter()
+                .flat_map(|&c| {
+                    values[c as usize * channels..(c as usize + 1) * channels]
+                        .iter()
+                        .copied()
+                })
+                .collect(),
+        }
+    }
 }
 
 /// Face f of M_L is corner f of M_{L-1}, inside face f/4 of M_{L-1} (for L-1 >= 1), down to a
 /// corner of the cage.
-fn face_origin(plan: &Plan) -> Vec<u32> {
-    let levels = plan.levels_as_built();
-    let last = levels.last().expect("at least one level");
+fn face_origin(refinement: &Refinement) -> Vec<u32> {
+    let levels = refinement.levels_as_built();
+    let last = refinement.last_level();
     let depth = levels.len() - 1;
     if depth == 0 {
         (0..last.num_faces() as u32).collect()
@@ -85,16 +173,16 @@ fn face_origin(plan: &Plan) -> Vec<u32> {
 
 /// The dual of `M_L`: the faces around each vertex, walked from face to face across edges and
 /// reversed so that the dual faces keep the orientation of the surface.
-fn dual_mesh(plan: &Plan, face_origin: &[u32]) -> Result<DualMesh> {
-    let last = plan.levels().last().expect("a refined level");
-    let step = plan.steps().last().expect("a step");
+fn dual_mesh(refinement: &Refinement, face_origin: &[u32]) -> Result<DualMesh> {
+    let last = refinement.levels().last().expect("a refined level");
+    let curves = refinement.curve_networks().last().expect("a step");
     let num_faces = last.num_faces() as u32;
-    let boundary_points: Vec<u32> = (0..step.curve_edges.len() as u32)
-        .filter(|&i| last.is_boundary_edge(step.curve_edges[i as usize].edge as usize))
+    let boundary_points: Vec<u32> = (0..curves.edges().len() as u32)
+        .filter(|&i| last.is_boundary_edge(curves.edges()[i as usize].edge as usize))
         .collect();
     let point_of_edge = |e: u32| -> u32 {
         let at = boundary_points
-            .binary_search_by_key(&e, |&i| step.curve_edges[i as usize].edge)
+            .binary_search_by_key(&e, |&i| curves.edges()[i as usize].edge)
             .expect("boundary edges are curve edges of the last step");
         num_faces + at as u32
     };
@@ -120,23 +208,19 @@ fn dual_mesh(plan: &Plan, face_origin: &[u32]) -> Result<DualMesh> {
             loop {
                 visited[c] = true;
                 fan.push(c as u32);
-                let [s0, s1] = last.edge_corners()[last.corner_edges()[c] as usize];
-                let other = if s0 as usize == c { s1 } else { s0 };
-                if other == NONE {
+                let Some(other) = last.opposite(last.corner_edges()[c] as usize, c) else {
                     break;
-                }
-                c = last.next(other as usize);
+                };
+                c = last.next(other);
                 if visited[c] {
                     break;
                 }
             }
-            let open =
-                last.is_boundary_edge(last.corner_edges()[*fan.last().unwrap() as usize] as usize);
+            let end = *fan.last().expect("a fan has a corner") as usize;
+            let open = last.is_boundary_edge(last.corner_edges()[end] as usize);
             if open {
-                verts.push(point_of_edge(
-                    last.corner_edges()[*fan.last().unwrap() as usize],
-                ));
-                sources.push(*fan.last().unwrap());
+                verts.push(point_of_edge(last.corner_edges()[end]));
+                sources.push(end as u32);
             }
             for &c in fan.iter().rev() {
                 verts.push(c >> 2);
@@ -171,105 +255,4 @@ fn dual_mesh(plan: &Plan, face_origin: &[u32]) -> Result<DualMesh> {
         corner_source: sources,
         face_origin: origin,
     })
-}
-
-impl Plan {
-    /// Number of output vertices.
-    pub fn num_output_vertices(&self) -> usize {
-        match &self.output().dual {
-            Some(d) => d.level.num_vertices,
-            None => self.levels_as_built().last().expect("a level").num_vertices,
-        }
-    }
-
-    /// Number of output faces.
-    pub fn num_output_faces(&self) -> usize {
-        match &self.output().dual {
-            Some(d) => d.level.num_faces(),
-            None => self.levels_as_built().last().expect("a level").num_faces(),
-        }
-    }
-
-    /// The output mesh as a level; `with_edges` completes the drawing mesh's edge tables.
-    fn output_level(&self, with_edges: bool) -> &Level {
-        let levels = if with_edges {
-            self.levels()
-        } else {
-            self.levels_as_built()
-        };
-        match &self.output().dual {
-            Some(d) => &d.level,
-            None => levels.last().expect("a level"),
-        }
-    }
-
-    /// Offsets of each output face's vertices in [`Plan::output_face_vertices`] (faces + 1).
-    pub fn output_face_offsets(&self) -> &[u32] {
-        match &self.output().dual {
-            Some(d) => &d.level.face_offsets,
-            None => primal_face_offsets(self),
-        }
-    }
-
-    /// Vertex indices of the output faces, face after face, counter-clockwise like the cage.
-    pub fn output_face_vertices(&self) -> &[u32] {
-        &self.output_level(false).corner_verts
-    }
-
-    /// The cage face each output face comes from (for materials, shading, face attributes).
-    pub fn output_face_origin(&self) -> &[u32] {
-        match &self.output().dual {
-            Some(d) => &d.face_origin,
-            None => primal_face_origin(self),
-        }
-    }
-
-    /// The edges of the output mesh.
-    pub fn output_edges(&self) -> &[[u32; 2]] {
-        self.output_level(true).edge_verts()
-    }
-
-    /// For each entry of [`Plan::output_face_vertices`], the edge to the next corner of its face.
-    pub fn output_corner_edges(&self) -> &[u32] {
-        self.output_level(true).corner_edges()
-    }
-
-    /// Turns the values of the last level into output vertex values.
-    pub(crate) fn finish<T: Scalar, const N: usize>(&self, result: Final<T, N>) -> Vec<[T; N]> {
-        match result {
-            Final::Primal(points) => points,
-            Final::Dual {
-                mut faces,
-                curve_edges,
-            } => {
-                let dual = self
-                    .output()
-                    .dual
-                    .as_ref()
-                    .expect("dual output has a dual mesh");
-                faces.extend(
-                    dual.boundary_points
-                        .iter()
-                        .map(|&i| curve_edges[i as usize]),
-                );
-                faces
-            }
-        }
-    }
-
-    /// Turns face-varying values at the corners of `M_L` into values at the output corners.
-    pub(crate) fn face_varying_output<T: Scalar>(&self, values: Vec<T>, channels: usize) -> Vec<T> {
-        match &self.output().dual {
-            None => values,
-            Some(d) => d
-                .corner_source
-                .iter()
-                .flat_map(|&c| {
-                    values[c as usize * channels..(c as usize + 1) * channels]
-                        .iter()
-                        .copied()
-                })
-                .collect(),
-        }
-    }
 }

@@ -15,22 +15,22 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::mesh::Cage;
+use crate::parallel::{
+    fill_csr, gather_hinted, prefix_offsets, with_capacity_hinted, zeroed_hinted, CHUNK,
+};
 
 /// Marks a missing entry (the second face of a boundary edge).
-pub const NONE: u32 = u32::MAX;
-
-/// Items per parallel task in the gathers (large enough to amortise scheduling).
-pub(crate) const CHUNK: usize = 1 << 12;
+pub(crate) const NONE: u32 = u32::MAX;
 
 /// The edges of a level and their incidences.
 #[derive(Debug, Clone, Default)]
-pub struct Edges {
+pub(crate) struct Edges {
     /// Edge from each corner to the next corner of its face.
-    pub corner_edges: Vec<u32>,
+    pub(crate) corner_edges: Vec<u32>,
     /// The two vertices of each edge.
-    pub verts: Vec<[u32; 2]>,
+    pub(crate) verts: Vec<[u32; 2]>,
     /// The corners whose outgoing edge is this edge, one per incident face; `NONE` on a boundary.
-    pub corners: Vec<[u32; 2]>,
+    pub(crate) corners: Vec<[u32; 2]>,
 }
 
 /// One level of refinement: a polygon mesh as flat index tables.
@@ -40,13 +40,13 @@ pub struct Edges {
 #[derive(Debug, Clone, Default)]
 pub struct Level {
     /// Number of vertices.
-    pub num_vertices: usize,
+    pub(crate) num_vertices: usize,
     /// Face offsets into the corner tables (length faces + 1); empty on quad levels.
-    pub face_offsets: Vec<u32>,
+    pub(crate) face_offsets: Vec<u32>,
     /// Face of each corner; empty on quad levels (where it is `corner / 4`).
-    pub corner_faces: Vec<u32>,
+    pub(crate) corner_faces: Vec<u32>,
     /// Vertex of each corner.
-    pub corner_verts: Vec<u32>,
+    pub(crate) corner_verts: Vec<u32>,
     /// Number of edges (known before the edge tables are).
     num_edges: usize,
     /// The edge tables; left empty by [`Level::refine_faces`] until [`Level::complete_from`].
@@ -54,18 +54,33 @@ pub struct Level {
     /// Offsets of each vertex's corners in `vert_corners` (length vertices + 1). This table and
     /// `vert_corners` are empty on the last level of a plan whose output is the drawing mesh
     /// (see [`Level::refine_faces`]).
-    pub vert_corner_offsets: Vec<u32>,
+    pub(crate) vert_corner_offsets: Vec<u32>,
     /// The corners at each vertex: in increasing order on the cage level and for old vertices
     /// and face points of refined levels; an edge point lists, for each of its edge's corner
     /// slots in turn, the two child corners of that slot (evaluation sums in this order, and
     /// the adaptive partial levels reproduce it).
-    pub vert_corners: Vec<u32>,
+    pub(crate) vert_corners: Vec<u32>,
     /// `(vert_corner_offsets, vert_corners)` built on first use by [`Level::corners_of_vertex`]
     /// when the tables above were left out.
     lazy_vertex_corners: OnceLock<(Vec<u32>, Vec<u32>)>,
 }
 
 impl Level {
+    /// Number of vertices.
+    #[inline]
+    pub fn num_vertices(&self) -> usize {
+        self.num_vertices
+    }
+
+    /// Vertex of each corner (corners are numbered face after face).
+    #[inline]
+    pub fn corner_verts(&self) -> &[u32] {
+        &self.corner_verts
+    }
+
+    /// Marks a missing corner in [`Level::edge_corners`] (the second face of a boundary edge).
+    pub const NONE: u32 = NONE;
+
     /// True when every face is a quad (every level after the first).
     #[inline]
     pub fn is_quads(&self) -> bool {
@@ -96,7 +111,7 @@ impl Level {
     /// The edge tables. Panics on the faces-only last level of a plan before
     /// [`Level::complete_from`] (`Plan::levels` completes it; only evaluation sees it bare).
     #[inline]
-    pub fn edges(&self) -> &Edges {
+    pub(crate) fn edges(&self) -> &Edges {
         self.edges
             .get()
             .expect("edge tables of a faces-only level are built by Level::complete_from")
@@ -123,14 +138,15 @@ impl Level {
 
     /// True when the edge tables are built (always, except on the last level of a plan before
     /// [`Level::complete_from`]).
-    pub fn has_edges(&self) -> bool {
+    #[cfg(test)]
+    pub(crate) fn has_edges(&self) -> bool {
         self.edges.get().is_some()
     }
 
     /// Completes a level built by `parent.refine_faces()`: its edge tables (numbered exactly as
     /// [`Level::refine`] numbers them) and its vertex -> corner table (as
     /// [`Level::index_vertex_corners_from`]); nothing that is there is built again.
-    pub fn complete_from(&self, parent: &Level) {
+    pub(crate) fn complete_from(&self, parent: &Level) {
         self.add_edges_from(parent);
         self.index_vertex_corners_from(parent);
     }
@@ -143,7 +159,7 @@ impl Level {
     /// Builds, in parallel from the parent, the vertex -> corner table that
     /// [`Level::corners_of_vertex`] would build on first use on a level made by
     /// `parent.refine_faces()` (the same table; nothing if it is there).
-    pub fn index_vertex_corners_from(&self, parent: &Level) {
+    pub(crate) fn index_vertex_corners_from(&self, parent: &Level) {
         if self.vert_corner_offsets.is_empty() {
             self.lazy_vertex_corners
                 .get_or_init(|| parent.child_vertex_corners(self.num_vertices, true));
@@ -151,7 +167,7 @@ impl Level {
     }
 
     /// A quad level from its tables (the adaptive partial levels).
-    pub fn from_quad_tables(
+    pub(crate) fn from_quad_tables(
         num_vertices: usize,
         corner_verts: Vec<u32>,
         edges: Edges,
@@ -242,8 +258,64 @@ impl Level {
 
     /// The child edge of `e` (at the next level) that contains the endpoint `v` of `e`.
     #[inline]
-    fn child_half(&self, e: u32, v: u32) -> u32 {
+    pub(crate) fn child_half(&self, e: u32, v: u32) -> u32 {
         2 * e + (self.edge_verts()[e as usize][0] != v) as u32
+    }
+
+    /// The corner across edge `e` from corner `c` (the other face's corner whose outgoing edge
+    /// is `e`); `None` on a boundary.
+    #[inline]
+    pub(crate) fn opposite(&self, e: usize, c: usize) -> Option<usize> {
+        let [a, b] = self.edge_corners()[e];
+        let other = if a as usize == c { b } else { a };
+        (other != NONE).then_some(other as usize)
+    }
+
+    /// The corner at the same vertex in the next face around it, across the incoming edge of
+    /// `c`; `None` at a boundary.
+    #[inline]
+    pub(crate) fn next_around_vertex(&self, c: usize) -> Option<usize> {
+        let p = self.prev(c);
+        self.opposite(self.corner_edges()[p] as usize, p)
+    }
+
+    /// The edges at vertex `v`: the outgoing edge of each of its corners, and the incoming edge
+    /// of a corner when that edge is on the boundary (so that every edge comes once).
+    #[inline]
+    pub(crate) fn vertex_edges(&self, v: usize) -> impl Iterator<Item = u32> + '_ {
+        self.corners_of_vertex(v).iter().flat_map(move |&c| {
+            let c = c as usize;
+            let incoming = self.corner_edges()[self.prev(c)];
+            let extra = self.is_boundary_edge(incoming as usize).then_some(incoming);
+            std::iter::once(self.corner_edges()[c]).chain(extra)
+        })
+    }
+
+    /// The other end of edge `e` from its end `v`.
+    #[inline]
+    pub(crate) fn other_end(&self, e: u32, v: usize) -> usize {
+        let [a, b] = self.edge_verts()[e as usize];
+        if a as usize == v {
+            b as usize
+        } else {
+            a as usize
+        }
+    }
+
+    /// The other ends of the first two edges at `v` (in [`Level::vertex_edges`] order) for
+    /// which `sharp` holds (`v` itself in place of missing ones): a crease vertex's neighbours
+    /// along its crease.
+    #[inline]
+    pub(crate) fn sharp_neighbours(&self, v: usize, sharp: impl Fn(u32) -> bool) -> [usize; 2] {
+        let mut ends = [v; 2];
+        let mut found = 0;
+        for e in self.vertex_edges(v) {
+            if found < 2 && sharp(e) {
+                ends[found] = self.other_end(e, v);
+                found += 1;
+            }
+        }
+        ends
     }
 
     /// Builds a level from polygons (all vertices used), finding its edges. Fails with the
@@ -253,7 +325,7 @@ impl Level {
     /// Edges are numbered by their (smaller, larger) vertex pair; each edge's corners are its
     /// halves in increasing order. Every vertex finds the edges to larger vertices among its
     /// own corners, so the work is parallel over vertices and needs no global sort.
-    pub fn from_polygons(
+    pub(crate) fn from_polygons(
         num_vertices: usize,
         face_offsets: Vec<u32>,
         corner_verts: Vec<u32>,
@@ -385,7 +457,11 @@ impl Level {
 
     /// Builds the first level from a cage, with `corner_verts` renumbered so that every vertex
     /// is used; errors name the cage's own vertex ids and faces.
-    pub fn from_cage(cage: &Cage, num_vertices: usize, corner_verts: Vec<u32>) -> Result<Level> {
+    pub(crate) fn from_cage(
+        cage: &Cage,
+        num_vertices: usize,
+        corner_verts: Vec<u32>,
+    ) -> Result<Level> {
         let offsets = cage.face_offsets().to_vec();
         let verts = cage.face_vertices();
         let face_of = |c: usize| offsets.partition_point(|&o| o as usize <= c) - 1;
@@ -420,7 +496,7 @@ impl Level {
     ///
     /// Child edges: `2e` and `2e + 1` are the halves of edge `e` (containing its first and second
     /// vertex), `2E + c` joins the edge point of `c`'s outgoing edge to the face point.
-    pub fn refine(&self) -> Level {
+    pub(crate) fn refine(&self) -> Level {
         let child = self.refine_faces();
         child.add_edges_from(self);
         let (offsets, vert_corners) = self.child_vertex_corners(child.num_vertices, false);
@@ -435,7 +511,7 @@ impl Level {
     /// [`Level::complete_from`], the vertex -> corner table for [`Level::corners_of_vertex`]
     /// (in increasing order of corner). This is the last level of a plan, which evaluation
     /// reads only through its faces and vertex count.
-    pub fn refine_faces(&self) -> Level {
+    pub(crate) fn refine_faces(&self) -> Level {
         let nv = self.num_vertices as u32;
         let ne = self.num_edges() as u32;
         let corner_edges = self.corner_edges();
@@ -583,129 +659,13 @@ fn vertex_corners(num_vertices: usize, corner_verts: &[u32]) -> (Vec<u32>, Vec<u
     (offsets, vert_corners)
 }
 
-/// CSR offsets (length `n + 1`) of items with `count(item)` entries each: counts and the
-/// prefix sum run in fixed chunks in parallel (integer sums, so the order does not matter).
-pub(crate) fn prefix_offsets(n: usize, count: impl Fn(usize) -> u32 + Sync) -> Vec<u32> {
-    let mut offsets = zeroed_hinted::<u32>(n + 1);
-    offsets[1..]
-        .par_chunks_mut(CHUNK)
-        .enumerate()
-        .for_each(|(chunk, out)| {
-            let mut sum = 0u32;
-            for (i, o) in out.iter_mut().enumerate() {
-                sum += count(chunk * CHUNK + i);
-                *o = sum;
-            }
-        });
-    // Carry each chunk's total into the following chunks.
-    let chunks = n.div_ceil(CHUNK);
-    let mut carry = Vec::with_capacity(chunks);
-    let mut total = 0u32;
-    for chunk in 0..chunks {
-        carry.push(total);
-        total += offsets[((chunk + 1) * CHUNK).min(n)];
-    }
-    offsets[1..]
-        .par_chunks_mut(CHUNK)
-        .zip(carry)
-        .for_each(|(out, add)| {
-            if add != 0 {
-                for o in out {
-                    *o += add;
-                }
-            }
-        });
-    offsets
-}
-
-/// Allocations from this size on are worth the transparent-huge-page hint.
-const HUGE_HINT_BYTES: usize = 4 << 20;
-
-/// An empty vector with room for `n` items; a large one is advised to use transparent huge
-/// pages, which makes its first touch (the page faults) several times cheaper on Linux.
-pub(crate) fn with_capacity_hinted<T>(n: usize) -> Vec<T> {
-    let v = Vec::with_capacity(n);
-    advise_huge_pages(v.as_ptr() as usize, v.capacity() * std::mem::size_of::<T>());
-    v
-}
-
-/// `out[i] = f(i)` for `i < n`, in parallel chunks, into a hinted allocation.
-pub(crate) fn gather_hinted<V: Send>(n: usize, f: impl Fn(usize) -> V + Sync + Send) -> Vec<V> {
-    let mut v = with_capacity_hinted(n);
-    (0..n)
-        .into_par_iter()
-        .with_min_len(CHUNK)
-        .map(f)
-        .collect_into_vec(&mut v);
-    v
-}
-
-/// `n` zeros (or defaults) in a hinted allocation, written in parallel.
-pub(crate) fn zeroed_hinted<T: Default + Copy + Send + Sync>(n: usize) -> Vec<T> {
-    let mut v = with_capacity_hinted(n);
-    (0..n)
-        .into_par_iter()
-        .with_min_len(4 * CHUNK)
-        .map(|_| T::default())
-        .collect_into_vec(&mut v);
-    v
-}
-
-#[cfg(target_os = "linux")]
-fn advise_huge_pages(start: usize, bytes: usize) {
-    const HUGE: usize = 2 << 20;
-    if bytes < HUGE_HINT_BYTES {
-        return;
-    }
-    let first = (start + HUGE - 1) & !(HUGE - 1);
-    let end = (start + bytes) & !(HUGE - 1);
-    if end > first {
-        // SAFETY: the range lies inside an allocation we own, and MADV_HUGEPAGE is a hint that
-        // changes neither its contents nor its mapping; a failure is harmless and ignored.
-        unsafe {
-            libc::madvise(first as *mut libc::c_void, end - first, libc::MADV_HUGEPAGE);
-        }
-    }
-}
-
-#[cfg(not(target_os = "linux"))]
-fn advise_huge_pages(_start: usize, _bytes: usize) {}
-
 /// Why a set of polygons is not an oriented 2-manifold along its edges.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum EdgeProblem {
+pub(crate) enum EdgeProblem {
     /// The edge leaving `corner` has `faces` faces.
     NonManifold { corner: usize, faces: usize },
     /// The two corners traverse their shared edge in the same direction.
     Orientation { corners: [usize; 2] },
-}
-
-/// Fills a CSR table in parallel: `fill(item, slice)` writes the entries of `item`, whose slice
-/// is `offsets[item]..offsets[item + 1]`. Items are split into fixed chunks, so the result does
-/// not depend on the thread count.
-pub(crate) fn fill_csr<T: Send>(
-    offsets: &[u32],
-    data: &mut [T],
-    fill: impl Fn(usize, &mut [T]) + Sync,
-) {
-    let items = offsets.len() - 1;
-    let mut pieces = Vec::with_capacity(items / CHUNK + 1);
-    let mut rest = data;
-    let mut start = 0;
-    while start < items {
-        let end = (start + CHUNK).min(items);
-        let (piece, tail) = rest.split_at_mut((offsets[end] - offsets[start]) as usize);
-        pieces.push((start, end, piece));
-        rest = tail;
-        start = end;
-    }
-    pieces.into_par_iter().for_each(|(start, end, piece)| {
-        let base = offsets[start] as usize;
-        for item in start..end {
-            let range = offsets[item] as usize - base..offsets[item + 1] as usize - base;
-            fill(item, &mut piece[range]);
-        }
-    });
 }
 
 #[cfg(test)]

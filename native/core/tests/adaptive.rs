@@ -5,9 +5,9 @@ mod common;
 
 use std::collections::HashMap;
 
-use bidegree::adaptive::{margin_rings, subdivide_adaptive_with_margin, triangle_template};
 use bidegree::{
-    subdivide_adaptive, AdaptiveMesh, AdaptiveOptions, Boundary, Cage, Error, Options, Plan, Scalar,
+    margin_rings, subdivide_adaptive, subdivide_adaptive_with_margin, triangle_template,
+    AdaptiveMesh, AdaptiveOptions, Boundary, Cage, Error, Options, Plan, Scalar,
 };
 use common::{cage, grid, Random};
 

@@ -5,7 +5,7 @@
 
 mod common;
 
-use bidegree::limit::{cardinal_bspline, cardinal_bspline_derivative, vertex_masks};
+use bidegree::analysis::{cardinal_bspline, cardinal_bspline_derivative, vertex_masks};
 use bidegree::{Cage, Error, Options, OutputKind, Plan, Rules};
 use common::{cage, cube, plan, torus, Random};
 
@@ -353,7 +353,7 @@ fn normals_are_unit_continuous_and_match_the_surface() {
                 let nrm = &normals[3 * c0..3 * c0 + 3];
                 let pv = &fine_limit[3 * v..3 * v + 3];
                 for &c in level.corners_of_vertex(v) {
-                    let w = level.corner_verts[level.next(c as usize)] as usize;
+                    let w = level.corner_verts()[level.next(c as usize)] as usize;
                     let chord: Vec<f64> = (0..3).map(|k| fine_limit[3 * w + k] - pv[k]).collect();
                     worst = worst.max((dot(nrm, &chord) / dot(&chord, &chord).sqrt()).abs());
                 }

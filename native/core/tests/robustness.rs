@@ -1,7 +1,10 @@
 //! Arbitrary input never panics: any polygon soup, crease list, degree and level count either
 //! subdivides or is refused with a typed error.
 
-use bidegree::{subdivide, Boundary, Cage, Options, OutputKind};
+use bidegree::{
+    subdivide, subdivide_adaptive, AdaptiveOptions, Boundary, Cage, Options, OutputKind, Plan,
+    Rules,
+};
 use proptest::prelude::*;
 
 type Soup = (usize, Vec<Vec<i64>>, Vec<(i64, i64, f32)>, Vec<f64>);
@@ -72,6 +75,67 @@ proptest! {
             prop_assert!(out.iter().all(|x| x.is_finite()));
             let max = *plan.output_face_vertices().iter().max().unwrap_or(&0) as usize;
             prop_assert!(max < plan.num_output_vertices());
+        }
+    }
+}
+
+/// A corner on a vertex that no face uses has no place in the surface: it is left out, and the
+/// result is the one without it, for every degree and rule set, both outputs, the limits and
+/// adaptive subdivision (it used to panic with an index out of bounds, issue 18).
+#[test]
+fn a_corner_on_an_isolated_vertex_is_left_out() {
+    let points = [0.0, 0.0, 0.0, 1.0, 0.0, 0.2, 0.0, 1.0, 0.4, 5.0, 5.0, 5.0];
+    let plain = Cage::from_indices(4, &[3], &[0, 1, 2]).unwrap();
+    let cornered = plain.clone().with_corners(&[(3, 2.0)]).unwrap();
+    let schemes = (1..=9)
+        .map(|d| (d, Rules::Averaging))
+        .chain((1..=3).map(|d| (d, Rules::Classic)));
+    for (degree, rules) in schemes {
+        for output in [OutputKind::Primal, OutputKind::Dual] {
+            for levels in 0..=2 {
+                let options = Options {
+                    degree,
+                    levels,
+                    output,
+                    rules,
+                    ..Options::default()
+                };
+                let what = format!("degree {degree} {rules:?} {output:?} levels {levels}");
+                let (a, b) = (Plan::new(&plain, &options), Plan::new(&cornered, &options));
+                let (a, b) = match (a, b) {
+                    (Ok(a), Ok(b)) => (a, b),
+                    (Err(x), Err(y)) => {
+                        assert_eq!(x, y, "{what}");
+                        continue;
+                    }
+                    (a, b) => panic!("{what}: {:?} against {:?}", a.err(), b.err()),
+                };
+                assert_eq!(b.isolated_vertices(), &[3], "{what}");
+                assert_eq!(
+                    a.evaluate(&points, 3).unwrap(),
+                    b.evaluate(&points, 3).unwrap(),
+                    "{what}"
+                );
+                assert_eq!(
+                    a.limit_positions(&points, 3),
+                    b.limit_positions(&points, 3),
+                    "{what}"
+                );
+                assert_eq!(a.limit_surface(&points), b.limit_surface(&points), "{what}");
+            }
+        }
+        if rules == Rules::Averaging {
+            let options = AdaptiveOptions {
+                degree,
+                max_level: 2,
+                tolerance: 0.0,
+                ..AdaptiveOptions::default()
+            };
+            assert_eq!(
+                subdivide_adaptive(&plain, &points, &options).unwrap(),
+                subdivide_adaptive(&cornered, &points, &options).unwrap(),
+                "adaptive degree {degree}"
+            );
         }
     }
 }

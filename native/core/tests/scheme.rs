@@ -168,7 +168,7 @@ fn boundary_loop(plan: &Plan, start: u32) -> Vec<u32> {
     for e in 0..level.num_edges() {
         if level.is_boundary_edge(e) {
             let c = level.edge_corners()[e][0] as usize;
-            next.insert(level.corner_verts[c], level.corner_verts[level.next(c)]);
+            next.insert(level.corner_verts()[c], level.corner_verts()[level.next(c)]);
         }
     }
     let mut walk = vec![start];
@@ -233,12 +233,8 @@ fn sharp_crease_reproduces_the_curve_and_corners_stay_put() {
         let out = as_points(&plan.evaluate(&points, 3).unwrap());
         // The crease's vertices at the last level: the old ring vertices and their descendants
         // along curve edges of the last step.
-        let step = plan.steps().last().unwrap();
-        let ours: Vec<P> = step
-            .curve_vertices
-            .iter()
-            .map(|cv| out[cv.vertex as usize])
-            .collect();
+        let step = plan.curve_networks().last().unwrap();
+        let ours: Vec<P> = step.curve_vertices().map(|v| out[v as usize]).collect();
         let mut reference = polygon.clone();
         for _ in 0..levels {
             reference = lane_riesenfeld(&reference, degree);

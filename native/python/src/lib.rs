@@ -12,12 +12,10 @@ mod adaptive;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
 
-use bidegree::classic::Creasing;
 use bidegree::io::{self, ObjMesh};
-use bidegree::plan::Rules;
 use bidegree::{
-    Boundary, Cage, Error, Options, OutputKind, Plan, Scalar, DEFAULT_MEMORY_BUDGET, MAX_DEGREE,
-    MAX_LEVELS,
+    Boundary, Cage, Creasing, Error, Options, OutputKind, Plan, Rules, Scalar,
+    DEFAULT_MEMORY_BUDGET, MAX_DEGREE, MAX_LEVELS,
 };
 use numpy::ndarray::Dimension;
 use numpy::{
@@ -417,9 +415,7 @@ fn validate<T: Scalar + Element>(
 ) -> PyResult<()> {
     let channels = points.shape()[1];
     let data = contiguous(points, "points")?;
-    run(py, || {
-        bidegree::mesh::validate_geometry(cage, data, channels)
-    })
+    run(py, || bidegree::validate_geometry(cage, data, channels))
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -727,7 +723,7 @@ fn evaluate_fresh<'py, T: Scalar + Element>(
             let (plan, out) = bidegree::subdivide(cage, data, channels, &options)?;
             return Ok((plan, Some(out)));
         }
-        bidegree::mesh::validate_geometry(cage, data, channels)?;
+        bidegree::validate_geometry(cage, data, channels)?;
         Ok((Plan::new(cage, &options)?, None))
     })?;
     let out = match out {

@@ -1,16 +1,16 @@
 //! Classic rule sets (`Rules::Classic`): Catmull-Clark as OpenSubdiv's catmark at degree 3,
 //! Doo-Sabin at degree 2. Parity with OpenSubdiv itself is tested in Python against bpy
-//! (tests/test_classic_parity.py); these are the masks from their definitions.
+//! (tests/test_classic_parity.py); these are the masks from their definitions. (A unit test of
+//! the crate: it reads the per-level sharpness and rules and runs the Catmull-Clark step
+//! directly.)
 
-mod common;
-
-use bidegree::classic::{
-    decrement, doo_sabin_weight, fractional_weight, subdivide_edge_sharpness, vertex_rule,
-    Creasing, Rule,
+use super::common::{self, cage, torus, Random};
+use crate::scheme::catmark::{
+    dart_limit_mask, fractional_weight, subdivide_edge_sharpness, vertex_rule, VertexRule,
 };
-use bidegree::plan::Rules;
-use bidegree::{Boundary, Cage, Options, OutputKind, Plan};
-use common::{cage, torus, Random};
+use crate::scheme::{decrement, doo_sabin_weight};
+use crate::step::catmark::step_into;
+use crate::{Boundary, Cage, Creasing, Options, OutputKind, Plan, Rules};
 
 fn classic(degree: u32, levels: u32) -> Options {
     Options {
@@ -328,7 +328,10 @@ fn crease_and_corner_masks() {
         .with_creases(&[(0, 1, 10.0), (1, 2, 10.0), (2, 3, 10.0), (3, 0, 10.0)])
         .unwrap();
     let plan = Plan::new(&ring, &classic(3, 1)).unwrap();
-    assert_eq!(plan.catmark().unwrap().levels[0].rule(1), Rule::Crease);
+    assert_eq!(
+        plan.refinement().sharpness(0).unwrap().rule(1),
+        VertexRule::Crease
+    );
     let out = pts(&plan.evaluate(&flat, 3).unwrap());
     assert!(close(
         out[1],
@@ -337,7 +340,10 @@ fn crease_and_corner_masks() {
     // A dart (one sharp edge) uses the smooth rules; its other end too.
     let dart = cube.clone().with_creases(&[(0, 1, 10.0)]).unwrap();
     let plan = Plan::new(&dart, &classic(3, 1)).unwrap();
-    assert_eq!(plan.catmark().unwrap().levels[0].rule(0), Rule::Dart);
+    assert_eq!(
+        plan.refinement().sharpness(0).unwrap().rule(0),
+        VertexRule::Dart
+    );
     let smooth = Plan::new(&cube, &classic(3, 1))
         .unwrap()
         .evaluate(&flat, 3)
@@ -359,11 +365,11 @@ fn semi_sharp_decrement() {
     assert_eq!(decrement(1.0), 0.0);
     assert_eq!(decrement(0.5), 0.0);
     assert_eq!(decrement(12.0), 10.0);
-    assert_eq!(vertex_rule(0.0, 0), Rule::Smooth);
-    assert_eq!(vertex_rule(0.0, 1), Rule::Dart);
-    assert_eq!(vertex_rule(0.0, 2), Rule::Crease);
-    assert_eq!(vertex_rule(0.0, 3), Rule::Corner);
-    assert_eq!(vertex_rule(0.3, 0), Rule::Corner);
+    assert_eq!(vertex_rule(0.0, 0), VertexRule::Smooth);
+    assert_eq!(vertex_rule(0.0, 1), VertexRule::Dart);
+    assert_eq!(vertex_rule(0.0, 2), VertexRule::Crease);
+    assert_eq!(vertex_rule(0.0, 3), VertexRule::Corner);
+    assert_eq!(vertex_rule(0.3, 0), VertexRule::Corner);
     // Chaikin: 3/4 own + 1/4 mean of the other semi-sharp edges, minus one.
     let s = subdivide_edge_sharpness(3.0, &[3.0, 1.0, 0.0, 10.0], Creasing::Chaikin);
     assert!((s - (0.75 * 3.0 + 0.25 * 1.0 - 1.0)).abs() < 1e-6);
@@ -395,18 +401,18 @@ fn semi_sharp_decrement() {
         .collect();
     let t = torus(m, n).with_creases(&creases).unwrap();
     let plan = Plan::new(&t, &classic(3, 4)).unwrap();
-    let catmark = plan.catmark().unwrap();
+    let catmark = |j| plan.refinement().sharpness(j).unwrap();
     let e0 = plan.levels()[0]
         .edge_verts()
         .iter()
         .position(|&[a, b]| (a, b) == (0, id(1, 0) as u32))
         .unwrap();
     for (j, want) in [2.3f32, 1.3, 0.3, 0.0].into_iter().enumerate() {
-        let got = catmark.levels[j].edge(e0 << j);
+        let got = catmark(j).edge(e0 << j);
         assert!((got - want).abs() < 1e-5, "level {j}: {got}");
     }
-    assert_eq!(catmark.levels[0].rule(0), Rule::Crease);
-    assert_eq!(catmark.levels[3].rule(0), Rule::Smooth);
+    assert_eq!(catmark(0).rule(0), VertexRule::Crease);
+    assert_eq!(catmark(3).rule(0), VertexRule::Smooth);
     // Sharpness 0.5: edge points blend the crease and smooth masks half and half; vertex
     // points half crease, half smooth.
     let creases: Vec<(i64, i64, f32)> = (0..m)
@@ -485,7 +491,7 @@ fn limit_positions() {
     for i in 0..3 * 9 {
         assert!((one[i] - three[i]).abs() < 1e-12, "{i}");
     }
-    let mask = bidegree::classic::dart_limit_mask(7, 0);
+    let mask = dart_limit_mask(7, 0);
     assert!((mask.iter().sum::<f64>() - 1.0).abs() < 1e-14);
     let f = 1.0 / (7.0 * 12.0);
     assert!((mask[0] - (1.0 - 35.0 * f)).abs() > 1e-3);
@@ -535,8 +541,8 @@ fn doo_sabin_keeps_the_averaging_boundary_and_outputs_work() {
     );
     assert_eq!(pa.len(), pb.len());
     let l0 = &a.levels()[1];
-    let step = &a.steps()[1];
-    let on_curve = |v: u32| step.curve_vertices.iter().any(|cv| cv.vertex == v);
+    let step = &a.curve_networks()[1];
+    let on_curve = |v: u32| step.curve_vertices().any(|x| x == v);
     let mut differ = 0;
     for c in 0..l0.num_corners() {
         if on_curve(l0.corner_verts[c]) {
@@ -582,13 +588,15 @@ fn step_into_reuses_a_dirty_buffer_and_matches_step() {
     let torus_points = random_points(20, 7);
     for (cage, points) in [(bi, bi_points), (creased, torus_points)] {
         let plan = Plan::new(&cage, &classic(3, 2)).unwrap();
-        let catmark = plan.catmark().unwrap();
         let levels = plan.levels();
+        let creasing = Creasing::Uniform;
         let mut values: Vec<P> = pts(&points);
         let mut buffer: Vec<P> = vec![[f64::NAN; 3]; 4 * levels[2].num_vertices];
         for j in 0..2 {
-            let expected = catmark.step(j, &levels[j], &levels[j + 1], &values);
-            catmark.step_into(j, &levels[j], &levels[j + 1], &values, &mut buffer);
+            let step = plan.refinement().step(j);
+            let mut expected = Vec::new();
+            step_into(&step, creasing, &values, &mut expected);
+            step_into(&step, creasing, &values, &mut buffer);
             assert_eq!(buffer.len(), levels[j + 1].num_vertices);
             let bits = |v: &[P]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&buffer), bits(&expected));

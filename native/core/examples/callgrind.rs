@@ -1,0 +1,91 @@
+//! A deterministic driver for instruction counts under callgrind (the machine is shared, so
+//! wall-clock times are noise; instruction counts are not). `callgrind CASE REPS` builds the
+//! input, then does the case's work `REPS` times; the cost of one is the difference of the
+//! counts of `REPS = 2` and `REPS = 1` (the work runs on rayon's threads, so callgrind's
+//! per-thread `--toggle-collect` cannot isolate it):
+//!
+//! ```sh
+//! cargo build -p bidegree --release --example callgrind
+//! ir() { RAYON_NUM_THREADS=1 valgrind --tool=callgrind --callgrind-out-file=/dev/null \
+//!          target/release/examples/callgrind "$@" 2>&1 | awk '/Collected/ {print $4}'; }
+//! for case in fresh-averaging-3 cached-averaging-3 fresh-classic-3 cached-classic-3 \
+//!             fresh-averaging-4 cached-averaging-4 fresh-averaging-9 cached-averaging-9 \
+//!             limit-surface-4 adaptive-4; do
+//!   echo "$case $(( $(ir $case 2) - $(ir $case 1) ))"
+//! done
+//! ```
+//!
+//! Cage: the 3,840-quad ico-quad sphere of the OpenSubdiv benchmark, f32 points, level 3.
+//! "fresh" is `Plan::new` and one `evaluate`; "cached" one `evaluate` through a plan that has
+//! already evaluated once (its kept buffers warm); the limit case is `limit_surface` on a new
+//! plan (stencils built on the first call) and the adaptive case one `subdivide_adaptive` at
+//! tolerance 1e-4, max level 3.
+
+use std::hint::black_box;
+
+use bidegree::{subdivide_adaptive, AdaptiveOptions, Options, Plan, Rules};
+
+#[path = "../benches/cages/mod.rs"]
+mod cages;
+
+fn main() {
+    let usage = || -> ! {
+        eprintln!("usage: callgrind CASE REPS (see the module documentation)");
+        std::process::exit(2);
+    };
+    let args: Vec<String> = std::env::args().collect();
+    let (Some(case), Some(reps)) = (args.get(1), args.get(2).and_then(|r| r.parse().ok())) else {
+        usage()
+    };
+    let case = case.as_str();
+    let measured = |work: &dyn Fn()| {
+        for _ in 0..reps {
+            work();
+        }
+    };
+    let (cage, _, _, points) = cages::ico_quad_sphere(8);
+    let options = |degree: u32, rules: Rules| Options {
+        degree,
+        levels: 3,
+        rules,
+        ..Options::default()
+    };
+    let scheme = |name: &str| -> Option<Options> {
+        Some(match name {
+            "averaging-3" => options(3, Rules::Averaging),
+            "classic-3" => options(3, Rules::Classic),
+            "averaging-4" => options(4, Rules::Averaging),
+            "averaging-9" => options(9, Rules::Averaging),
+            _ => return None,
+        })
+    };
+    if let Some(o) = case.strip_prefix("fresh-").and_then(scheme) {
+        measured(&|| {
+            let plan = Plan::new(&cage, &o).unwrap();
+            black_box(plan.evaluate(&points, 3).unwrap());
+        });
+    } else if let Some(o) = case.strip_prefix("cached-").and_then(scheme) {
+        let plan = Plan::new(&cage, &o).unwrap();
+        black_box(plan.evaluate(&points, 3).unwrap());
+        measured(&|| {
+            black_box(plan.evaluate(&points, 3).unwrap());
+        });
+    } else if case == "limit-surface-4" {
+        measured(&|| {
+            let plan = Plan::new(&cage, &options(4, Rules::Averaging)).unwrap();
+            black_box(plan.limit_surface(&points).unwrap());
+        });
+    } else if case == "adaptive-4" {
+        let adaptive = AdaptiveOptions {
+            degree: 4,
+            max_level: 3,
+            tolerance: 1e-4,
+            ..AdaptiveOptions::default()
+        };
+        measured(&|| {
+            black_box(subdivide_adaptive(&cage, &points, &adaptive).unwrap());
+        });
+    } else {
+        usage()
+    }
+}

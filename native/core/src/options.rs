@@ -1,0 +1,161 @@
+//! The options of a request (degree, levels, output, boundary, rules, creasing, memory budget),
+//! their limits and the one check of them, and the size estimate made before any work.
+
+use crate::error::{Error, Result};
+use crate::mesh::Cage;
+
+/// Highest supported degree (number of averaging steps per level).
+pub const MAX_DEGREE: u32 = 31;
+/// Highest number of levels accepted before the memory estimate is even made.
+pub const MAX_LEVELS: u32 = 16;
+/// Default memory budget of a request: 4 GiB.
+pub const DEFAULT_MEMORY_BUDGET: u64 = 4 << 30;
+
+/// What is drawn at the last level.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum OutputKind {
+    /// The drawing mesh: `M_L` with primal points (dual data gets one more dual -> primal
+    /// average, the paper's drawing step). Every face is a quad when L >= 1.
+    #[default]
+    Primal,
+    /// The true dual mesh: one point per face of `M_L`, one face per vertex of `M_L` (closed
+    /// along boundaries by the boundary curve's 1-D points).
+    Dual,
+}
+
+/// How boundaries are treated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Boundary {
+    /// Boundary edges are sharp curves (Blender's and OpenSubdiv's default).
+    #[default]
+    EdgeOnly,
+    /// As `EdgeOnly`, and boundary vertices with a single face are corners.
+    EdgeAndCorner,
+}
+
+/// Which rules refine the levels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Rules {
+    /// Repeated averaging (Zorin-Schröder), any degree.
+    #[default]
+    Averaging,
+    /// Classic rule sets (degrees 1 to 3): degree 3 Catmull-Clark exactly as OpenSubdiv's
+    /// `catmark`, degree 2 the original Doo-Sabin weights, degree 1 bilinear (see
+    /// [`crate::classic`]).
+    Classic,
+}
+
+/// How semi-sharp edge sharpness decreases from level to level.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Creasing {
+    /// Minus one per level (OpenSubdiv's `CREASE_UNIFORM`, Blender's choice).
+    #[default]
+    Uniform,
+    /// Chaikin: each half takes 3/4 of its own sharpness and 1/4 of the mean of the other
+    /// semi-sharp edges at its vertex, minus one (OpenSubdiv's `CREASE_CHAIKIN`).
+    Chaikin,
+}
+
+/// Options of a subdivision request.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Options {
+    /// Number of averaging steps per level (1 bilinear, 2 Doo-Sabin variant, 3 Catmull-Clark
+    /// variant, 4 biquartic, ...), 1..=31. C1 at irregular points is proven up to 9.
+    pub degree: u32,
+    /// Number of refinement levels.
+    pub levels: u32,
+    /// Drawing mesh or true dual mesh.
+    pub output: OutputKind,
+    /// Boundary interpolation.
+    pub boundary: Boundary,
+    /// Largest memory, in bytes, a request may need (estimated before any work).
+    pub memory_budget: u64,
+    /// Averaging or classic rules.
+    pub rules: Rules,
+    /// How semi-sharp creases decrease with classic degree-3 rules (uniform or Chaikin).
+    pub creasing: Creasing,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            degree: 4,
+            levels: 2,
+            output: OutputKind::Primal,
+            boundary: Boundary::EdgeOnly,
+            memory_budget: DEFAULT_MEMORY_BUDGET,
+            rules: Rules::Averaging,
+            creasing: Creasing::Uniform,
+        }
+    }
+}
+
+/// Size of a request, estimated from the cage before any work.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Estimate {
+    /// Output vertices.
+    pub vertices: u64,
+    /// Output faces.
+    pub faces: u64,
+    /// Peak memory of plan and evaluation, in bytes (for f64 points with 3 channels).
+    pub bytes: u64,
+}
+
+/// Checks that `degree` is in `1..=MAX_DEGREE`.
+pub(crate) fn check_degree(degree: u32) -> Result<()> {
+    if !(1..=MAX_DEGREE).contains(&degree) {
+        return Err(Error::DegreeOutOfRange {
+            degree: degree as i64,
+            max: MAX_DEGREE,
+        });
+    }
+    Ok(())
+}
+
+/// Checks that `levels` is in `min..=MAX_LEVELS`.
+pub(crate) fn check_levels(levels: u32, min: u32) -> Result<()> {
+    if !(min..=MAX_LEVELS).contains(&levels) {
+        return Err(Error::LevelOutOfRange {
+            levels: levels as i64,
+            max: MAX_LEVELS,
+        });
+    }
+    Ok(())
+}
+
+/// The one check of a request's options.
+fn check_options(options: &Options) -> Result<()> {
+    check_degree(options.degree)?;
+    if options.rules == Rules::Classic && options.degree > 3 {
+        return Err(Error::InvalidInput(format!(
+            "classic rules exist for degrees 1 to 3, not {}",
+            options.degree
+        )));
+    }
+    check_levels(options.levels, 0)
+}
+
+/// Estimates the output size and peak memory of a request without doing it.
+pub fn estimate(cage: &Cage, options: &Options) -> Result<Estimate> {
+    check_options(options)?;
+    // Exact counts per level (edges estimated from corners for the cage: each interior edge has
+    // two corners), in f64 so that absurd requests cannot overflow.
+    let mut v = cage.num_vertices() as f64;
+    let mut f = cage.num_faces() as f64;
+    let mut c = cage.face_vertices().len() as f64;
+    let mut e = c / 2.0 + 1.0;
+    let mut bytes = 0.0;
+    let level_bytes = |v: f64, e: f64, c: f64| 4.0 * (v + 4.0 * c) + 16.0 * e;
+    bytes += level_bytes(v, e, c);
+    for _ in 0..options.levels {
+        (v, e, f, c) = (v + e + f, 2.0 * e + c, c, 4.0 * c);
+        bytes += level_bytes(v, e, c);
+    }
+    // Evaluation keeps about three arrays of the larger of vertices and faces (f64 x 3).
+    bytes += 3.0 * 24.0 * v.max(f);
+    Ok(Estimate {
+        vertices: v as u64,
+        faces: f as u64,
+        bytes: bytes.min(u64::MAX as f64) as u64,
+    })
+}

@@ -1,0 +1,210 @@
+//! Parallel gathers in fixed chunks: every pass of the crate writes each output item from one
+//! task, over chunks whose bounds do not depend on the number of threads, so results are bitwise
+//! the same whatever the thread count. Also the allocation hints that make a large buffer's first
+//! touch cheap, and [`in_pool`]. Ground floor: imports nothing of the crate.
+
+use std::mem::MaybeUninit;
+
+use rayon::prelude::*;
+
+/// Items per parallel task in the gathers (large enough to amortise scheduling).
+pub(crate) const CHUNK: usize = 1 << 12;
+
+/// CSR offsets (length `n + 1`) of items with `count(item)` entries each: counts and the
+/// prefix sum run in fixed chunks in parallel (integer sums, so the order does not matter).
+pub(crate) fn prefix_offsets(n: usize, count: impl Fn(usize) -> u32 + Sync) -> Vec<u32> {
+    let mut offsets = zeroed_hinted::<u32>(n + 1);
+    offsets[1..]
+        .par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(chunk, out)| {
+            let mut sum = 0u32;
+            for (i, o) in out.iter_mut().enumerate() {
+                sum += count(chunk * CHUNK + i);
+                *o = sum;
+            }
+        });
+    // Carry each chunk's total into the following chunks.
+    let chunks = n.div_ceil(CHUNK);
+    let mut carry = Vec::with_capacity(chunks);
+    let mut total = 0u32;
+    for chunk in 0..chunks {
+        carry.push(total);
+        total += offsets[((chunk + 1) * CHUNK).min(n)];
+    }
+    offsets[1..]
+        .par_chunks_mut(CHUNK)
+        .zip(carry)
+        .for_each(|(out, add)| {
+            if add != 0 {
+                for o in out {
+                    *o += add;
+                }
+            }
+        });
+    offsets
+}
+
+/// Allocations from this size on are worth the transparent-huge-page hint.
+const HUGE_HINT_BYTES: usize = 4 << 20;
+
+/// An empty vector with room for `n` items; a large one is advised to use transparent huge
+/// pages, which makes its first touch (the page faults) several times cheaper on Linux.
+pub(crate) fn with_capacity_hinted<T>(n: usize) -> Vec<T> {
+    let v = Vec::with_capacity(n);
+    advise_huge_pages(v.as_ptr() as usize, v.capacity() * std::mem::size_of::<T>());
+    v
+}
+
+/// `out[i] = f(i)` for `i < n`, in parallel chunks, into a hinted allocation.
+pub(crate) fn gather_hinted<V: Send>(n: usize, f: impl Fn(usize) -> V + Sync + Send) -> Vec<V> {
+    let mut v = with_capacity_hinted(n);
+    (0..n)
+        .into_par_iter()
+        .with_min_len(CHUNK)
+        .map(f)
+        .collect_into_vec(&mut v);
+    v
+}
+
+/// `n` zeros (or defaults) in a hinted allocation, written in parallel.
+pub(crate) fn zeroed_hinted<T: Default + Copy + Send + Sync>(n: usize) -> Vec<T> {
+    let mut v = with_capacity_hinted(n);
+    (0..n)
+        .into_par_iter()
+        .with_min_len(4 * CHUNK)
+        .map(|_| T::default())
+        .collect_into_vec(&mut v);
+    v
+}
+
+#[cfg(target_os = "linux")]
+fn advise_huge_pages(start: usize, bytes: usize) {
+    const HUGE: usize = 2 << 20;
+    if bytes < HUGE_HINT_BYTES {
+        return;
+    }
+    let first = (start + HUGE - 1) & !(HUGE - 1);
+    let end = (start + bytes) & !(HUGE - 1);
+    if end > first {
+        // SAFETY: the range lies inside an allocation we own, and MADV_HUGEPAGE is a hint that
+        // changes neither its contents nor its mapping; a failure is harmless and ignored.
+        unsafe {
+            libc::madvise(first as *mut libc::c_void, end - first, libc::MADV_HUGEPAGE);
+        }
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn advise_huge_pages(_start: usize, _bytes: usize) {}
+
+/// Fills a CSR table in parallel: `fill(item, slice)` writes the entries of `item`, whose slice
+/// is `offsets[item]..offsets[item + 1]`. Items are split into fixed chunks, so the result does
+/// not depend on the thread count.
+pub(crate) fn fill_csr<T: Send>(
+    offsets: &[u32],
+    data: &mut [T],
+    fill: impl Fn(usize, &mut [T]) + Sync,
+) {
+    let items = offsets.len() - 1;
+    let mut pieces = Vec::with_capacity(items / CHUNK + 1);
+    let mut rest = data;
+    let mut start = 0;
+    while start < items {
+        let end = (start + CHUNK).min(items);
+        let (piece, tail) = rest.split_at_mut((offsets[end] - offsets[start]) as usize);
+        pieces.push((start, end, piece));
+        rest = tail;
+        start = end;
+    }
+    pieces.into_par_iter().for_each(|(start, end, piece)| {
+        let base = offsets[start] as usize;
+        for item in start..end {
+            let range = offsets[item] as usize - base..offsets[item + 1] as usize - base;
+            fill(item, &mut piece[range]);
+        }
+    });
+}
+
+/// Fills `out`, rows of `row` values, with `fill(i, row_i)` in parallel chunks of rows (each
+/// row written by one task, whatever the number of threads).
+pub(crate) fn fill_rows<T: Send>(out: &mut [T], row: usize, fill: impl Fn(usize, &mut [T]) + Sync) {
+    if row == 0 {
+        return;
+    }
+    out.par_chunks_mut(row * CHUNK)
+        .enumerate()
+        .for_each(|(chunk, rows)| {
+            for (i, values) in rows.chunks_exact_mut(row).enumerate() {
+                fill(chunk * CHUNK + i, values);
+            }
+        });
+}
+
+/// `out[i] = f(i)` for `i < n`, in parallel chunks.
+pub(crate) fn gather<V: Send, F: Fn(usize) -> V + Sync + Send>(n: usize, f: F) -> Vec<V> {
+    let mut out = Vec::new();
+    gather_into(&mut out, n, f);
+    out
+}
+
+/// As [`gather`], reusing the allocation of `out`.
+pub(crate) fn gather_into<V: Send, F: Fn(usize) -> V + Sync + Send>(
+    out: &mut Vec<V>,
+    n: usize,
+    f: F,
+) {
+    if out.capacity() < n {
+        *out = with_capacity_hinted(n);
+    }
+    (0..n)
+        .into_par_iter()
+        .with_min_len(CHUNK)
+        .map(f)
+        .collect_into_vec(out);
+}
+
+/// As [`gather_into`] for data on the vertices of a child level, whose three sections (old
+/// vertices, edge points, face points, of the given sizes) each get their own function.
+pub(crate) fn gather_sections<V: Send>(
+    out: &mut Vec<V>,
+    sizes: [usize; 3],
+    old: impl Fn(usize) -> V + Sync + Send,
+    edge: impl Fn(usize) -> V + Sync + Send,
+    face: impl Fn(usize) -> V + Sync + Send,
+) {
+    let n = sizes.iter().sum();
+    if out.capacity() < n {
+        *out = with_capacity_hinted(n);
+    }
+    let section = |len: usize| (0..len).into_par_iter().with_min_len(CHUNK);
+    section(sizes[0])
+        .map(old)
+        .chain(section(sizes[1]).map(edge))
+        .chain(section(sizes[2]).map(face))
+        .collect_into_vec(out);
+}
+
+/// `out[i] = f(i)` (initialising every item), in parallel chunks of [`CHUNK`] items, each
+/// item written by one task, so the result does not depend on the number of threads.
+pub(crate) fn fill<V: Send, F: Fn(usize) -> V + Sync + Send>(out: &mut [MaybeUninit<V>], f: F) {
+    out.par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(chunk, items)| {
+            let start = chunk * CHUNK;
+            for (i, item) in items.iter_mut().enumerate() {
+                item.write(f(start + i));
+            }
+        });
+}
+
+/// Runs `work` on a thread of rayon's pool. A run of many short parallel loops started from
+/// outside the pool hands every loop to the pool and waits for it (two thread wake-ups per
+/// loop); started from inside, the loops split and join there.
+pub(crate) fn in_pool<R: Send>(work: impl FnOnce() -> R + Send) -> R {
+    if rayon::current_thread_index().is_some() {
+        work()
+    } else {
+        rayon::scope(|_| work())
+    }
+}

@@ -1,0 +1,664 @@
+//! The step primitive (the role of OpenSubdiv's `Far::PrimvarRefiner::Interpolate`): one
+//! subdivision step `M_j -> M_{j+1}` of any rule set ([`Scheme`]) applied to the data of a
+//! level, on a full level of a plan or on a partial level of the adaptive forest alike (a
+//! partial level is a [`Level`] of some faces; values outside its exact region are computed
+//! and ignored). Everything that evaluates data through levels calls it: [`crate::evaluate`]
+//! (plans, and through them the limits), [`crate::adaptive`] and [`crate::analysis`].
+//!
+//! A step of the averaging rules is a replication followed by n centroid averages alternating
+//! dual -> primal and primal -> dual (DESIGN.md §1), with the 1-D scheme run in lockstep on the
+//! step's [`CurveNetwork`] (§2); classic Doo-Sabin adds its original weights
+//! ([`doo_sabin`]), classic Catmull-Clark is one pass of OpenSubdiv's masks ([`catmark`]).
+//! Every pass is a parallel gather in a fixed order, so the output is bitwise the same whatever
+//! the number of threads, and the same on a partial level as on the full one wherever the
+//! inputs of a value are present.
+//!
+//! Performance notes: a step on primal data over a quad level runs its replication and first
+//! two averages as one pass over the coarse faces (nothing of the first average is stored,
+//! bitwise the separate passes); the other passes gather through the coarse level's tables. The
+//! working buffers come from a [`Scratch`] that a plan keeps between evaluations, so that a
+//! cached re-evaluation pays page faults only for the array it returns.
+
+pub(crate) mod catmark;
+mod doo_sabin;
+
+use std::any::Any;
+use std::borrow::Cow;
+use std::fmt::Debug;
+use std::sync::Mutex;
+
+use rayon::prelude::*;
+
+use crate::curves::{CurveNetwork, CurveVertex, LevelSharpness};
+use crate::parallel::{gather_into, gather_sections, with_capacity_hinted, CHUNK};
+use crate::scalar::{add, reciprocal, scale, zero, Scalar, Value};
+use crate::scheme::Scheme;
+use crate::topology::{Level, NONE};
+
+/// What one step reads besides the data: its two levels, its curve network and, for the
+/// classic Catmull-Clark rules, the sharpness and rules of both levels.
+#[derive(Clone, Copy)]
+pub(crate) struct Step<'a> {
+    /// The rule set.
+    pub scheme: Scheme,
+    /// `M_j` (full or partial).
+    pub coarse: &'a Level,
+    /// `M_{j+1}`: its faces and vertex count are read (the faces-only last level of a plan
+    /// will do).
+    pub fine: &'a Level,
+    /// The curve network of the step.
+    pub curves: &'a CurveNetwork,
+    /// Classic Catmull-Clark: sharpness and rules of `coarse` and `fine`.
+    pub sharpness: Option<(&'a LevelSharpness, &'a LevelSharpness)>,
+}
+
+/// 1-D data on the curve network: per curve vertex (primal) or per curve edge (dual) of the
+/// step that made the level, the cage points themselves before the first step, or (classic
+/// Catmull-Clark, which has no 1-D scheme) the 2-D values at the curve vertices.
+enum CurveData<T: Scalar, const N: usize> {
+    Cage,
+    Primal(Vec<Value<T, N>>),
+    Dual(Vec<Value<T, N>>),
+    OnVertices,
+}
+
+/// Buffers that evaluations through a plan leave behind for the next ones (so that a cached
+/// re-evaluation does not pay page faults for its intermediate data): a few vectors of any
+/// value type, behind a mutex that is held only to take or give one.
+#[derive(Default)]
+pub(crate) struct Scratch(Mutex<Vec<Box<dyn Any + Send>>>);
+
+/// Buffers kept at most (the oldest go first).
+const SCRATCH_BUFFERS: usize = 2;
+
+impl Debug for Scratch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Scratch")
+    }
+}
+
+impl Scratch {
+    /// An empty vector with room for `capacity` items: a kept one if it is large enough.
+    pub(crate) fn take<V: Send + 'static>(&self, capacity: usize) -> Vec<V> {
+        let kept = {
+            let mut pool = self.0.lock().unwrap_or_else(|e| e.into_inner());
+            pool.iter()
+                .position(|b| {
+                    b.downcast_ref::<Vec<V>>()
+                        .is_some_and(|v| v.capacity() >= capacity)
+                })
+                .map(|i| pool.remove(i))
+        };
+        match kept.and_then(|b| b.downcast::<Vec<V>>().ok()) {
+            Some(mut v) => {
+                v.clear();
+                *v
+            }
+            None => with_capacity_hinted(capacity),
+        }
+    }
+
+    /// Frees every kept buffer.
+    pub(crate) fn clear(&self) {
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).clear();
+    }
+
+    /// Keeps `v` for later evaluations.
+    pub(crate) fn give<V: Send + 'static>(&self, v: Vec<V>) {
+        if v.capacity() == 0 {
+            return;
+        }
+        let mut pool = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        if pool.len() >= SCRATCH_BUFFERS {
+            pool.remove(0);
+        }
+        pool.push(Box::new(v));
+    }
+}
+
+/// The data of a level on its way through the steps: 2-D data (per vertex when primal, per
+/// face when dual) and the 1-D data on the curve network of the step that made the level. Two
+/// buffers carry the 2-D data and are reused from pass to pass (a third, `spare`, where a rule
+/// set needs its input after the averages).
+pub(crate) struct LevelData<'a, T: Scalar, const N: usize> {
+    /// The cage points (compacted numbering): corners keep these.
+    cage: &'a [Value<T, N>],
+    /// Primal data, valid when `primal`.
+    vertices: Cow<'a, [Value<T, N>]>,
+    /// Dual data, valid when not `primal`.
+    faces: Cow<'a, [Value<T, N>]>,
+    /// A free buffer.
+    spare: Vec<Value<T, N>>,
+    primal: bool,
+    curve: CurveData<T, N>,
+    /// Where new buffers come from (with room for the largest level), when given.
+    scratch: Option<(&'a Scratch, usize)>,
+}
+
+/// The data at the end of a run of steps.
+pub(crate) enum Final<T: Scalar, const N: usize> {
+    /// Per vertex.
+    Primal(Vec<Value<T, N>>),
+    /// Per face, and the 1-D values of the last step's curve edges.
+    Dual {
+        faces: Vec<Value<T, N>>,
+        curve_edges: Vec<Value<T, N>>,
+    },
+}
+
+impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
+    /// The cage points as primal data on `M_0`.
+    pub(crate) fn new(cage: &'a [Value<T, N>]) -> Self {
+        LevelData {
+            cage,
+            vertices: Cow::Borrowed(cage),
+            faces: Cow::Borrowed(&[]),
+            spare: Vec::new(),
+            primal: true,
+            curve: CurveData::Cage,
+            scratch: None,
+        }
+    }
+
+    /// Data on a refined level: `values` per vertex (`primal`) or per face, `curve` per curve
+    /// vertex or curve edge of the network of the step that made the level; `cage` holds the
+    /// points that corners keep.
+    pub(crate) fn on_level(
+        cage: &'a [Value<T, N>],
+        primal: bool,
+        values: &'a [Value<T, N>],
+        curve: Vec<Value<T, N>>,
+    ) -> Self {
+        let mut data = LevelData::new(cage);
+        data.primal = primal;
+        if primal {
+            data.vertices = Cow::Borrowed(values);
+            data.curve = CurveData::Primal(curve);
+        } else {
+            data.faces = Cow::Borrowed(values);
+            data.curve = CurveData::Dual(curve);
+        }
+        data
+    }
+
+    /// New buffers come from `scratch`, with room for `capacity` values.
+    pub(crate) fn with_scratch(mut self, scratch: &'a Scratch, capacity: usize) -> Self {
+        self.scratch = Some((scratch, capacity));
+        self
+    }
+
+    /// The 2-D data (per vertex or per face) and the 1-D data (per curve vertex or curve edge).
+    pub(crate) fn into_parts(self) -> (Vec<Value<T, N>>, Vec<Value<T, N>>) {
+        let curve = match self.curve {
+            CurveData::Primal(c) | CurveData::Dual(c) => c,
+            CurveData::Cage | CurveData::OnVertices => Vec::new(),
+        };
+        if self.primal {
+            (self.vertices.into_owned(), curve)
+        } else {
+            (self.faces.into_owned(), curve)
+        }
+    }
+
+    /// One step: the next level's data from this level's (see the module documentation).
+    pub(crate) fn step(&mut self, step: &Step) {
+        match step.scheme {
+            Scheme::Averaging { degree } => self.average(step, degree),
+            Scheme::Bilinear => self.average(step, 1),
+            Scheme::DooSabin => self.doo_sabin(step),
+            Scheme::CatmullClark { creasing } => self.catmark(step, creasing),
+        }
+    }
+
+    /// The step of the averaging rules of `degree`: replicate, then `degree` averages.
+    fn average(&mut self, step: &Step, degree: u32) {
+        let first = if self.primal && degree >= 2 && step.coarse.is_quads() {
+            self.first_average_to_dual(step);
+            3
+        } else {
+            self.first_average(step);
+            2
+        };
+        for a in first..=degree {
+            if a % 2 == 1 {
+                self.average_to_primal(step);
+            } else {
+                self.average_to_dual(step.fine, step.curves);
+            }
+        }
+    }
+
+    /// Ends a run on the last step's levels: `want_dual` selects the kind (the drawing mesh
+    /// wants primal data, the true dual mesh dual data; the average that converts dual data is
+    /// the paper's drawing step). Buffers no longer needed go back to the scratch.
+    pub(crate) fn finish(mut self, last: Option<&Step>, want_dual: bool) -> Final<T, N> {
+        if let Some(step) = last {
+            match (self.primal, want_dual) {
+                (true, true) => self.average_to_dual(step.fine, step.curves),
+                (false, false) => self.average_to_primal(step),
+                _ => {}
+            }
+        }
+        let scratch = self.scratch.map(|s| s.0);
+        let give = |v: Vec<Value<T, N>>| {
+            if let Some(scratch) = scratch {
+                scratch.give(v);
+            }
+        };
+        give(std::mem::take(&mut self.spare));
+        if self.primal {
+            if let Cow::Owned(f) = std::mem::replace(&mut self.faces, Cow::Borrowed(&[])) {
+                give(f);
+            }
+            return Final::Primal(self.vertices.into_owned());
+        }
+        if let Cow::Owned(v) = std::mem::replace(&mut self.vertices, Cow::Borrowed(&[])) {
+            give(v);
+        }
+        let CurveData::Dual(curve_edges) = self.curve else {
+            unreachable!("dual 1-D data")
+        };
+        Final::Dual {
+            faces: self.faces.into_owned(),
+            curve_edges,
+        }
+    }
+
+    /// The drawing points of dual data (one more dual -> primal average with the 1-D values),
+    /// leaving the data as it is.
+    pub(crate) fn drawing_points(&self, step: &Step) -> Vec<Value<T, N>> {
+        let mut out = Vec::new();
+        self.gather_primal(step, &mut out);
+        self.blend_curves(step.curves, &mut out);
+        out
+    }
+
+    /// A buffer for a new array of values.
+    fn fresh(&mut self) -> Vec<Value<T, N>> {
+        if self.spare.capacity() > 0 {
+            return std::mem::take(&mut self.spare);
+        }
+        match self.scratch {
+            Some((scratch, capacity)) => scratch.take(capacity),
+            None => Vec::new(),
+        }
+    }
+
+    /// A buffer for new primal data: the old one when it is ours, else a fresh one.
+    fn take_vertices(&mut self) -> Vec<Value<T, N>> {
+        match std::mem::replace(&mut self.vertices, Cow::Borrowed(&[])) {
+            Cow::Owned(v) => v,
+            Cow::Borrowed(_) => self.fresh(),
+        }
+    }
+
+    /// A buffer for new dual data: the face buffer when it has room, else a fresh one.
+    fn take_faces(&mut self) -> Vec<Value<T, N>> {
+        match std::mem::replace(&mut self.faces, Cow::Borrowed(&[])) {
+            Cow::Owned(f) if f.capacity() > 0 => f,
+            _ => self.fresh(),
+        }
+    }
+
+    /// Replication of the 1-D data: each curve half-edge takes the value of its parent.
+    fn replicate_curves(&mut self, curves: &CurveNetwork) {
+        let edges = curves.edges();
+        let curve = match &self.curve {
+            CurveData::Cage => edges.iter().map(|e| self.cage[e.source as usize]).collect(),
+            CurveData::Primal(v) | CurveData::Dual(v) => {
+                edges.iter().map(|e| v[e.source as usize]).collect()
+            }
+            CurveData::OnVertices => unreachable!("the averaging rules carry their 1-D data"),
+        };
+        self.curve = CurveData::Dual(curve);
+    }
+
+    /// The 1-D half of a dual -> primal average: curve vertices take the midpoint of their two
+    /// curve edges, corners their cage point (or, cut off by a partial level, their 2-D value
+    /// `two_d(vertex)`).
+    fn curve_to_primal(
+        &self,
+        curves: &CurveNetwork,
+        two_d: impl Fn(usize) -> Value<T, N>,
+    ) -> Vec<Value<T, N>> {
+        let CurveData::Dual(edge_values) = &self.curve else {
+            unreachable!("1-D data out of step")
+        };
+        let half = T::from_f64(0.5);
+        (curves.vertices().iter())
+            .map(|cv| match cv.edges {
+                Some([a, b]) => scale(add(edge_values[a as usize], edge_values[b as usize]), half),
+                None if cv.pin != NONE => self.cage[cv.pin as usize],
+                None => two_d(cv.vertex as usize),
+            })
+            .collect()
+    }
+
+    /// Curve vertices and corners of `vertices` (fresh 2-D centroids) take (a blend towards)
+    /// their 1-D values, which are returned.
+    fn blend_curves(
+        &self,
+        curves: &CurveNetwork,
+        vertices: &mut [Value<T, N>],
+    ) -> Vec<Value<T, N>> {
+        let curve = self.curve_to_primal(curves, |w| vertices[w]);
+        for (cv, &value) in curves.vertices().iter().zip(&curve) {
+            blend(&mut vertices[cv.vertex as usize], value, cv);
+        }
+        curve
+    }
+
+    /// `vertices` (fresh 2-D centroids) with their curve vertices blended become the primal
+    /// data.
+    fn finish_primal(&mut self, mut vertices: Vec<Value<T, N>>, curves: &CurveNetwork) {
+        let curve = self.blend_curves(curves, &mut vertices);
+        self.vertices = Cow::Owned(vertices);
+        self.curve = CurveData::Primal(curve);
+        self.primal = true;
+    }
+
+    /// Replication followed by the first dual -> primal average, in closed form on the coarse
+    /// level (the replicated face values are never stored): an old vertex takes its own point
+    /// (primal) or the centroid of its faces (dual), an edge point the midpoint of its ends
+    /// (primal) or of its faces (dual), a face point the centroid of its corners (primal) or its
+    /// face's point (dual).
+    fn first_average(&mut self, step: &Step) {
+        let (coarse, fine) = (step.coarse, step.fine);
+        self.replicate_curves(step.curves);
+        let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
+        let sections = [nv, ne, fine.num_vertices - nv - ne];
+        if self.primal {
+            let mut out = self.take_faces();
+            let v = &self.vertices;
+            gather_sections(
+                &mut out,
+                sections,
+                |w| v[w],
+                |e| edge_midpoint(coarse, v, e),
+                |f| face_centroid(coarse, v, f),
+            );
+            // The coarse primal buffer is free now: keep it for later passes.
+            if let Cow::Owned(old) = std::mem::replace(&mut self.vertices, Cow::Borrowed(&[])) {
+                self.faces = Cow::Owned(old);
+            }
+            self.finish_primal(out, step.curves);
+        } else {
+            let mut out = self.take_vertices();
+            let f = &self.faces;
+            gather_sections(
+                &mut out,
+                sections,
+                |w| vertex_face_centroid(coarse, f, w),
+                |e| edge_face_mean(coarse, f, e),
+                |face| f[face],
+            );
+            self.finish_primal(out, step.curves);
+        }
+    }
+
+    /// Replication, the first dual -> primal and the first primal -> dual average of a step whose
+    /// data is primal on a quad level, in one pass over the coarse faces: each computes the
+    /// nine child points of its face in closed form (as [`LevelData::first_average`], never
+    /// stored) and the centroids of its four child faces. Faces next to curve vertices use the
+    /// blended points. The result is bitwise that of the separate passes.
+    fn first_average_to_dual(&mut self, step: &Step) {
+        let (coarse, fine, curves) = (step.coarse, step.fine, step.curves);
+        debug_assert!(self.primal && coarse.is_quads());
+        self.replicate_curves(curves);
+        let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
+        let curve = {
+            let v = &self.vertices;
+            self.curve_to_primal(curves, |w| {
+                if w < nv {
+                    v[w]
+                } else if w < nv + ne {
+                    edge_midpoint(coarse, v, w - nv)
+                } else {
+                    face_centroid(coarse, v, w - nv - ne)
+                }
+            })
+        };
+        // Coarse faces whose child faces have a curve vertex among their corners.
+        let mut touched = vec![
+            false;
+            if curve.is_empty() {
+                0
+            } else {
+                coarse.num_faces()
+            }
+        ];
+        for cv in curves.vertices() {
+            let w = cv.vertex as usize;
+            if w < nv {
+                for &c in coarse.corners_of_vertex(w) {
+                    touched[coarse.face_of(c as usize)] = true;
+                }
+            } else if w < nv + ne {
+                for &c in &coarse.edge_corners()[w - nv] {
+                    if c != NONE {
+                        touched[coarse.face_of(c as usize)] = true;
+                    }
+                }
+            } else {
+                touched[w - nv - ne] = true;
+            }
+        }
+        let n = fine.num_faces();
+        let mut out = self.take_faces();
+        if out.len() < n {
+            // Written in parallel, so that a new buffer's pages are touched by both threads.
+            gather_into(&mut out, n, |_| zero());
+        }
+        out.truncate(n);
+        let v = &self.vertices;
+        let half = T::from_f64(0.5);
+        let quarter = T::from_f64(0.25);
+        let blended = |w: usize, mut p: Value<T, N>| -> Value<T, N> {
+            if let Some(i) = curves.vertex_index(w as u32) {
+                blend(&mut p, curve[i as usize], &curves.vertices()[i as usize]);
+            }
+            p
+        };
+        out.par_chunks_mut(4 * CHUNK)
+            .enumerate()
+            .for_each(|(chunk, faces)| {
+                for (i, quad) in faces.chunks_exact_mut(4).enumerate() {
+                    let f = chunk * CHUNK + i;
+                    let q = &coarse.corner_verts[4 * f..4 * f + 4];
+                    let mut p = [
+                        v[q[0] as usize],
+                        v[q[1] as usize],
+                        v[q[2] as usize],
+                        v[q[3] as usize],
+                    ];
+                    let centre = scale(p.iter().fold(zero(), |s, &x| add(s, x)), reciprocal(4));
+                    // m[k]: the edge point of corner k's outgoing edge.
+                    let mut m: [Value<T, N>; 4] =
+                        std::array::from_fn(|k| scale(add(p[k], p[(k + 1) & 3]), half));
+                    let mut centre = centre;
+                    if touched.get(f).copied().unwrap_or(false) {
+                        for k in 0..4 {
+                            p[k] = blended(q[k] as usize, p[k]);
+                            let e = coarse.corner_edges()[4 * f + k] as usize;
+                            m[k] = blended(nv + e, m[k]);
+                        }
+                        centre = blended(nv + ne + f, centre);
+                    }
+                    for (k, out) in quad.iter_mut().enumerate() {
+                        let s = add(add(p[k], m[k]), add(centre, m[(k + 3) & 3]));
+                        *out = scale(s, quarter);
+                    }
+                }
+            });
+        self.faces = Cow::Owned(out);
+        self.curve = CurveData::Dual(curve_to_dual(curves, &curve));
+        self.primal = false;
+    }
+
+    /// The dual -> primal centroids on `fine` into `out`, gathered through the coarse level's
+    /// tables: face `c` of `fine` is corner `c` of `coarse`, so an old vertex's faces are its
+    /// coarse corners, an edge point's faces the corners on its edge and their successors, a
+    /// face point's faces the corners of its face.
+    fn gather_primal(&self, step: &Step, out: &mut Vec<Value<T, N>>) {
+        let coarse = step.coarse;
+        let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
+        let f = &self.faces;
+        let quarter = T::from_f64(0.25);
+        let half = T::from_f64(0.5);
+        gather_sections(
+            out,
+            [nv, ne, step.fine.num_vertices - nv - ne],
+            |w| {
+                let corners = coarse.corners_of_vertex(w);
+                let sum = corners.iter().fold(zero(), |s, &c| add(s, f[c as usize]));
+                scale(sum, reciprocal(corners.len()))
+            },
+            |e| match coarse.edge_corners()[e] {
+                [c, NONE] => scale(add(f[c as usize], f[coarse.next(c as usize)]), half),
+                [c, d] => {
+                    let (c, d) = (c as usize, d as usize);
+                    let s = add(add(f[c], f[coarse.next(c)]), add(f[d], f[coarse.next(d)]));
+                    scale(s, quarter)
+                }
+            },
+            |face| {
+                let corners = coarse.face_corners(face);
+                let k = corners.len();
+                let sum = f[corners].iter().fold(zero(), |s, &x| add(s, x));
+                scale(sum, reciprocal(k))
+            },
+        );
+    }
+
+    /// Dual -> primal average on the fine level of `step`, with the 1-D half on its curves.
+    fn average_to_primal(&mut self, step: &Step) {
+        let mut out = self.take_vertices();
+        self.gather_primal(step, &mut out);
+        self.finish_primal(out, step.curves);
+    }
+
+    /// Primal -> dual average on `fine`: each face takes the centroid of its four corners, each
+    /// curve edge the midpoint of its two ends.
+    fn average_to_dual(&mut self, fine: &Level, curves: &CurveNetwork) {
+        let quarter = T::from_f64(0.25);
+        let mut out = self.take_faces();
+        let v = &self.vertices;
+        gather_into(&mut out, fine.num_faces(), |f| {
+            let q = &fine.corner_verts[4 * f..4 * f + 4];
+            let s = add(
+                add(v[q[0] as usize], v[q[1] as usize]),
+                add(v[q[2] as usize], v[q[3] as usize]),
+            );
+            scale(s, quarter)
+        });
+        self.faces = Cow::Owned(out);
+        let dual = match &self.curve {
+            CurveData::Primal(curve) => curve_to_dual(curves, curve),
+            CurveData::OnVertices => {
+                let curve: Vec<Value<T, N>> = (curves.vertices().iter())
+                    .map(|cv| v[cv.vertex as usize])
+                    .collect();
+                curve_to_dual(curves, &curve)
+            }
+            CurveData::Cage | CurveData::Dual(_) => unreachable!("1-D data out of step"),
+        };
+        self.curve = CurveData::Dual(dual);
+        self.primal = false;
+    }
+}
+
+/// The midpoint of coarse edge `e` from primal data `v` (its edge point after replication and
+/// one average).
+#[inline(always)]
+fn edge_midpoint<T: Scalar, const N: usize>(
+    coarse: &Level,
+    v: &[Value<T, N>],
+    e: usize,
+) -> Value<T, N> {
+    let [a, b] = coarse.edge_verts()[e];
+    scale(add(v[a as usize], v[b as usize]), T::from_f64(0.5))
+}
+
+/// The centroid of the corners of coarse face `f` from primal data `v` (its face point after
+/// replication and one average).
+#[inline(always)]
+fn face_centroid<T: Scalar, const N: usize>(
+    coarse: &Level,
+    v: &[Value<T, N>],
+    f: usize,
+) -> Value<T, N> {
+    let corners = coarse.face_corners(f);
+    let k = corners.len();
+    let sum = corners.fold(zero(), |s, c| add(s, v[coarse.corner_verts[c] as usize]));
+    scale(sum, reciprocal(k))
+}
+
+/// The centroid of the faces at coarse vertex `w` from dual data `f` (its point after
+/// replication and one average).
+#[inline(always)]
+fn vertex_face_centroid<T: Scalar, const N: usize>(
+    coarse: &Level,
+    f: &[Value<T, N>],
+    w: usize,
+) -> Value<T, N> {
+    let corners = coarse.corners_of_vertex(w);
+    let sum = corners
+        .iter()
+        .fold(zero(), |s, &c| add(s, f[coarse.face_of(c as usize)]));
+    scale(sum, reciprocal(corners.len()))
+}
+
+/// The mean of the faces of coarse edge `e` from dual data `f` (its edge point after
+/// replication and one average).
+#[inline(always)]
+fn edge_face_mean<T: Scalar, const N: usize>(
+    coarse: &Level,
+    f: &[Value<T, N>],
+    e: usize,
+) -> Value<T, N> {
+    match coarse.edge_corners()[e] {
+        [c, NONE] => f[coarse.face_of(c as usize)],
+        [c, d] => scale(
+            add(f[coarse.face_of(c as usize)], f[coarse.face_of(d as usize)]),
+            T::from_f64(0.5),
+        ),
+    }
+}
+
+/// The 1-D half of a primal -> dual average: each curve edge takes the midpoint of its ends.
+fn curve_to_dual<T: Scalar, const N: usize>(
+    curves: &CurveNetwork,
+    curve: &[Value<T, N>],
+) -> Vec<Value<T, N>> {
+    let half = T::from_f64(0.5);
+    (curves.edges().iter())
+        .map(|e| {
+            scale(
+                add(curve[e.ends[0] as usize], curve[e.ends[1] as usize]),
+                half,
+            )
+        })
+        .collect()
+}
+
+/// Sets a vertex to `w * curve + (1 - w) * centroid` (exactly the curve value when w = 1); a
+/// corner without a cage point keeps its centroid.
+#[inline]
+fn blend<T: Scalar, const N: usize>(
+    vertex: &mut Value<T, N>,
+    curve: Value<T, N>,
+    cv: &CurveVertex,
+) {
+    if cv.edges.is_none() && cv.pin == NONE {
+        return;
+    }
+    let weight = cv.weight;
+    if weight >= 1.0 {
+        *vertex = curve;
+    } else if weight > 0.0 {
+        *vertex = add(
+            scale(curve, T::from_f64(weight)),
+            scale(*vertex, T::from_f64(1.0 - weight)),
+        );
+    }
+}

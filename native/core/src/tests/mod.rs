@@ -1,0 +1,6 @@
+//! Unit tests that reach into the crate's internals, with the cages of the integration tests.
+
+#[path = "../../tests/common/mod.rs"]
+mod common;
+
+mod classic;
