@@ -12,6 +12,8 @@
 //!
 //! and says in its commit which hashes changed and why.
 
+mod common;
+
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -21,6 +23,7 @@ use bidegree::{
     subdivide_adaptive, AdaptiveMesh, AdaptiveOptions, Boundary, Cage, Creasing, Options,
     OutputKind, Plan, Result, Rules, Scalar,
 };
+use common::{cage, cube, Random};
 
 /// FNV-1a over 64-bit words: a stable hash (std's hashers may change between releases).
 struct Hash(u64);
@@ -70,30 +73,11 @@ impl Bits for f64 {
     }
 }
 
-/// A deterministic stream in [0, 1) (splitmix64).
-struct Random(u64);
-
-impl Random {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E3779B97F4A7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58476D1CE4E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D049BB133111EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
 /// A cage with its points, under a name.
 struct Case {
     name: &'static str,
     cage: Cage,
     points: Vec<f64>,
-}
-
-fn faces_to_cage(num_vertices: usize, faces: &[Vec<usize>]) -> Cage {
-    let sizes: Vec<i64> = faces.iter().map(|f| f.len() as i64).collect();
-    let verts: Vec<i64> = faces.iter().flatten().map(|&v| v as i64).collect();
-    Cage::from_indices(num_vertices, &sizes, &verts).unwrap()
 }
 
 fn jitter(points: &mut [f64], seed: u64, amount: f64) {
@@ -110,20 +94,8 @@ fn cases() -> Vec<Case> {
 
     // A cube with a semi-sharp crease loop around its top (2.5), one infinitely sharp edge
     // (10) and a corner (infinite): closed quads, valence 3.
-    let cube_faces = vec![
-        vec![0, 3, 2, 1],
-        vec![4, 5, 6, 7],
-        vec![0, 1, 5, 4],
-        vec![1, 2, 6, 5],
-        vec![2, 3, 7, 6],
-        vec![3, 0, 4, 7],
-    ];
-    let mut cube_points = vec![
-        -1., -1., -1., 1., -1., -1., 1., 1., -1., -1., 1., -1., -1., -1., 1., 1., -1., 1., 1., 1.,
-        1., -1., 1., 1.,
-    ];
+    let (cube, mut cube_points) = cube();
     jitter(&mut cube_points, 1, 0.2);
-    let cube = faces_to_cage(8, &cube_faces);
     out.push(Case {
         name: "cube-creased",
         cage: cube
@@ -173,7 +145,7 @@ fn cases() -> Vec<Case> {
         faces.push(vec![o0, o1, i]);
         faces.push(vec![i, o1, o2, j]);
     }
-    let open = faces_to_cage(15, &faces);
+    let open = cage(15, &faces);
     out.push(Case {
         name: "pentagon-open",
         cage: open
@@ -206,7 +178,7 @@ fn cases() -> Vec<Case> {
     }
     out.push(Case {
         name: "bipyramid-6",
-        cage: faces_to_cage(2 + k, &faces)
+        cage: cage(2 + k, &faces)
             .with_creases(&[(2, 3, 10.0), (3, 4, 10.0)])
             .unwrap(),
         points,
@@ -244,7 +216,7 @@ fn cases() -> Vec<Case> {
     jitter(&mut points, 4, 0.4);
     out.push(Case {
         name: "grid-isolated",
-        cage: faces_to_cage(count, &faces)
+        cage: cage(count, &faces)
             .with_creases(&[
                 (id(1, 0) as i64, id(1, 1) as i64, 10.0),
                 (id(1, 1) as i64, id(1, 2) as i64, 10.0),
@@ -262,7 +234,7 @@ fn cases() -> Vec<Case> {
     jitter(&mut points, 5, 0.1);
     out.push(Case {
         name: "valence-2",
-        cage: faces_to_cage(
+        cage: cage(
             6,
             &[
                 vec![0, 1, 4, 3],

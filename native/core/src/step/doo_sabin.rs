@@ -8,10 +8,7 @@
 
 use std::borrow::Cow;
 
-use super::{
-    blend, curve_to_dual, edge_face_mean, edge_midpoint, face_centroid, vertex_face_centroid,
-    CurveData, LevelData, Step,
-};
+use super::{blend, curve_to_dual, first_point, CurveData, LevelData, Step};
 use crate::parallel::gather_into;
 use crate::scalar::{add, mad, scale, zero, Scalar, Value};
 use crate::scheme::doo_sabin_weight;
@@ -33,23 +30,7 @@ impl<T: Scalar, const N: usize> LevelData<'_, T, N> {
         };
         let before: &[Value<T, N>] = if primal { &self.vertices } else { &self.faces };
         // Fine vertex `w` after replication and the first (dual -> primal) average.
-        let point = |w: usize| -> Value<T, N> {
-            if primal {
-                if w < nv {
-                    before[w]
-                } else if w < nv + ne {
-                    edge_midpoint(coarse, before, w - nv)
-                } else {
-                    face_centroid(coarse, before, w - nv - ne)
-                }
-            } else if w < nv {
-                vertex_face_centroid(coarse, before, w)
-            } else if w < nv + ne {
-                edge_face_mean(coarse, before, w - nv)
-            } else {
-                before[w - nv - ne]
-            }
-        };
+        let point = |w: usize| first_point(coarse, before, primal, w);
         let curve = self.curve_to_primal(curves, point);
         let blended = |w: usize| -> Value<T, N> {
             let mut p = point(w);

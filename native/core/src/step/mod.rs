@@ -408,15 +408,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
         let curve = {
             let v = &self.vertices;
-            self.curve_to_primal(curves, |w| {
-                if w < nv {
-                    v[w]
-                } else if w < nv + ne {
-                    edge_midpoint(coarse, v, w - nv)
-                } else {
-                    face_centroid(coarse, v, w - nv - ne)
-                }
-            })
+            self.curve_to_primal(curves, |w| first_point(coarse, v, true, w))
         };
         // Coarse faces whose child faces have a curve vertex among their corners.
         let mut touched = vec![
@@ -564,6 +556,26 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         };
         self.curve = CurveData::Dual(dual);
         self.primal = false;
+    }
+}
+
+/// Fine vertex `w` after replication and the first dual -> primal average of primal (`primal`)
+/// or dual data `x` of `coarse`, in closed form (the sections of [`LevelData::first_average`]).
+#[inline]
+fn first_point<T: Scalar, const N: usize>(
+    coarse: &Level,
+    x: &[Value<T, N>],
+    primal: bool,
+    w: usize,
+) -> Value<T, N> {
+    let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
+    match (primal, w < nv, w < nv + ne) {
+        (true, true, _) => x[w],
+        (true, false, true) => edge_midpoint(coarse, x, w - nv),
+        (true, false, false) => face_centroid(coarse, x, w - nv - ne),
+        (false, true, _) => vertex_face_centroid(coarse, x, w),
+        (false, false, true) => edge_face_mean(coarse, x, w - nv),
+        (false, false, false) => x[w - nv - ne],
     }
 }
 
