@@ -369,7 +369,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         let sections = [nv, ne, fine.num_vertices - nv - ne];
         if self.primal {
             let mut out = self.take_faces();
-            let v = &self.vertices;
+            let v: &[Value<T, N>] = &self.vertices;
             gather_sections(
                 &mut out,
                 sections,
@@ -384,7 +384,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
             self.finish_primal(out, step.curves);
         } else {
             let mut out = self.take_vertices();
-            let f = &self.faces;
+            let f: &[Value<T, N>] = &self.faces;
             gather_sections(
                 &mut out,
                 sections,
@@ -407,7 +407,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         self.replicate_curves(curves);
         let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
         let curve = {
-            let v = &self.vertices;
+            let v: &[Value<T, N>] = &self.vertices;
             self.curve_to_primal(curves, |w| first_point(coarse, v, true, w))
         };
         // Coarse faces whose child faces have a curve vertex among their corners.
@@ -442,7 +442,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
             gather_into(&mut out, n, |_| zero());
         }
         out.truncate(n);
-        let v = &self.vertices;
+        let v: &[Value<T, N>] = &self.vertices;
         let half = T::from_f64(0.5);
         let quarter = T::from_f64(0.25);
         let blended = |w: usize, mut p: Value<T, N>| -> Value<T, N> {
@@ -494,7 +494,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
     fn gather_primal(&self, step: &Step, out: &mut Vec<Value<T, N>>) {
         let coarse = step.coarse;
         let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
-        let f = &self.faces;
+        let f: &[Value<T, N>] = &self.faces;
         let quarter = T::from_f64(0.25);
         let half = T::from_f64(0.5);
         gather_sections(
@@ -534,7 +534,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
     fn average_to_dual(&mut self, fine: &Level, curves: &CurveNetwork) {
         let quarter = T::from_f64(0.25);
         let mut out = self.take_faces();
-        let v = &self.vertices;
+        let v: &[Value<T, N>] = &self.vertices;
         gather_into(&mut out, fine.num_faces(), |f| {
             let q = &fine.corner_verts[4 * f..4 * f + 4];
             let s = add(
