@@ -52,7 +52,7 @@ use crate::scalar::{add, mad, scale, zero, Scalar, Value};
 use crate::scheme::catmark::{
     dart_limit_mask, smooth_limit_weights, VertexRule, CREASE_LIMIT_WEIGHTS,
 };
-use crate::scheme::{cardinal_bspline, is_infinitely_sharp, is_semi_sharp, is_sharp, LimitRule};
+use crate::scheme::{cardinal_bspline, is_infinitely_sharp, is_semi_sharp, is_sharp, LimitMethod};
 use crate::step::{Final, Scratch};
 use crate::topology::{Level, NONE};
 
@@ -403,7 +403,7 @@ fn stencils(refinement: &Refinement, cache: &LimitCache) -> Result<Arc<Stencils>
 }
 
 /// How the limit of `refinement` is found, or why it cannot be (`normals`: normals too).
-fn check(refinement: &Refinement, normals: bool) -> Result<LimitRule> {
+fn check(refinement: &Refinement, normals: bool) -> Result<LimitMethod> {
     if refinement.options().output != OutputKind::Primal {
         return Err(Error::InvalidInput(
             "limit positions and normals are given at the drawing mesh's vertices: use the \
@@ -412,7 +412,7 @@ fn check(refinement: &Refinement, normals: bool) -> Result<LimitRule> {
         ));
     }
     let rule = refinement.scheme().limit(normals)?;
-    if rule == LimitRule::CatmullClark && refinement.curve_networks().is_empty() {
+    if rule == LimitMethod::CatmullClark && refinement.curve_networks().is_empty() {
         return Err(Error::InvalidInput(
             "classic limit positions need at least one level".into(),
         ));
@@ -423,8 +423,8 @@ fn check(refinement: &Refinement, normals: bool) -> Result<LimitRule> {
 /// Levels the limit evaluation adds to the plan of `refinement` (built on first use).
 pub(crate) fn extra_levels(refinement: &Refinement, cache: &LimitCache) -> Result<u32> {
     match check(refinement, false)? {
-        LimitRule::Interpolating | LimitRule::CatmullClark => Ok(0),
-        LimitRule::Eigen => Ok(stencils(refinement, cache)?.extra_levels),
+        LimitMethod::Interpolating | LimitMethod::CatmullClark => Ok(0),
+        LimitMethod::Eigen => Ok(stencils(refinement, cache)?.extra_levels),
     }
 }
 
@@ -495,7 +495,7 @@ struct Limit<'a> {
     refinement: &'a Refinement,
     scratch: &'a Scratch,
     cache: &'a LimitCache,
-    rule: LimitRule,
+    rule: LimitMethod,
 }
 
 impl Limit<'_> {
@@ -509,7 +509,7 @@ impl Limit<'_> {
         let (points, _) = values.as_chunks::<N>();
         let compact = r.compact(points);
         match self.rule {
-            LimitRule::CatmullClark => {
+            LimitMethod::CatmullClark => {
                 let Final::Primal(last) = run(r, Some(self.scratch), &compact, false) else {
                     unreachable!("primal classic run")
                 };
@@ -518,7 +518,7 @@ impl Limit<'_> {
                 let out = catmark_limit(&r.levels()[j], sharpness, &last);
                 Ok((out.into_flattened(), None))
             }
-            LimitRule::Interpolating => {
+            LimitMethod::Interpolating => {
                 // Bilinear: the surface interpolates the refined points; each face's patch has
                 // its own normal at its corners.
                 let Final::Primal(last) = run(r, Some(self.scratch), &compact, false) else {
@@ -527,7 +527,7 @@ impl Limit<'_> {
                 let normals = normals.then(|| face_corner_normals(r.last_level(), &last));
                 Ok((last.into_flattened(), normals))
             }
-            LimitRule::Eigen => {
+            LimitMethod::Eigen => {
                 let st = stencils(r, self.cache)?;
                 let data = self.limit_data(&st, &compact);
                 let positions: Vec<[T; N]> = gather(st.masks_of.len(), |v| {

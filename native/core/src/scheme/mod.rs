@@ -40,7 +40,7 @@ pub(crate) enum Scheme {
 
 /// How limit positions (and normals) are found for a scheme.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum LimitRule {
+pub(crate) enum LimitMethod {
     /// Bilinear: the surface interpolates the refined points; normals of each face's patch.
     Interpolating,
     /// Averaging of degree >= 2: eigenvector masks at interior vertices, the 1-D B-spline on
@@ -86,15 +86,15 @@ impl Scheme {
     }
 
     /// How this scheme's limit is computed, or why it has none (`normals`: normals too).
-    pub(crate) fn limit(self, normals: bool) -> Result<LimitRule> {
+    pub(crate) fn limit(self, normals: bool) -> Result<LimitMethod> {
         match self {
-            Scheme::Averaging { degree: 1 } => Ok(LimitRule::Interpolating),
-            Scheme::Averaging { .. } => Ok(LimitRule::Eigen),
+            Scheme::Averaging { degree: 1 } => Ok(LimitMethod::Interpolating),
+            Scheme::Averaging { .. } => Ok(LimitMethod::Eigen),
             Scheme::CatmullClark { .. } if normals => Err(Error::InvalidInput(
                 "limit normals with classic rules are not implemented; use the averaging rules"
                     .into(),
             )),
-            Scheme::CatmullClark { .. } => Ok(LimitRule::CatmullClark),
+            Scheme::CatmullClark { .. } => Ok(LimitMethod::CatmullClark),
             Scheme::Bilinear | Scheme::DooSabin => Err(Error::InvalidInput(
                 "limit positions with classic rules exist for degree 3 (Catmull-Clark) only".into(),
             )),
