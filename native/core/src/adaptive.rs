@@ -4,7 +4,9 @@
 //!
 //! This module owns the quadtree forest, the partial levels it evaluates on, the error measure,
 //! the restriction criterion and the triangulation templates. It reuses [`Level`] (the refined
-//! topology) unchanged and mirrors the arithmetic of [`crate::evaluate`] pass for pass.
+//! topology), the curve network construction ([`CurveNetwork::build`]) and the step primitive
+//! ([`LevelData::step`]) of the uniform plans: a step on a partial level is the same code as on
+//! a full one.
 //!
 //! # Nodes
 //! A node is a face of the uniform level `M_j` (`j >= 1`), named by its uniform face id. Face `c`
@@ -17,10 +19,12 @@
 //! Level `j` is kept only on a subset `P_j` of the faces of `M_j`, stored as a [`Level`] whose
 //! numbering preserves the relative order of the uniform ids (faces, corners, edges, vertices
 //! sorted by uniform id; every vertex's corner list in the uniform order). `P_{j+1}` is
-//! `P_j.refine()` restricted to the faces that are needed. All sums are then accumulated over the
-//! same terms in the same order as in the uniform [`crate::Plan`], so every value whose stencil lies
-//! inside `P_j` is bitwise the uniform value (checked against the uniform plan in
-//! `tests/adaptive.rs` for degrees 1-5 and 9, with boundaries, creases and corners).
+//! `P_j.refine()` restricted to the faces that are needed, its curve network and 1-D data
+//! restricted alike ([`CurveNetwork::restrict`]). The step primitive then accumulates every sum
+//! over the same terms in the same order as in the uniform [`crate::Plan`], so every value whose
+//! stencil lies inside `P_j` is bitwise the uniform value by construction (and checked against
+//! the uniform plan in `tests/adaptive.rs` for degrees 1-5 and 9, with boundaries, creases and
+//! corners).
 //!
 //! Margin. One step of degree n is a replication followed by n averages. Backwards from a set
 //! `S` of fine faces (their dual points, or the primal points at their vertices), the n averages

@@ -40,8 +40,8 @@ pub enum Rules {
     #[default]
     Averaging,
     /// Classic rule sets (degrees 1 to 3): degree 3 Catmull-Clark exactly as OpenSubdiv's
-    /// `catmark`, degree 2 the original Doo-Sabin weights, degree 1 bilinear (see
-    /// [`crate::classic`]).
+    /// `catmark`, degree 2 the original Doo-Sabin weights, degree 1 bilinear (the rule layer,
+    /// `scheme`, has them all).
     Classic,
 }
 
