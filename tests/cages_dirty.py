@@ -7,8 +7,9 @@ interpolation ``none``, bowties, valence-2 vertices on creases; and UV layouts w
 corners and junctions exercise OpenSubdiv's six face-varying modes. What OpenSubdiv does with each
 is in ``docs/research/non-manifold.md`` and ``docs/research/face-varying.md``.
 
-The module needs numpy only (no bidegree, no bpy), except :func:`suzanne`, which takes Blender's
-Suzanne (positions and UVs) from ``bmesh`` when called. Coordinates are float32 values (Blender
+The module needs numpy only (no bidegree, no bpy), except :func:`suzanne` and :func:`blender_text`,
+which take Blender's Suzanne (positions and UVs) and Blender's Text > Convert to Mesh from ``bpy``
+when called (``with_blender=False`` leaves them out). Coordinates are float32 values (Blender
 computes in float32) and sharpness values are exactly what Blender derives from its crease
 attribute (``10 c^2`` with ``c`` a float32): 10 (infinite), 2.5, 1.40625 and 0.625 are ``c`` =
 1, 0.5, 0.375 and 0.25.
@@ -313,6 +314,31 @@ def text_like() -> DirtyCage:
     )
 
 
+def blender_text(body: str = "Text") -> DirtyCage:
+    """Blender's own Text > Convert to Mesh output (the default text object has four zero-area
+    triangles); needs ``bpy``."""
+    import bpy
+
+    curve = bpy.data.curves.new("bidegree_text", "FONT")
+    obj = bpy.data.objects.new("bidegree_text", curve)
+    try:
+        curve.body = body
+        bpy.context.scene.collection.objects.link(obj)
+        evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+        mesh = evaluated.to_mesh()
+        try:
+            points = np.array([v.co[:] for v in mesh.vertices], dtype=np.float64)
+            faces = tuple(tuple(p.vertices) for p in mesh.polygons)
+        finally:
+            evaluated.to_mesh_clear()
+    finally:
+        bpy.data.objects.remove(obj, do_unlink=True)
+        bpy.data.curves.remove(curve)
+    return DirtyCage(
+        "blender-text", _f32(points), faces, note=f"Text > Convert to Mesh of {body!r}"
+    )
+
+
 def holes() -> DirtyCage:
     """A 5x5 grid with an interior hole and a hole on the boundary."""
     base = grid(5)
@@ -423,8 +449,8 @@ def creased_plane() -> DirtyCage:
     return base.with_changes("creased-boundary", sharp_edges=tuple(edges))
 
 
-def issue_13_cages() -> dict[str, DirtyCage]:
-    """Every cage of issue 13's test list, by name."""
+def issue_13_cages(*, with_blender: bool = True) -> dict[str, DirtyCage]:
+    """Every cage of issue 13's test list, by name (Blender's text needs ``bpy``)."""
     cages = [
         fin(3),
         fin(4),
@@ -446,6 +472,8 @@ def issue_13_cages() -> dict[str, DirtyCage]:
         valence_two(SHARP_0_6),
         creased_plane(),
     ]
+    if with_blender:
+        cages.append(blender_text())
     return {c.name: c for c in cages}
 
 
@@ -571,9 +599,9 @@ def suzanne() -> DirtyCage:
     return DirtyCage("uv-suzanne", _f32(points), faces, uvs=_f32(uvs), note="Blender's own UVs")
 
 
-def issue_14_cages(*, with_suzanne: bool = True) -> dict[str, DirtyCage]:
+def issue_14_cages(*, with_blender: bool = True) -> dict[str, DirtyCage]:
     """Every UV cage of issue 14's test list, by name (Suzanne needs ``bpy``)."""
     cages = [cube_unwrap(), cylinder_seam(), uv_grid_pinned_corner(), uv_junctions()]
-    if with_suzanne:
+    if with_blender:
         cages.append(suzanne())
     return {c.name: c for c in cages}
