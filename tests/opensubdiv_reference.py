@@ -204,3 +204,137 @@ def corner_map(target: Any, source: compare.SurfaceMesh, *, tolerance: float) ->
     # Corner k of our face f is the corner of its partner face at the same vertex.
     same = ours[:, :, None] == theirs[partner][:, None, :]
     return (partner[:, None] * size + np.argmax(same, axis=2)).ravel()
+
+
+#: OpenSubdiv's face-varying modes expressible as corners of the face-varying mesh.
+SMOOTH_MODES = ("none", "corners-only", "corners-plus1", "corners-plus2", "boundaries")
+
+
+def face_varying_cage(
+    cage: DirtyCage, mode: str, values: np.ndarray | None = None
+) -> tuple[DirtyCage, np.ndarray]:
+    """The face-varying mesh of ``cage`` with ``mode`` as corners (``face-varying.md``, §5).
+
+    Its vertices are the distinct values (``values``: one per face corner, default
+    :func:`blender_uv_values`), its faces the cage's; a cage edge whose faces disagree on a value
+    is one edge per side, so seams are boundaries. It carries the cage's vertex sharpness to
+    every value of the vertex, the cage's creases to every face-varying edge over them, and the
+    mode's corners (infinitely sharp):
+
+    - ``none``: none beyond those (a value in one face is an ordinary curve vertex);
+    - ``corners-only``: every value in one face at its vertex;
+    - ``corners-plus1``: also every value of a vertex with 3 or more values, and both values of a
+      2-valued vertex when either value's faces are crossed by an infinitely sharp edge or do
+      not form one fan;
+    - ``corners-plus2``: also both values of a 2-valued vertex when either is in one face, and
+      the value of an interior single-valued vertex at the end of a seam;
+    - ``boundaries``: every value on a seam or on the boundary (the ordinary 1-D rule then keeps
+      those curves linear, with midpoints, at every degree).
+
+    A value whose faces do not form one fan at its vertex (a bowtie of the face-varying mesh) is
+    a corner in every mode. Returns the cage (points: the values, z = 0) and the ``(N, 2)``
+    values. Not covered, and refused: OpenSubdiv's dependent sharpness (modes ``plus1``/``plus2``,
+    a 2-valued vertex where the faces of exactly one value are crossed by semi-sharp edges) and
+    geometric non-manifold edges. The cage's topological corners are corners under
+    ``edge-and-corner``; under ``none`` the cage's boundary holes are holes.
+    """
+    if mode not in SMOOTH_MODES:
+        raise ValueError(f"{mode!r} is not a smooth mode (one of {SMOOTH_MODES})")
+    values = blender_uv_values(cage) if values is None else np.asarray(values, dtype=np.int64)
+    count = int(values.max()) + 1
+    table = np.zeros((count, 2))
+    table[values] = np.asarray(cage.uvs, dtype=np.float64)
+    verts = cage.face_indices
+    sizes = cage.face_sizes
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    nxt = np.arange(1, verts.size + 1)
+    nxt[starts + sizes - 1] = starts
+    vertex_of = np.zeros(count, dtype=np.int64)
+    vertex_of[values] = verts
+    # Edges of the face-varying mesh and of the cage, with their corners.
+    fv_edges: dict[tuple[int, int], list[int]] = {}
+    geo_faces: dict[tuple[int, int], int] = {}
+    for c in range(verts.size):
+        a, b = int(values[c]), int(values[nxt[c]])
+        fv_edges.setdefault((min(a, b), max(a, b)), []).append(c)
+        p, q = int(verts[c]), int(verts[nxt[c]])
+        geo_faces[(min(p, q), max(p, q))] = geo_faces.get((min(p, q), max(p, q)), 0) + 1
+    if any(n > 2 for n in geo_faces.values()):
+        raise NotImplementedError("geometric non-manifold edges are not covered")
+    crease = {(min(a, b), max(a, b)): s for a, b, s in cage.sharp_edges}
+    seam_values = {x for (a, b), cs in fv_edges.items() if len(cs) == 1 for x in (a, b)}
+    geo_boundary = {v for e, n in geo_faces.items() if n == 1 for v in e}
+    span = np.bincount(values, minlength=count)
+    by_vertex: dict[int, list[int]] = {}
+    for x in range(count):
+        by_vertex.setdefault(int(vertex_of[x]), []).append(x)
+
+    def geo_edge(e: tuple[int, int]) -> tuple[int, int]:
+        p, q = int(vertex_of[e[0]]), int(vertex_of[e[1]])
+        return (min(p, q), max(p, q))
+
+    def crossing(x: int, sharp: Any) -> bool:
+        """A face-varying edge inside the faces of ``x`` whose sharpness passes ``sharp``."""
+        return any(
+            x in e and len(cs) == 2 and sharp(crease.get(geo_edge(e), 0.0))
+            for e, cs in fv_edges.items()
+        )
+
+    def one_fan(x: int) -> bool:
+        corners = [int(c) for c in np.flatnonzero(values == x)]
+        group = {c: c for c in corners}
+
+        def root(c: int) -> int:
+            while group[c] != c:
+                c = group[c]
+            return c
+
+        for e, cs in fv_edges.items():
+            if x in e and len(cs) == 2:
+                ends = [c if values[c] == x else int(nxt[c]) for c in cs]
+                group[root(ends[0])] = root(ends[1])
+        return len({root(c) for c in corners}) == 1
+
+    corners = {x for x in range(count) if not one_fan(x)}
+    if mode in ("corners-only", "corners-plus1", "corners-plus2"):
+        corners |= {x for x in range(count) if span[x] == 1}
+    if mode in ("corners-plus1", "corners-plus2"):
+        for xs in by_vertex.values():
+            if len(xs) >= 3:
+                corners |= set(xs)
+            elif len(xs) == 2:
+                semi = [crossing(x, lambda s: 0 < s < INF) for x in xs]
+                if semi[0] != semi[1]:
+                    raise NotImplementedError("dependent sharpness is not covered")
+                if any(crossing(x, lambda s: s >= INF) or not one_fan(x) for x in xs):
+                    corners |= set(xs)
+                if mode == "corners-plus2" and any(span[x] == 1 for x in xs):
+                    corners |= set(xs)
+    if mode == "corners-plus2":
+        for v, xs in by_vertex.items():
+            if len(xs) == 1 and xs[0] in seam_values and v not in geo_boundary:
+                corners.add(xs[0])
+    if mode == "boundaries":
+        corners |= seam_values
+    sharpness = {x: s for v, s in cage.sharp_vertices for x in by_vertex.get(v, [])}
+    if cage.boundary == "edge-and-corner":  # the cage's topological corners are sharp
+        lone = np.bincount(verts, minlength=len(cage.points)) == 1
+        corners |= {x for x in range(count) if lone[vertex_of[x]]}
+    sharpness.update({x: INF for x in corners})
+    holes = cage.holes
+    if cage.boundary == "none":
+        holes = tuple(sorted(set(holes) | set(compare.boundary_none_holes(cage).tolist())))
+    sharp_edges = tuple(
+        (a, b, crease[geo_edge((a, b))]) for a, b in fv_edges if geo_edge((a, b)) in crease
+    )
+    points = np.column_stack([table, np.zeros(count)])
+    fv_cage = DirtyCage(
+        f"{cage.name}-{mode}",
+        points,
+        tuple(tuple(int(x) for x in values[s : s + n]) for s, n in zip(starts, sizes, strict=True)),
+        sharp_edges=sharp_edges,
+        sharp_vertices=tuple(sorted(sharpness.items())),
+        holes=holes,
+        boundary="edge-only",
+    )
+    return fv_cage, table

@@ -252,14 +252,25 @@ def _bidegree_uvs(name: str, levels: int, mode: str) -> np.ndarray:
     return np.asarray(result.uvs)
 
 
-def _check_uvs(name: str, mode: str) -> None:
-    cage = UV_CAGES[name]
-    # UV coordinates span about 1: the tolerance is absolute, as positions' is relative.
-    gaps = []
-    for levels in LEVELS:
+_BLENDER_UVS: dict[tuple[str, int, str], np.ndarray] = {}
+
+
+def _blender_uvs(name: str, levels: int, mode: str) -> np.ndarray:
+    """Blender's UVs in ``mode``, in the corner order of bidegree's result."""
+    key = (name, levels, mode)
+    if key not in _BLENDER_UVS:
         _, corners = _uv_reference(name, levels)
-        theirs = compare.opensubdiv_surface(cage, levels, uv_mode=mode).uvs[corners]
-        gaps.append(float(np.abs(_bidegree_uvs(name, levels, mode) - theirs).max()))
+        uvs = compare.opensubdiv_surface(UV_CAGES[name], levels, uv_mode=mode).uvs
+        _BLENDER_UVS[key] = uvs[corners]
+    return _BLENDER_UVS[key]
+
+
+def _check_uvs(name: str, mode: str, ours: Any) -> None:
+    """``ours(levels)``: UVs per corner of bidegree's result; they must be Blender's."""
+    # UV coordinates span about 1: the tolerance is absolute, as positions' is relative.
+    gaps = [
+        float(np.abs(ours(levels) - _blender_uvs(name, levels, mode)).max()) for levels in LEVELS
+    ]
     print(f"{name} ({mode}): UV gap per level " + ", ".join(f"{g:.1e}" for g in gaps))
     assert max(gaps) < TOLERANCE, gaps
 
@@ -267,7 +278,7 @@ def _check_uvs(name: str, mode: str) -> None:
 @pytest.mark.parametrize("name", sorted(UV_CAGES))
 def test_linear_uvs_match_opensubdiv_all(name: str) -> None:
     """Today's UVs are linear: OpenSubdiv's ``FVAR_LINEAR_ALL`` (Blender's *None*)."""
-    _check_uvs(name, "all")
+    _check_uvs(name, "all", lambda levels: _bidegree_uvs(name, levels, "all"))
 
 
 @pytest.mark.parametrize(
@@ -286,7 +297,23 @@ def test_linear_uvs_match_opensubdiv_all(name: str) -> None:
     ],
 )
 def test_uvs_match_opensubdiv(name: str, mode: str) -> None:
-    _check_uvs(name, mode)
+    _check_uvs(name, mode, lambda levels: _bidegree_uvs(name, levels, mode))
+
+
+@pytest.mark.parametrize("mode", ref.SMOOTH_MODES)
+@pytest.mark.parametrize("name", sorted(UV_CAGES))
+def test_face_varying_cage_reproduces_opensubdiv(name: str, mode: str) -> None:
+    """The mapping of ``docs/research/face-varying.md`` with today's core: the UVs as positions
+    of the face-varying mesh, the mode as its corners, refined by the classic rules. Its
+    faces are the cage's, so its output corners are the cage result's, in the same order."""
+    fv_cage, values = ref.face_varying_cage(UV_CAGES[name], mode)
+    mesh = _mesh(fv_cage)
+
+    def ours(levels: int) -> np.ndarray:
+        plan = bidegree.Plan(mesh, degree=3, levels=levels, rules="classic")
+        return plan.evaluate(values)[np.asarray(plan.face_indices)]
+
+    _check_uvs(name, mode, ours)
 
 
 def test_uv_cages_tell_the_modes_apart() -> None:
