@@ -79,15 +79,18 @@ def blender_semantics(cage: DirtyCage) -> DirtyCage:
 
 
 def _uv_winding(cage: DirtyCage, uvs: np.ndarray) -> np.ndarray:
-    """Per face: True when its UV polygon turns clockwise (``cross_poly_v2 < 0``)."""
-    sizes = cage.face_sizes
-    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
-    winding = np.zeros(sizes.size, dtype=bool)
-    for f, (s, n) in enumerate(zip(starts, sizes, strict=True)):
-        p = uvs[s : s + n].astype(np.float32)
-        q = np.roll(p, -1, axis=0)
-        # cross_poly_v2 sums (prev x cur) starting from the last corner, in float32.
-        winding[f] = np.float32(np.sum(p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1])) < 0
+    """Per face: True when its UV polygon turns clockwise: Blender's ``cross_poly_v2 < 0``
+    (``math_geom.cc``: the trapezium rule from the last corner, summed in float32)."""
+    winding = np.zeros(len(cage.faces), dtype=bool)
+    at = 0
+    for f, n in enumerate(cage.face_sizes):
+        p = uvs[at : at + n].astype(np.float32)
+        at += n
+        cross = np.float32(0.0)
+        for k in range(n):
+            prev, curr = p[k - 1], p[k]
+            cross += (prev[0] - curr[0]) * (curr[1] + prev[1])
+        winding[f] = cross < 0
     return winding
 
 
