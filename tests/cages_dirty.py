@@ -17,7 +17,6 @@ attribute (``10 c^2`` with ``c`` a float32): 10 (infinite), 2.5, 1.40625 and 0.6
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -111,11 +110,12 @@ def _wobble(points: np.ndarray, amount: float = 0.03) -> np.ndarray:
     return _f32(p + amount * np.sin(1.7 * i + 0.3))
 
 
-def grid(n: int, m: int | None = None, z: Callable[..., np.ndarray] | None = None) -> DirtyCage:
-    """An open ``n x m`` grid of quads in the xy plane (vertex ``i * (m + 1) + j`` at (i, j))."""
+def grid(n: int, m: int | None = None) -> DirtyCage:
+    """An open ``n x m`` grid of quads over the xy plane, gently curved (vertex
+    ``i * (m + 1) + j`` above (i, j))."""
     m = n if m is None else m
     i, j = np.meshgrid(np.arange(n + 1), np.arange(m + 1), indexing="ij")
-    height = 0.2 * np.sin(i + 0.7 * j) if z is None else z(i, j)
+    height = 0.2 * np.sin(i + 0.7 * j)
     points = np.stack([i, j, height], axis=-1).reshape(-1, 3).astype(np.float64)
     w = m + 1
     faces = tuple(

@@ -19,6 +19,8 @@ needs around it:
   numbering of vertices, faces and corners; it needs the positions to agree, which they do
   whenever the face-varying comparison means anything (positions do not depend on the
   face-varying mode), and one map serves every mode.
+- :func:`face_varying_cage`: the face-varying mesh with a face-varying mode as its corners, the
+  mapping of ``docs/research/face-varying.md`` in executable form.
 """
 
 from __future__ import annotations
@@ -31,14 +33,6 @@ from cages_dirty import INF, DirtyCage
 
 #: ``STD_UV_CONNECT_LIMIT`` (``BKE_mesh_mapping.hh``): UVs closer than this on both axes weld.
 UV_CONNECT_LIMIT = np.float32(0.0001)
-
-
-def reference(
-    cage: DirtyCage, levels: int, *, uv_mode: str = "all", limit: bool = False
-) -> compare.SurfaceMesh:
-    """Blender's (OpenSubdiv's) uniform refinement of ``cage`` (points, faces, face origins
-    and, when the cage has UVs, UVs per face corner in ``uv_mode``)."""
-    return compare.opensubdiv_surface(cage, levels, limit=limit, uv_mode=uv_mode)
 
 
 def _face_edges(cage: DirtyCage) -> dict[int, set[tuple[int, int]]]:
