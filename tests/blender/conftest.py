@@ -131,14 +131,25 @@ def user_dir() -> str:
 def scene(addon: ModuleType) -> Iterator[Any]:
     """The current scene, emptied of objects and meshes before and after the test."""
 
+    from bidegree_blender import modifier
+
     def clear() -> None:
-        for ob in list(bpy.data.objects):
-            bpy.data.objects.remove(ob)
-        for me in list(bpy.data.meshes):
-            bpy.data.meshes.remove(me)
-        for mat in list(bpy.data.materials):
-            bpy.data.materials.remove(mat)
-        addon.CACHE.clear()
+        for collection in (
+            bpy.data.objects,
+            bpy.data.meshes,
+            bpy.data.materials,
+            bpy.data.node_groups,
+            bpy.data.armatures,
+            bpy.data.actions,
+            bpy.data.cameras,
+            bpy.data.textures,
+        ):
+            for item in list(collection):
+                collection.remove(item)
+        for child in list(bpy.context.scene.collection.children):
+            bpy.data.collections.remove(child)
+        bpy.context.scene.frame_set(1)
+        modifier.reset()
 
     clear()
     yield bpy.context.scene
