@@ -1,10 +1,10 @@
 """Blender's application handlers, wired to :mod:`bidegree_blender.modifier`.
 
-* ``depsgraph_update_post`` and ``frame_change_post`` (viewport): the bidegree objects that
-  changed get new surfaces (the depsgraph's second pass shows them); duplicates get their own
-  holders; holders nothing uses are deleted.
-* ``frame_change_pre`` / ``frame_change_post`` during a render: render cages in, render
-  surfaces out, frame by frame (see :func:`bidegree_blender.modifier.begin_render_frame`).
+* ``depsgraph_update_pre`` / ``_post`` and ``frame_change_pre`` / ``_post``: before an
+  evaluation the visible bidegree modifiers are switched off (the evaluation gives their
+  cages), after it the cages are read, the modifiers switched back on and the surfaces
+  written; the depsgraph's second pass shows them. During a render the same happens with the
+  render toggles and the render surfaces, frame by frame.
 * ``load_post``, ``undo_post`` / ``redo_post``: the plans refer to data that was replaced.
 * ``save_pre``: render surfaces are not saved (a file opened without the extension renders the
   viewport surface; with it, renders make them again).
@@ -26,19 +26,18 @@ PROGRESS_FACES = 1_000_000
 _render = {"active": False, "warned": False}
 
 
-def _say_long_work(scene: bpy.types.Scene, objects: list[bpy.types.Object]) -> bool:
+def _say_long_work() -> bool:
     """In the GUI, announce an update whose result is large (status bar text and a progress
     cursor) before the work blocks; returns whether anything was announced."""
     if bpy.app.background:
         return False
     faces = 0
-    for ob in objects:
-        for mod in modifier.bidegree_modifiers(ob):
-            try:
-                levels = modifier.options_of(mod).levels
-            except Exception:  # a bad setting is reported by the update itself
-                continue
-            faces += len(ob.data.polygons) * 4 ** min(levels, 16)
+    for target in modifier.reading():
+        try:
+            levels = modifier.options_of(target.mod).levels
+        except Exception:  # a bad setting is reported by the update itself
+            continue
+        faces += len(target.obj.data.polygons) * 4 ** min(levels, 16)
     wm = bpy.context.window_manager
     if faces < PROGRESS_FACES or wm is None or not wm.windows:
         return False
@@ -58,57 +57,54 @@ def _end_long_work() -> None:
         workspace.status_text_set(None)
 
 
-def _update_viewport(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph) -> None:
-    objects = modifier.changed_objects(depsgraph)
-    for ob in modifier.pending_objects(scene):
-        if ob not in objects:
-            objects.append(ob)
-    if not objects:
-        return
-    announced = _say_long_work(scene, objects)
+def _end_read(depsgraph: bpy.types.Depsgraph | None) -> None:
+    announced = _say_long_work()
     try:
-        modifier.update_viewport(depsgraph, objects)
+        modifier.end_read(depsgraph)
     finally:
         if announced:
             _end_long_work()
 
 
 @persistent
+def on_depsgraph_update_pre(scene: bpy.types.Scene, *_args: Any) -> None:
+    """An evaluation starts: switch the visible bidegree modifiers off for their cage read."""
+    if threading.current_thread() is threading.main_thread():
+        modifier.begin_read(modifier.viewport_objects(scene))
+
+
+@persistent
 def on_depsgraph_update_post(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph) -> None:
-    """Edits, setting changes, new or duplicated modifiers: update those surfaces."""
+    """The cages were evaluated: surfaces in, modifiers back on; delete unused holders."""
     if modifier.busy() or depsgraph.mode != "VIEWPORT":
         return
-    _update_viewport(scene, depsgraph)
-    if any(
-        isinstance(getattr(u.id, "original", u.id), (bpy.types.Collection, bpy.types.Scene))
-        for u in depsgraph.updates
-    ):
-        modifier.cleanup()  # objects or modifiers removed
+    _end_read(depsgraph)
+    modifier.cleanup()
 
 
 @persistent
 def on_frame_change_pre(scene: bpy.types.Scene, *_args: Any) -> None:
-    """A render frame is about to be evaluated: switch bidegree off for its cage read."""
-    if _render["active"] and not modifier.busy():
-        if not modifier.render_writes_allowed(scene) and not _render["warned"]:
-            _render["warned"] = True
-            print(
-                "bidegree: rendering in a background thread without Render > Lock Interface: "
-                "render levels are not computed, the viewport surface is rendered",
-                file=sys.stderr,
-            )
-        modifier.begin_render_frame(scene)
+    """A frame is about to be evaluated, for a render or the viewport."""
+    if _render["active"]:
+        if not modifier.render_writes_allowed(scene):
+            if not _render["warned"]:
+                _render["warned"] = True
+                print(
+                    "bidegree: rendering in a background thread without Render > Lock "
+                    "Interface: render levels are not computed, the viewport surface renders",
+                    file=sys.stderr,
+                )
+            return
+        modifier.begin_read(modifier.render_objects(scene), render=True)
+    elif threading.current_thread() is threading.main_thread():
+        modifier.begin_read(modifier.viewport_objects(scene))
 
 
 @persistent
 def on_frame_change_post(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph) -> None:
-    """A frame was evaluated: render surfaces for a render, else the viewport's."""
-    if modifier.busy() or depsgraph is None:
-        return
-    if depsgraph.mode == "RENDER":
-        modifier.end_render_frame(depsgraph)
-    elif threading.current_thread() is threading.main_thread():
-        _update_viewport(scene, depsgraph)
+    """The frame's cages were evaluated: surfaces in, modifiers back on."""
+    if not modifier.busy() and depsgraph is not None:
+        _end_read(depsgraph)
 
 
 @persistent
@@ -122,7 +118,7 @@ def on_render_init(*_args: Any) -> None:
 def on_render_done(*_args: Any) -> None:
     """The render finished or was cancelled: switch back anything still switched off."""
     _render["active"] = False
-    modifier.end_render_frame(None)
+    modifier.end_read(None)
 
 
 @persistent
@@ -148,6 +144,7 @@ def on_save_pre(*_args: Any) -> None:
 
 
 _HANDLERS = (
+    ("depsgraph_update_pre", on_depsgraph_update_pre),
     ("depsgraph_update_post", on_depsgraph_update_post),
     ("frame_change_pre", on_frame_change_pre),
     ("frame_change_post", on_frame_change_post),

@@ -1,7 +1,7 @@
 """bidegree as an entry of ``obj.modifiers``: the node group, the surface holders, the updates.
 
-Mechanism (bpy data logic, no GUI; the add-on's handlers call :func:`update_viewport`,
-:func:`begin_render_frame` / :func:`end_render_frame` and :func:`cleanup`):
+Mechanism (bpy data logic, no GUI; the add-on's handlers call :func:`begin_read` before an
+evaluation, :func:`end_read` after it, and :func:`cleanup`):
 
 * A bidegree modifier is a Geometry Nodes modifier whose node group (:func:`ensure_node_group`,
   owned by the add-on, one per file) outputs the surface that bidegree computed into a *holder*
@@ -14,19 +14,21 @@ Mechanism (bpy data logic, no GUI; the add-on's handlers call :func:`update_view
   for them (and for the cage's face count): the holder's location carries that stamp. A holder
   that is empty, refused or stale is not shown; the cage passes through instead (and, from
   Blender 4.4 on, a warning says why in the modifier panel).
-* The cage is the mesh *at the modifier's place in the stack*: Blender evaluates the object once
-  more with the modifier and everything after it switched off (``show_viewport``; for renders
-  ``show_render``), which honours every modifier above with its own toggles and animation. In
-  the viewport that is a nested depsgraph update run from ``depsgraph_update_post`` /
-  ``frame_change_post`` when the object changed; for renders the switch-off happens in
-  ``frame_change_pre`` and the read in ``frame_change_post``, whose second evaluation pass
-  then draws the render surface, frame by frame.
+* The cage is the mesh *at the modifier's place in the stack*, read from Blender's own
+  evaluation: before an evaluation (``depsgraph_update_pre``, ``frame_change_pre``) the
+  modifier and everything after it are switched off (``show_viewport``; for a render
+  ``show_render``), so the evaluation gives the cage with every modifier above, their toggles
+  and animation; after it (``depsgraph_update_post``, ``frame_change_post``) the cages are
+  read, the modifiers switched back on and the surfaces written, and the depsgraph's second
+  evaluation pass (which Blender runs when a handler changed data) shows them. A nested
+  ``depsgraph.update()`` inside a handler would avoid the first switch-off but crashes Blender
+  when the outer update changed the scene or its collections, so it is not used.
 """
 
 from __future__ import annotations
 
 import threading
-from collections.abc import Hashable, Iterable, Iterator
+from collections.abc import Hashable, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -716,61 +718,87 @@ def _write(target: _Target, variant: str, holder: bpy.types.Object) -> UpdateRep
     return report
 
 
-def _targets(objects: Iterable[bpy.types.Object], render: bool) -> Iterator[list[_Target]]:
-    """Rounds of targets: the first bidegree modifier of every object, then the second, ...
-    (each round's cages are read with one evaluation)."""
-    stacks = []
+def _targets(objects: Iterable[bpy.types.Object], render: bool) -> list[_Target]:
+    """The bidegree modifier of each object that is enabled for the viewport (or renders).
+
+    One per object: its cage is read in the same evaluation that switches it off, and a
+    second bidegree modifier of the same object would need a second evaluation (it is refused
+    with a message and shows its cage)."""
+    targets = []
     for obj in objects:
-        mods = [m for m in bidegree_modifiers(obj) if _enabled(obj, m, render)]
-        if mods:
-            stacks.append((obj, mods))
-    depth = 0
-    while True:
-        rounds = [_Target(obj, mods[depth]) for obj, mods in stacks if depth < len(mods)]
-        if not rounds:
-            return
-        yield rounds
-        depth += 1
+        mods = bidegree_modifiers(obj)
+        if not mods:
+            continue
+        for extra in mods[1:]:
+            _set_error(obj, extra, "bidegree: one bidegree modifier per object is supported")
+            invalidate(holders(obj, extra)[RENDER if render else VIEWPORT])
+        if _enabled(obj, mods[0], render):
+            targets.append(_Target(obj, mods[0]))
+    return targets
 
 
-def update_viewport(
-    depsgraph: bpy.types.Depsgraph, objects: Iterable[bpy.types.Object]
-) -> list[tuple[bpy.types.Object, bpy.types.Modifier, UpdateReport | None]]:
-    """Update the viewport surfaces of the bidegree modifiers of ``objects`` (originals) from
-    their cages as ``depsgraph`` evaluates them now.
+#: What :func:`begin_read` switched off for the evaluation under way, until :func:`end_read`.
+_reading: dict[str, Any] = {"targets": [], "switched": [], "render": False}
 
-    Called from ``depsgraph_update_post`` / ``frame_change_post`` (the depsgraph's second pass
-    then shows the new surfaces) or directly: ``view_layer.update()`` afterwards shows them.
-    Returns, per modifier, its update report (``None`` after a refusal: see its status).
+
+def begin_read(objects: Iterable[bpy.types.Object], *, render: bool = False) -> int:
+    """Before an evaluation (``depsgraph_update_pre``, ``frame_change_pre``): switch each
+    object's bidegree modifier and everything after it off (``show_viewport``, for a render
+    ``show_render``), so that the evaluation gives the cages; returns how many."""
+    end_read(None)
+    if busy():
+        return 0
+    targets = _targets(objects, render)
+    for target in targets:
+        holders(target.obj, target.mod)
+    _reading["targets"] = targets
+    _reading["render"] = render
+    _reading["switched"] = _toggle_off(targets, "show_render" if render else "show_viewport")
+    return len(targets)
+
+
+def end_read(depsgraph: bpy.types.Depsgraph | None) -> list[tuple[Any, Any, UpdateReport | None]]:
+    """After that evaluation (``depsgraph_update_post``, ``frame_change_post``): read the
+    cages ``depsgraph`` evaluated, switch the modifiers back on and write the surfaces, which
+    the evaluation's second pass then shows. Without a depsgraph only switches back on.
+
+    Returns, per modifier read, its update report (``None`` after a refusal: see its status).
     """
-    objects = [ob for ob in objects if ob.type == "MESH" and ob.evaluated_get(depsgraph)]
-    done: list[tuple[bpy.types.Object, bpy.types.Modifier, UpdateReport | None]] = []
-    if not objects or not _busy.acquire(blocking=False):
+    targets: list[_Target] = _reading["targets"]
+    switched = _reading["switched"]
+    render = _reading["render"]
+    _reading["targets"], _reading["switched"] = [], []
+    done: list[tuple[Any, Any, UpdateReport | None]] = []
+    if not targets and not switched:
         return done
-    try:
-        for targets in _targets(objects, render=False):
+    with _busy:
+        if depsgraph is not None and (depsgraph.mode == "RENDER") == render:
+            flag = "show_render" if render else "show_viewport"
+            read = []
             for target in targets:
+                evaluated = target.obj.evaluated_get(depsgraph)
+                mod = evaluated.modifiers.get(target.mod.name) if evaluated.is_evaluated else None
+                if mod is None or getattr(mod, flag):
+                    continue  # not evaluated by this depsgraph (hidden, other view layer)
                 try:
-                    target.options = options_of(target.mod)
+                    target.options = options_of(mod, render=render)
                 except bidegree.BidegreeError as exc:
                     target.error = exc
-                holders(target.obj, target.mod)
-            switched = _toggle_off(targets, "show_viewport")
-            try:
-                depsgraph.update()
-                _read_cages(targets, depsgraph)
-            finally:
-                _restore(switched)
-            for target in targets:
-                holder = holders(target.obj, target.mod)[VIEWPORT]
-                done.append((target.obj, target.mod, _write(target, VIEWPORT, holder)))
-    finally:
-        _busy.release()
+                read.append(target)
+            _read_cages(read, depsgraph)
+        else:
+            read = []
+        _restore(switched)
+        variant = RENDER if render else VIEWPORT
+        for target in read:
+            holder = holders(target.obj, target.mod)[variant]
+            done.append((target.obj, target.mod, _write(target, variant, holder)))
     return done
 
 
-#: Modifiers switched off for the render frame being evaluated (begin -> end of a frame).
-_render_frame: dict[str, Any] = {"switched": [], "targets": []}
+def reading() -> list[_Target]:
+    """The modifiers switched off for the evaluation under way."""
+    return list(_reading["targets"])
 
 
 def render_writes_allowed(scene: bpy.types.Scene) -> bool:
@@ -782,82 +810,20 @@ def render_writes_allowed(scene: bpy.types.Scene) -> bool:
     )
 
 
-def begin_render_frame(scene: bpy.types.Scene) -> int:
-    """Before a render frame is evaluated (``frame_change_pre`` of a render): switch each
-    bidegree modifier (the first one of every object) and what follows it off for the render,
-    so that the evaluation gives the render cages. Returns how many modifiers take part."""
-    end_render_frame(None)
-    if not render_writes_allowed(scene):
-        return 0
-    targets = [t for t in next(_targets(scene.objects, render=True), [])]
-    for target in targets:
-        holders(target.obj, target.mod)
-    _render_frame["targets"] = targets
-    _render_frame["switched"] = _toggle_off(targets, "show_render")
-    return len(targets)
+def viewport_objects(scene: bpy.types.Scene) -> list[bpy.types.Object]:
+    """Visible objects of ``scene`` with bidegree modifiers (those the viewport evaluates)."""
+    found = []
+    for ob in scene.objects:
+        if ob.type == "MESH" and bidegree_modifiers(ob):
+            try:
+                visible = ob.visible_get()
+            except RuntimeError:  # not in the current view layer
+                visible = False
+            if visible:
+                found.append(ob)
+    return found
 
 
-def end_render_frame(depsgraph: bpy.types.Depsgraph | None) -> int:
-    """After the render frame's first evaluation (``frame_change_post`` of a render): read the
-    render cages, switch the modifiers back on and write the render surfaces, which the
-    evaluation's second pass then renders. Without a depsgraph only switches back on."""
-    targets: list[_Target] = _render_frame["targets"]
-    switched = _render_frame["switched"]
-    _render_frame["targets"], _render_frame["switched"] = [], []
-    written = 0
-    if not _busy.acquire(blocking=False):
-        _restore(switched)
-        return 0
-    try:
-        if depsgraph is not None:
-            targets = [t for t in targets if t.obj.evaluated_get(depsgraph).is_evaluated]
-            for target in targets:
-                try:
-                    target.options = options_of(
-                        target.obj.evaluated_get(depsgraph).modifiers[target.mod.name], render=True
-                    )
-                except (bidegree.BidegreeError, KeyError) as exc:
-                    target.error = bidegree.InvalidInputError(str(exc))
-            _read_cages(targets, depsgraph)
-        _restore(switched)
-        if depsgraph is not None:
-            for target in targets:
-                if _write(target, RENDER, holders(target.obj, target.mod)[RENDER]) is not None:
-                    written += 1
-    finally:
-        _busy.release()
-    return written
-
-
-def changed_objects(depsgraph: bpy.types.Depsgraph) -> list[bpy.types.Object]:
-    """Original objects with bidegree modifiers whose geometry this evaluation changed (their
-    own update, or their mesh's)."""
-    import bpy
-
-    found: dict[str, bpy.types.Object] = {}
-    meshes = set()
-    for upd in depsgraph.updates:
-        orig = getattr(upd.id, "original", upd.id)
-        if isinstance(orig, bpy.types.Object):
-            if upd.is_updated_geometry and not is_holder(orig) and bidegree_modifiers(orig):
-                found[orig.name_full] = orig
-        elif isinstance(orig, bpy.types.Mesh):
-            meshes.add(orig)
-    if meshes:
-        for ob in depsgraph.view_layer.objects:
-            if ob.data in meshes and not is_holder(ob) and bidegree_modifiers(ob):
-                found[ob.name_full] = ob
-    return list(found.values())
-
-
-def pending_objects(scene: bpy.types.Scene) -> list[bpy.types.Object]:
-    """Objects of ``scene`` with a bidegree modifier not updated in this session yet (just
-    added, a duplicate, a file just loaded, after an undo)."""
-    return [
-        ob
-        for ob in scene.objects
-        if any(
-            modifier_key(ob, mod) not in STATUS and _enabled(ob, mod, False)
-            for mod in bidegree_modifiers(ob)
-        )
-    ]
+def render_objects(scene: bpy.types.Scene) -> list[bpy.types.Object]:
+    """Objects of ``scene`` with bidegree modifiers that renders evaluate."""
+    return [ob for ob in scene.objects if not ob.hide_render and bidegree_modifiers(ob)]

@@ -245,7 +245,7 @@ def triangle_edges(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def adaptive_surface(cage: mesh_io.CageArrays, options: Options) -> tuple[Surface, list[str]]:
     """The adaptive :class:`Surface` of ``cage`` (triangles; face data through ``face_origin``;
-    no UVs: the core has no face-varying data for adaptive output)."""
+    no UVs and no vertex group weights: the core evaluates no attributes for adaptive output)."""
     bmesh = cage_mesh(cage, options)
     result, notes = _with_warnings(lambda: options.subdivide_adaptive(bmesh))
     edges, corner_edges = triangle_edges(result.triangles)
@@ -257,6 +257,12 @@ def adaptive_surface(cage: mesh_io.CageArrays, options: Options) -> tuple[Surfac
         corner_edges=corner_edges,
         face_origin=result.face_origin,
     )
+    if cage.vertex_groups:
+        # The core evaluates no attributes on adaptive output: the groups keep their names.
+        surface.vertex_groups = {
+            name: np.zeros(len(result.points), dtype=np.float32) for name in cage.vertex_groups
+        }
+        notes.append("adaptive surfaces keep the vertex groups' names, not their weights")
     return surface, notes
 
 
