@@ -506,6 +506,9 @@ scene.camera = cam
 scene.render.engine = "PROBE"
 scene.render.resolution_x = scene.render.resolution_y = 4
 bpy.ops.render.render()
+sys.stdout.flush()
+import os
+os._exit(0)  # bpy 4.2 can crash while freeing a Python-defined render engine at exit
 """
 
 
