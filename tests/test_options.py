@@ -99,15 +99,42 @@ def test_from_namespace_takes_every_field_the_cli_has() -> None:
 
     parser = cli.build_parser()
     args = parser.parse_args(
-        ["subdivide", "in.obj", "-o", "out.obj", "--degree", "3", "--levels", "1",
-         "--rules", "classic", "--limit", "--memory-budget", "2M", "--output", "dual"]
-    )  # fmt: skip
+        [
+            "subdivide",
+            "in.obj",
+            "-o",
+            "out.obj",
+            "--degree",
+            "3",
+            "--levels",
+            "1",
+            "--rules",
+            "classic",
+            "--limit",
+            "--memory-budget",
+            "2M",
+            "--output",
+            "dual",
+        ]
+    )
     options = Options.from_namespace(args)
-    assert options == Options(degree=3, levels=1, rules="classic", limit=True,
-                              memory_budget=2 << 20, output="dual")  # fmt: skip
+    assert options == Options(
+        degree=3, levels=1, rules="classic", limit=True, memory_budget=2 << 20, output="dual"
+    )
     adaptive = Options.from_namespace(
-        parser.parse_args(["subdivide", "in.obj", "-o", "o.obj", "--adaptive", "--max-level", "5",
-                           "--tolerance", "0.01"])  # fmt: skip
+        parser.parse_args(
+            [
+                "subdivide",
+                "in.obj",
+                "-o",
+                "o.obj",
+                "--adaptive",
+                "--max-level",
+                "5",
+                "--tolerance",
+                "0.01",
+            ]
+        )
     )
     assert (adaptive.adaptive, adaptive.levels, adaptive.tolerance) == (True, 5, 0.01)
     # Every field of Options is either read from the CLI or deliberately left to its default.

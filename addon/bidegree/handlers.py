@@ -31,13 +31,7 @@ def _say_long_work() -> bool:
     cursor) before the work blocks; returns whether anything was announced."""
     if bpy.app.background:
         return False
-    faces = 0
-    for target in modifier.reading():
-        try:
-            levels = modifier.options_of(target.mod).levels
-        except Exception:  # a bad setting is reported by the update itself
-            continue
-        faces += len(target.obj.data.polygons) * 4 ** min(levels, 16)
+    faces = modifier.estimated_faces()
     wm = bpy.context.window_manager
     if faces < PROGRESS_FACES or wm is None or not wm.windows:
         return False

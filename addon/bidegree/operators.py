@@ -100,9 +100,7 @@ class BIDEGREE_OT_export_usd(bpy.types.Operator, ExportHelper):
         assert mod is not None
         path = bpy.path.abspath(self.filepath)
         try:
-            export.export_modifier_usd(
-                obj, mod, path, depsgraph=context.evaluated_depsgraph_get()
-            )
+            export.export_modifier_usd(obj, mod, path, depsgraph=context.evaluated_depsgraph_get())
         except (bidegree.BidegreeError, OSError, RuntimeError) as exc:
             self.report({"ERROR"}, f"{type(exc).__name__}: {exc}")
             return {"CANCELLED"}

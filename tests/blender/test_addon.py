@@ -112,20 +112,23 @@ def test_creases_uvs_materials_and_shading_survive(scene: Any) -> None:
         4,
         2,
     )
-    points, sizes, corners = mesh_arrays(out)
+    points, _sizes, corners = mesh_arrays(out)
     np.testing.assert_array_equal(corners, ref.face_indices)
     np.testing.assert_allclose(points, ref.points, atol=1e-6)
-    smooth = bidegree.subdivide(bidegree.Mesh(cage.points, face_sizes=cage.face_sizes,
-                                              face_indices=cage.face_indices), 4, 2)  # fmt: skip
+    smooth = bidegree.subdivide(
+        bidegree.Mesh(cage.points, face_sizes=cage.face_sizes, face_indices=cage.face_indices), 4, 2
+    )
     assert np.abs(np.asarray(smooth.points) - np.asarray(ref.points)).max() > 1e-3
     assert set(out.uv_layers.keys()) == {"UVMap", "Second"}
     got_uv = np.array([tuple(d.uv) for d in out.uv_layers["UVMap"].data], dtype=np.float32)
     np.testing.assert_allclose(got_uv, np.asarray(ref.uvs), atol=1e-6)
     origin = np.asarray(ref.face_origin)
-    np.testing.assert_array_equal([p.material_index for p in out.polygons],
-                                  np.array(mat_index)[origin])  # fmt: skip
-    np.testing.assert_array_equal([p.use_smooth for p in out.polygons],
-                                  np.array(mat_index)[origin] == 1)  # fmt: skip
+    np.testing.assert_array_equal(
+        [p.material_index for p in out.polygons], np.array(mat_index)[origin]
+    )
+    np.testing.assert_array_equal(
+        [p.use_smooth for p in out.polygons], np.array(mat_index)[origin] == 1
+    )
     assert [m.name for m in out.materials] == ["Red", "Blue"]
     # ... and reach the object's evaluated mesh through the node group.
     final = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
@@ -160,8 +163,23 @@ def test_edits_reuse_the_plan(scene: Any) -> None:
     modifier.configure(mod, degree=3)
     got = evaluated(obj, update())
     assert stats.plan_builds == builds + 2
-    np.testing.assert_allclose(got[0], bidegree.subdivide(cage_reference(obj, mod), 3, 2).points,
-                               atol=1e-6)  # fmt: skip
+    np.testing.assert_allclose(
+        got[0], bidegree.subdivide(cage_reference(obj, mod), 3, 2).points, atol=1e-6
+    )
+
+
+def test_long_work_is_known_before_it_starts(addon: ModuleType, scene: Any) -> None:
+    """What the GUI announces (status bar, progress cursor) before a large update blocks."""
+    handlers = sys.modules[addon.__name__ + ".handlers"]
+    obj = cube(scene)
+    mod = bidegree_blender.add_modifier(obj, levels=10)
+    assert modifier.begin_read([obj]) == 1
+    try:
+        assert modifier.estimated_faces() == 6 * 4**10 > handlers.PROGRESS_FACES
+        assert not mod.show_viewport  # switched off for the cage read
+    finally:
+        modifier.end_read(None)
+    assert mod.show_viewport and modifier.estimated_faces() == 0
 
 
 # --------------------------------------------------------------------------- issue 15
@@ -174,10 +192,18 @@ def test_one_settings_path() -> None:
     from bidegree_blender import live, pipeline
 
     assert live.Settings is bidegree.options.Options
-    options = bidegree.options.Options(degree=3, levels=1, rules="classic", limit=True,
-                                       memory_budget=1 << 20)  # fmt: skip
-    args = argparse.Namespace(degree=3, levels=1, rules="classic", limit=True,
-                              memory_budget=1 << 20, boundary=None, normals=False)  # fmt: skip
+    options = bidegree.options.Options(
+        degree=3, levels=1, rules="classic", limit=True, memory_budget=1 << 20
+    )
+    args = argparse.Namespace(
+        degree=3,
+        levels=1,
+        rules="classic",
+        limit=True,
+        memory_budget=1 << 20,
+        boundary=None,
+        normals=False,
+    )
     assert bidegree.options.Options.from_namespace(args) == options
     import inspect
 
@@ -195,9 +221,14 @@ def test_subdivide_object_takes_every_setting(scene: Any) -> None:
     ):
         mesh = bidegree_blender.subdivide_object(obj, options=options)
         try:
-            ref = options.subdivide(bidegree.Mesh(cage.points, face_sizes=cage.face_sizes,
-                                                  face_indices=cage.face_indices,
-                                                  boundary=options.boundary))  # fmt: skip
+            ref = options.subdivide(
+                bidegree.Mesh(
+                    cage.points,
+                    face_sizes=cage.face_sizes,
+                    face_indices=cage.face_indices,
+                    boundary=options.boundary,
+                )
+            )
             points, _sizes, corners = mesh_arrays(mesh)
             np.testing.assert_array_equal(corners, ref.face_indices)
             np.testing.assert_allclose(points, ref.points, atol=1e-6)
@@ -317,5 +348,3 @@ def test_batch_three_files_one_broken(addon: ModuleType, scene: Any, tmp_path: P
         "scene.bidegree.blend",
     ]
     assert len(list(out.glob("*.usd*"))) == 2
-
-

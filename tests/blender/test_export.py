@@ -123,7 +123,9 @@ def test_panel_export_usd(scene: Any, tmp_path: Path) -> None:
     stage = Usd.Stage.Open(str(path))
     result = UsdGeom.Mesh(stage.GetPrimAtPath("/Bidegree/Result"))
     points = np.array(result.GetPointsAttr().Get())
-    matrix = np.array(UsdGeom.Xformable(result).ComputeLocalToWorldTransform(Usd.TimeCode.Default()))
+    matrix = np.array(
+        UsdGeom.Xformable(result).ComputeLocalToWorldTransform(Usd.TimeCode.Default())
+    )
     np.testing.assert_allclose(points @ matrix[:3, :3] + matrix[3, :3], world, atol=1e-4)
     primvars = UsdGeom.PrimvarsAPI(result)
     assert primvars.HasPrimvar("st") and primvars.HasPrimvar("Detail")

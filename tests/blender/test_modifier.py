@@ -270,9 +270,12 @@ def test_apply_bakes_what_is_shown(scene: Any, settings: dict[str, Any]) -> None
         np.testing.assert_allclose(shown[0], ref.points, atol=1e-6)
     else:
         mesh = bidegree.Mesh(
-            cage.points, face_sizes=cage.face_sizes, face_indices=cage.face_indices,
-            creases=cage.creases, boundary=options.boundary,
-        )  # fmt: skip
+            cage.points,
+            face_sizes=cage.face_sizes,
+            face_indices=cage.face_indices,
+            creases=cage.creases,
+            boundary=options.boundary,
+        )
         assert_surface(shown, options.subdivide(mesh))
 
     with bpy.context.temp_override(object=obj, active_object=obj):
@@ -384,8 +387,12 @@ def test_object_info_and_boolean_see_the_surface(scene: Any) -> None:
     boolean = cutter_target.modifiers.new("Boolean", "BOOLEAN")
     boolean.object = obj
     boolean.operation = "DIFFERENCE"
-    plain = reference_object(scene, type("R", (), {
-        "points": surface[0], "face_sizes": surface[1], "face_indices": surface[2]})())  # fmt: skip
+    plain = reference_object(
+        scene,
+        type(
+            "R", (), {"points": surface[0], "face_sizes": surface[1], "face_indices": surface[2]}
+        )(),
+    )
     check = cube(scene, "Check")
     check.location = (1.0, 0.0, 0.0)
     check_bool = check.modifiers.new("Boolean", "BOOLEAN")
@@ -506,6 +513,14 @@ scene.camera = cam
 scene.render.engine = "PROBE"
 scene.render.resolution_x = scene.render.resolution_y = 4
 bpy.ops.render.render()
+# A setting changed where bidegree cannot recompute: the stale surface is not shown.
+mod = ob.modifiers["bidegree"]
+items = mod.node_group.interface.items_tree
+ident = {i.name: i.identifier for i in items if i.item_type == "SOCKET"}
+mod[ident["Degree"]] = 5
+ob.update_tag()
+dg = bpy.context.evaluated_depsgraph_get()
+print("STALE", len(ob.evaluated_get(dg).data.polygons))
 sys.stdout.flush()
 import os
 os._exit(0)  # bpy 4.2 can crash while freeing a Python-defined render engine at exit
@@ -525,10 +540,15 @@ def test_file_without_the_extension_shows_and_renders_the_surface(
     env.pop("BLENDER_USER_RESOURCES", None)  # a Blender without the extension
     proc = subprocess.run(
         [sys.executable, "-c", _WITHOUT_EXTENSION, str(path)],
-        capture_output=True, text=True, env=env, timeout=300, check=False,
-    )  # fmt: skip
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+        check=False,
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "FACES 96" in proc.stdout and "RENDER 96" in proc.stdout, proc.stdout[-2000:]
+    assert "STALE 6" in proc.stdout, proc.stdout[-2000:]  # the cage
 
     # With the extension: updates resume.
     bpy.ops.wm.open_mainfile(filepath=str(path))
@@ -552,7 +572,7 @@ def _holders_and_orphans() -> tuple[int, list[str]]:
 
 def test_duplicates_delete_and_reload_leave_no_orphans(scene: Any, tmp_path: Path) -> None:
     obj = cube(scene)
-    mod = bidegree_blender.add_modifier(obj, degree=3, levels=1)
+    bidegree_blender.add_modifier(obj, degree=3, levels=1)
     update()
     assert _holders_and_orphans() == (2, [])
     for linked in (False, True):

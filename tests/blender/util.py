@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Iterator
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pytest
@@ -123,8 +123,8 @@ def assert_surface(arrays: tuple[np.ndarray, np.ndarray, np.ndarray], ref: Any, 
 class Probe:
     """A render engine that records what a render depsgraph evaluates (no pixels)."""
 
-    seen: list[dict[str, Any]] = []
-    engine: Any = None
+    seen: ClassVar[list[dict[str, Any]]] = []
+    engine: ClassVar[Any] = None
 
     @classmethod
     def register(cls) -> None:

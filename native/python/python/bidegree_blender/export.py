@@ -83,14 +83,13 @@ def _add_object_data(
     matrix = np.array(obj.matrix_world, dtype=np.float64).T
     UsdGeom.Xformable(root).AddTransformOp().Set(Gf.Matrix4d(matrix.tolist()))
 
-    meshes = {"Cage": stage.GetPrimAtPath("/Bidegree/Cage"), "Result": None}
-    meshes["Result"] = stage.GetPrimAtPath("/Bidegree/Result")
+    meshes = {label: stage.GetPrimAtPath(f"/Bidegree/{label}") for label in ("Cage", "Result")}
     plan = result.plan
+    names = {"st", "normals", "displayColor", "distance"}  # bidegree.usd's own primvars
     for name, uvs in cage.uv_maps.items():
         if name == cage.active_uv:
             continue  # written as ``st`` by bidegree.usd
-        taken = {"st", "normals", "displayColor", "distance"}
-        primvar = _identifier(name, taken)
+        primvar = _identifier(name, names)
         for label, prim in meshes.items():
             values = uvs if label == "Cage" else plan.evaluate_face_varying(uvs)
             UsdGeom.PrimvarsAPI(prim).CreatePrimvar(
@@ -116,7 +115,7 @@ def _add_object_data(
             shader.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(float(mat.metallic))
             material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
             bound.append(material)
-        index = cage.material_index if cage.material_index is not None else None
+        index = cage.material_index
         for label, prim in meshes.items():
             UsdShade.MaterialBindingAPI.Apply(prim)
             faces = np.zeros(len(cage.face_sizes), dtype=np.int64)
@@ -129,16 +128,15 @@ def _add_object_data(
                 if bound[used[0]] is not None:
                     UsdShade.MaterialBindingAPI(prim).Bind(bound[used[0]])
                 continue
-            imageable = UsdGeom.Imageable(prim)
             for k in used:
                 if bound[k] is None:
                     continue
                 subset = UsdShade.MaterialBindingAPI(prim).CreateMaterialBindSubset(
-                    f"material_{k}", Vt.IntArray.FromNumpy(np.flatnonzero(faces == k).astype(np.int32))
+                    f"material_{k}",
+                    Vt.IntArray.FromNumpy(np.flatnonzero(faces == k).astype(np.int32)),
                 )
                 UsdShade.MaterialBindingAPI.Apply(subset.GetPrim())
                 UsdShade.MaterialBindingAPI(subset.GetPrim()).Bind(bound[k])
-            del imageable
     stage.GetRootLayer().Save()
 
 
@@ -158,7 +156,7 @@ def export_modifier_usd(
     """
     import bpy
 
-    usd = _usd()
+    _usd()  # usd-core is there before any work
     target = os.path.abspath(path)
     directory, filename = os.path.split(target)
     stem, ext = os.path.splitext(filename)
@@ -178,5 +176,4 @@ def export_modifier_usd(
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
-    del usd
     return target

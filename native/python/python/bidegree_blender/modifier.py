@@ -272,17 +272,21 @@ def _build_node_group(tree: Any) -> None:
             match = logic("AND", match, tolerance, (250, y - 250))
         valid = logic("AND", has_faces, match, (300, y))
         if warning_node is not None:
-            stale = logic("AND", has_faces, logic("NOT", match, None, (300, y - 150)), (450, y - 150))
+            stale = logic(
+                "AND", has_faces, logic("NOT", match, None, (300, y - 150)), (450, y - 150)
+            )
             warn = _new_node(tree, warning_node, (600, y - 150), warning_type="WARNING")
             warn.inputs["Message"].default_value = (
                 "bidegree: the surface does not match the settings or the cage (is the bidegree "
                 "add-on installed and enabled?); the cage is shown"
             )
             link(stale, warn.inputs["Show"])
-            valid = logic("AND", valid, logic("NOT", warn.outputs[0], None, (750, y - 150)),
-                          (750, y))  # fmt: skip
-            valid = logic("AND", valid, logic("NOT", error_shown, None, (750, y + 100)),
-                          (800, y + 50))  # fmt: skip
+            valid = logic(
+                "AND", valid, logic("NOT", warn.outputs[0], None, (750, y - 150)), (750, y)
+            )
+            valid = logic(
+                "AND", valid, logic("NOT", error_shown, None, (750, y + 100)), (800, y + 50)
+            )
         return valid, info.outputs["Geometry"]
 
     valid_v, geo_v = surface(SURFACE, "Levels Viewport", True, 200)
@@ -424,8 +428,7 @@ def configure(mod: bpy.types.Modifier, **settings: Any) -> None:
     unknown = sorted(set(settings) - set(_SETTING_FIELDS))
     if unknown:
         raise bidegree.InvalidInputError(
-            f"unknown bidegree setting(s) {', '.join(unknown)}; known: "
-            f"{', '.join(_SETTING_FIELDS)}"
+            f"unknown bidegree setting(s) {', '.join(unknown)}; known: {', '.join(_SETTING_FIELDS)}"
         )
     checked = Options(**{k: v for k, v in settings.items() if k != "render_levels"})
     if "render_levels" in settings:
@@ -799,6 +802,20 @@ def end_read(depsgraph: bpy.types.Depsgraph | None) -> list[tuple[Any, Any, Upda
 def reading() -> list[_Target]:
     """The modifiers switched off for the evaluation under way."""
     return list(_reading["targets"])
+
+
+def estimated_faces(targets: Iterable[_Target] | None = None) -> int:
+    """About how many faces the surfaces of ``targets`` (default: the evaluation under way)
+    will have: the object's own faces times ``4**levels`` (the add-on announces long work from
+    it before the work blocks)."""
+    faces = 0
+    for target in reading() if targets is None else targets:
+        try:
+            levels = options_of(target.mod, render=_reading["render"]).levels
+        except bidegree.BidegreeError:  # a bad setting is reported by the update itself
+            continue
+        faces += len(target.obj.data.polygons) * 4 ** min(levels, 16)
+    return faces
 
 
 def render_writes_allowed(scene: bpy.types.Scene) -> bool:
