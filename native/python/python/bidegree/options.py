@@ -147,17 +147,20 @@ class Options:
             if asked
         ]
 
+    def _request(self) -> dict[str, Any]:
+        """The keyword arguments :class:`bidegree.Plan` and :func:`bidegree.subdivide` share."""
+        return {
+            "degree": self.degree,
+            "levels": self.levels,
+            "output": self.output,
+            "memory_budget": self.memory_budget,
+            "rules": self.rules,
+            "creasing": self.creasing,
+        }
+
     def plan(self, mesh: bidegree.Mesh) -> bidegree.Plan:
         """The :class:`bidegree.Plan` of ``mesh`` with these options (uniform levels)."""
-        return bidegree.Plan(
-            mesh,
-            degree=self.degree,
-            levels=self.levels,
-            output=self.output,  # type: ignore[arg-type]
-            memory_budget=self.memory_budget,
-            rules=self.rules,  # type: ignore[arg-type]
-            creasing=self.creasing,  # type: ignore[arg-type]
-        )
+        return bidegree.Plan(mesh, **self._request())
 
     def evaluate(
         self, plan: bidegree.Plan, points: np.ndarray
@@ -173,17 +176,7 @@ class Options:
 
     def subdivide(self, mesh: bidegree.Mesh) -> bidegree.Result:
         """:func:`bidegree.subdivide` of ``mesh`` (uniform levels) with these options."""
-        return bidegree.subdivide(
-            mesh,
-            degree=self.degree,
-            levels=self.levels,
-            output=self.output,  # type: ignore[arg-type]
-            memory_budget=self.memory_budget,
-            rules=self.rules,  # type: ignore[arg-type]
-            creasing=self.creasing,  # type: ignore[arg-type]
-            limit=self.limit,
-            normals=self.normals,
-        )
+        return bidegree.subdivide(mesh, **self._request(), limit=self.limit, normals=self.normals)
 
     def subdivide_adaptive(self, mesh: bidegree.Mesh) -> bidegree.AdaptiveResult:
         """:func:`bidegree.subdivide_adaptive` of ``mesh`` up to ``levels``.

@@ -117,12 +117,17 @@ class GeometryCheck:
             raise bidegree.NonFiniteError(f"vertex {bad} has a non-finite position")
         if self.num_faces == 0:
             return
-        # Relative to the mesh's extent (float64: squares of large coordinates stay finite).
-        pts = np.asarray(points, dtype=np.float64)
-        extent = float((pts.max(axis=0) - pts.min(axis=0)).max()) if len(pts) else 0.0
-        scale = extent if extent > 0 else 1.0
-        p0 = pts[self.v0] / scale
-        cross = np.cross(pts[self.v1] / scale - p0, pts[self.v2] / scale - p0)
+        # Relative to the mesh's extent, so that the squares stay finite at any scale (float64
+        # only where the extent itself overflows float32).
+        pts = np.asarray(points)
+        extent = pts.max(axis=0) - pts.min(axis=0) if len(pts) else np.zeros(3)
+        if not np.isfinite(extent).all():
+            pts = pts.astype(np.float64)
+            extent = pts.max(axis=0) - pts.min(axis=0)
+        scale = float(extent.max())
+        pts = pts / (scale if scale > 0 else 1.0)
+        p0 = pts[self.v0]
+        cross = np.cross(pts[self.v1] - p0, pts[self.v2] - p0)
         tri_area = np.sqrt(np.einsum("ij,ij->i", cross, cross))
         area = np.bincount(self.face_of_tri, weights=tri_area, minlength=self.num_faces)
         degenerate = np.flatnonzero(area <= 1e-12)
