@@ -22,6 +22,11 @@ from bpy.app.handlers import persistent
 
 #: Above this many estimated result faces, a GUI update says so in the status bar first.
 PROGRESS_FACES = 1_000_000
+#: Read only the cages expected to change (the GUI: updates that touch no bidegree object, a
+#: selection, cost bidegree nothing; an object that changed unexpectedly gets its surface one
+#: event-loop turn later, from :func:`_follow_up`). Scripts and renders in background mode read
+#: every visible cage, so the surface is there when ``view_layer.update()`` returns.
+PREDICT = not bpy.app.background
 
 _render = {"active": False, "warned": False}
 
@@ -51,20 +56,36 @@ def _end_long_work() -> None:
         workspace.status_text_set(None)
 
 
-def _end_read(depsgraph: bpy.types.Depsgraph | None) -> None:
+def _viewport_objects(scene: bpy.types.Scene) -> list[bpy.types.Object]:
+    """The objects whose cages this evaluation reads (see :data:`PREDICT`)."""
+    if PREDICT:
+        return modifier.expected_objects(scene)
+    return modifier.viewport_objects(scene)
+
+
+def _follow_up() -> None:
+    """Timer: evaluate once more the objects that changed without their cages being read."""
+    for ob in modifier.stale_objects():
+        ob.update_tag()
+
+
+def _end_read(depsgraph: bpy.types.Depsgraph) -> None:
     announced = _say_long_work()
     try:
-        modifier.end_read(depsgraph)
+        done = modifier.end_read(depsgraph)
     finally:
         if announced:
             _end_long_work()
+    if PREDICT and depsgraph.mode == "VIEWPORT" and modifier.note_changes(depsgraph, done):
+        if not bpy.app.timers.is_registered(_follow_up):
+            bpy.app.timers.register(_follow_up, first_interval=0.0)
 
 
 @persistent
 def on_depsgraph_update_pre(scene: bpy.types.Scene, *_args: Any) -> None:
-    """An evaluation starts: switch the visible bidegree modifiers off for their cage read."""
+    """An evaluation starts: switch bidegree modifiers off for their cage read."""
     if threading.current_thread() is threading.main_thread():
-        modifier.begin_read(modifier.viewport_objects(scene))
+        modifier.begin_read(_viewport_objects(scene))
 
 
 @persistent
@@ -91,7 +112,7 @@ def on_frame_change_pre(scene: bpy.types.Scene, *_args: Any) -> None:
             return
         modifier.begin_read(modifier.render_objects(scene), render=True)
     elif threading.current_thread() is threading.main_thread():
-        modifier.begin_read(modifier.viewport_objects(scene))
+        modifier.begin_read(_viewport_objects(scene))
 
 
 @persistent
@@ -161,9 +182,11 @@ def register() -> None:
 
 
 def unregister() -> None:
-    """Remove the handlers and forget every cached plan."""
+    """Remove the handlers and the timer, forget every cached plan."""
     for name, fn in _HANDLERS:
         lst = getattr(bpy.app.handlers, name)
         while fn in lst:
             lst.remove(fn)
+    if bpy.app.timers.is_registered(_follow_up):
+        bpy.app.timers.unregister(_follow_up)
     modifier.reset()

@@ -182,6 +182,40 @@ def test_long_work_is_known_before_it_starts(addon: ModuleType, scene: Any) -> N
     assert mod.show_viewport and modifier.estimated_faces() == 0
 
 
+def test_gui_reads_only_the_cages_that_change(addon: ModuleType, scene: Any) -> None:
+    """The GUI's policy (handlers.PREDICT): updates that touch no bidegree object cost nothing,
+    one that changed unexpectedly gets its surface from the follow-up evaluation."""
+    handlers = sys.modules[addon.__name__ + ".handlers"]
+    obj = cube(scene)
+    other = cube(scene, "Other")
+    saved = handlers.PREDICT
+    handlers.PREDICT = True
+    try:
+        mod = bidegree_blender.add_modifier(obj, degree=3, levels=1)
+        assert len(evaluated(obj, update())[1]) == 6  # not expected yet: the cage, for now
+        assert modifier.stale_objects() == [obj]
+        handlers._follow_up()  # the timer the GUI runs next
+        assert len(evaluated(obj, update())[1]) == 24 and not modifier.stale_objects()
+        stats = modifier.CACHE.stats
+        reads = stats.plan_reuses + stats.skips + stats.plan_builds
+        other.location.x += 1.0  # one read more (it was expected), then none
+        update()
+        for _ in range(3):
+            other.location.x += 1.0
+            update()
+        assert stats.plan_reuses + stats.skips + stats.plan_builds == reads + 1
+        obj.data.vertices[0].co.x -= 0.5
+        obj.data.update()
+        update()
+        handlers._follow_up()
+        got = evaluated(obj, update())
+        np.testing.assert_allclose(
+            got[0], bidegree.subdivide(cage_reference(obj, mod), 3, 1).points, atol=1e-6
+        )
+    finally:
+        handlers.PREDICT = saved
+
+
 # --------------------------------------------------------------------------- issue 15
 
 

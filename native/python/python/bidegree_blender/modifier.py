@@ -164,6 +164,9 @@ def reset() -> None:
     """Forget every cached plan and status (a new file, an undo, unregistering)."""
     CACHE.clear()
     STATUS.clear()
+    _IDENTIFIERS.clear()
+    _expected.clear()
+    _stale.clear()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -335,12 +338,20 @@ def bidegree_modifiers(obj: bpy.types.Object) -> list[bpy.types.Modifier]:
     return [mod for mod in obj.modifiers if is_bidegree_modifier(mod)]
 
 
+#: Input name -> socket identifier, per node group (by session uid: the add-on's node groups
+#: are never edited after they are built).
+_IDENTIFIERS: dict[int, dict[str, str]] = {}
+
+
 def _identifiers(tree: Any) -> dict[str, str]:
-    return {
-        item.name: item.identifier
-        for item in tree.interface.items_tree
-        if item.item_type == "SOCKET" and item.in_out == "INPUT"
-    }
+    found = _IDENTIFIERS.get(tree.session_uid)
+    if found is None:
+        found = _IDENTIFIERS[tree.session_uid] = {
+            item.name: item.identifier
+            for item in tree.interface.items_tree
+            if item.item_type == "SOCKET" and item.in_out == "INPUT"
+        }
+    return found
 
 
 def get_input(mod: bpy.types.Modifier, name: str) -> Any:
@@ -839,6 +850,68 @@ def viewport_objects(scene: bpy.types.Scene) -> list[bpy.types.Object]:
             if visible:
                 found.append(ob)
     return found
+
+
+#: Objects whose cage is expected to change in the next evaluation (the last read found it
+#: changed) and objects that changed without being read (they need another evaluation). In the
+#: GUI only these are switched off in ``_pre``: an update that touches no bidegree object (a
+#: selection, another object moved) then costs bidegree nothing.
+_expected: set[str] = set()
+_stale: set[str] = set()
+
+
+def stale_objects() -> list[bpy.types.Object]:
+    """Objects that changed without their cages being read (see :func:`note_changes`)."""
+    import bpy
+
+    return [ob for ob in map(bpy.data.objects.get, sorted(_stale)) if ob is not None]
+
+
+def expected_objects(scene: bpy.types.Scene) -> list[bpy.types.Object]:
+    """The visible objects of ``scene`` whose cages the next evaluation should read (see
+    :func:`note_changes`)."""
+    wanted = _expected | _stale
+    return [ob for ob in viewport_objects(scene) if ob.name_full in wanted]
+
+
+def note_changes(
+    depsgraph: bpy.types.Depsgraph, done: list[tuple[Any, Any, UpdateReport | None]]
+) -> list[bpy.types.Object]:
+    """After :func:`end_read`: keep expecting the objects whose cage changed, stop expecting
+    those whose cage did not, and return the bidegree objects this evaluation changed without
+    reading their cages (stale until another evaluation reads them: the caller asks for one)."""
+    read = {obj.name_full for obj, _mod, _report in done}
+    for obj, _mod, report in done:
+        if report is None or report.action != "unchanged":
+            _expected.add(obj.name_full)
+        else:
+            _expected.discard(obj.name_full)
+    _stale.difference_update(read)
+    missed = [ob for ob in changed_objects(depsgraph) if ob.name_full not in read]
+    for ob in missed:
+        _stale.add(ob.name_full)
+    return missed
+
+
+def changed_objects(depsgraph: bpy.types.Depsgraph) -> list[bpy.types.Object]:
+    """Original objects with bidegree modifiers whose geometry this evaluation changed (their
+    own update, or their mesh's)."""
+    import bpy
+
+    found: dict[str, bpy.types.Object] = {}
+    meshes = set()
+    for upd in depsgraph.updates:
+        orig = getattr(upd.id, "original", upd.id)
+        if isinstance(orig, bpy.types.Object):
+            if upd.is_updated_geometry and not is_holder(orig) and bidegree_modifiers(orig):
+                found[orig.name_full] = orig
+        elif isinstance(orig, bpy.types.Mesh):
+            meshes.add(orig)
+    if meshes:
+        for ob in depsgraph.view_layer.objects:
+            if ob.data in meshes and not is_holder(ob) and bidegree_modifiers(ob):
+                found[ob.name_full] = ob
+    return list(found.values())
 
 
 def render_objects(scene: bpy.types.Scene) -> list[bpy.types.Object]:
