@@ -111,6 +111,11 @@ def addon(extension_zip: Path) -> Iterator[ModuleType]:
         sys.path.remove(str(_SITE))
     sys.path.insert(0, str(_SITE))
     yield module
+    # A Python-defined render engine left registered crashes bpy 4.2 at exit.
+    util = sys.modules.get("util")
+    if util is not None and util.Probe.engine is not None:
+        bpy.utils.unregister_class(util.Probe.engine)
+        util.Probe.engine = None
     bpy.ops.preferences.addon_disable(module=ADDON_MODULE)
     shutil.rmtree(_USER_DIR, ignore_errors=True)
 
