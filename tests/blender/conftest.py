@@ -120,6 +120,23 @@ def addon(extension_zip: Path) -> Iterator[ModuleType]:
     shutil.rmtree(_USER_DIR, ignore_errors=True)
 
 
+@pytest.fixture(autouse=True)
+def _installed_modules(request: pytest.FixtureRequest, addon: ModuleType) -> None:
+    """Give a test module's ``bidegree``, ``bidegree_blender`` and ``modifier`` globals the
+    installed extension's copies (imported only after it was installed)."""
+    import bidegree
+    import bidegree_blender
+    from bidegree_blender import modifier
+
+    for name, module in (
+        ("bidegree", bidegree),
+        ("bidegree_blender", bidegree_blender),
+        ("modifier", modifier),
+    ):
+        if hasattr(request.module, name):
+            setattr(request.module, name, module)
+
+
 @pytest.fixture(scope="session")
 def bidegree_preimported(addon: ModuleType) -> bool:
     """Whether ``bidegree`` was imported (from elsewhere) before the extension was installed."""

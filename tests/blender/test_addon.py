@@ -17,21 +17,11 @@ from util import cage_reference, cube, evaluated, make_object, mesh_arrays, snap
 
 bpy = pytest.importorskip("bpy")
 
-#: ``bidegree`` as imported from the installed extension's wheel (set by the autouse fixture,
-#: after the extension was installed, so the installed copy is the one used).
+#: The installed extension's modules (set by conftest's autouse ``_installed_modules``, after
+#: the extension was installed, so the installed copies are the ones used).
 bidegree: Any = None
 bidegree_blender: Any = None
 modifier: Any = None
-
-
-@pytest.fixture(autouse=True)
-def _bidegree_from_extension(addon: ModuleType) -> None:
-    global bidegree, bidegree_blender, modifier
-    import bidegree as b
-    import bidegree_blender as bb
-    from bidegree_blender import modifier as m
-
-    bidegree, bidegree_blender, modifier = b, bb, m
 
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -5,7 +5,6 @@ Export USD writes the transform, the materials and every UV map, and validates."
 from __future__ import annotations
 
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -16,15 +15,6 @@ bpy = pytest.importorskip("bpy")
 
 modifier: Any = None
 bidegree_blender: Any = None
-
-
-@pytest.fixture(autouse=True)
-def _installed(addon: ModuleType) -> None:
-    global modifier, bidegree_blender
-    import bidegree_blender as bb
-    from bidegree_blender import modifier as m
-
-    modifier, bidegree_blender = m, bb
 
 
 def _scene_with_surface(scene: Any) -> tuple[Any, np.ndarray]:

@@ -7,7 +7,6 @@ import os
 import subprocess
 import sys
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -30,17 +29,6 @@ bpy = pytest.importorskip("bpy")
 bidegree: Any = None
 bidegree_blender: Any = None
 modifier: Any = None
-
-
-@pytest.fixture(autouse=True)
-def _installed(addon: ModuleType) -> None:
-    """The modules of the installed extension (imported after it was installed)."""
-    global bidegree, bidegree_blender, modifier
-    import bidegree as b
-    import bidegree_blender as bb
-    from bidegree_blender import modifier as m
-
-    bidegree, bidegree_blender, modifier = b, bb, m
 
 
 def subdivided(mesh: Any, **kw: Any) -> Any:
