@@ -25,6 +25,7 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import bidegree
+from bidegree.options import Options
 
 #: Modules ``bidegree.<name>`` registered as subcommands when they import (with help text).
 OPTIONAL_SUBCOMMANDS: dict[str, str] = {
@@ -152,13 +153,7 @@ def _run_adaptive(args: argparse.Namespace, say: Callable[[str], None]) -> int:
     max_level = args.levels if args.max_level is None else args.max_level
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", bidegree.IsolatedVerticesWarning)
-        result = bidegree.subdivide_adaptive(
-            cage,
-            degree=args.degree,
-            max_level=max_level,
-            tolerance=args.tolerance,
-            memory_budget=args.memory_budget,
-        )
+        result = Options.from_namespace(args).subdivide_adaptive(cage)
     elapsed = time.perf_counter() - start
     for warning in caught:
         text = " ".join(str(warning.message).split("\n"))
@@ -210,16 +205,7 @@ def _run_subdivide(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", bidegree.IsolatedVerticesWarning)
-        result = bidegree.subdivide(
-            cage,
-            degree=args.degree,
-            levels=args.levels,
-            output=args.output,
-            memory_budget=args.memory_budget,
-            rules=args.rules,
-            limit=args.limit,
-            normals=args.normals,
-        )
+        result = Options.from_namespace(args).subdivide(cage)
     subdivide_time = time.perf_counter() - start
     for warning in caught:
         text = " ".join(str(warning.message).split("\n"))
