@@ -1,0 +1,133 @@
+"""The batch on a ``dask.distributed`` cluster: one task per input file.
+
+``--workers N`` starts a :class:`distributed.LocalCluster` of N worker processes with one thread
+each (``bpy`` is not thread-safe; each worker process holds its own Blender session, reset by
+every file it converts); ``--scheduler tcp://HOST:PORT`` uses a running scheduler whose workers
+have ``bidegree`` and ``bpy`` installed and see the same paths (inputs and output folder) as the
+client, which writes the manifest.
+
+Failures are handled by distributed itself, not here:
+
+* a worker that dies while it converts a file (killed, out of memory) makes the scheduler run
+  the task again on another worker, up to ``allowed-failures`` times (the ``--retries`` given to
+  a local cluster; a running scheduler keeps its own ``distributed.scheduler.allowed-failures``),
+  after which the file fails with distributed's ``KilledWorker``;
+* a task that raises (only ``OSError`` and ``MemoryError`` do, see
+  :func:`~bidegree_blender.batch.convert.convert_file`) is run again ``retries`` times.
+
+The attempts a file took are the scheduler's own counts for its task (worker deaths while it ran
+plus retries used), read when the task finishes and written to the manifest.
+"""
+
+from __future__ import annotations
+
+import logging
+import uuid
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from .convert import FileRecord, Job, convert_file, failed_record, output_stem
+
+
+class FarmError(Exception):
+    """The cluster cannot be used (``distributed`` missing, scheduler unreachable)."""
+
+
+def require_distributed() -> None:
+    """Raise :class:`FarmError` when ``dask.distributed`` is not installed."""
+    try:
+        import distributed  # noqa: F401
+    except ImportError as exc:
+        raise FarmError(
+            "--workers and --scheduler need dask.distributed: pip install 'bidegree[farm]'"
+        ) from exc
+
+
+def convert_task(path: str, job: Job) -> FileRecord:
+    """The task a worker runs: :func:`convert_file`, tagged with the worker's address."""
+    from distributed import get_worker
+
+    record = convert_file(path, job)
+    record.worker = get_worker().address
+    return record
+
+
+def _attempts_probe() -> Callable[..., int | None]:
+    """A function for ``Client.run_on_scheduler``: the attempts the task ``key`` has taken.
+
+    Defined inside a function so that cloudpickle sends it by value (a scheduler does not need
+    ``bidegree`` installed).
+    """
+
+    def attempts(key: str, retries: int, dask_scheduler: Any = None) -> int | None:
+        ts = dask_scheduler.tasks.get(key)
+        if ts is None:
+            return None
+        # ``suspicious``: workers that died while running it; ``retries`` counts down per retry.
+        return 1 + int(ts.suspicious) + max(0, retries - int(ts.retries))
+
+    return attempts
+
+
+def _client(scheduler: str | None, workers: int | None, retries: int) -> tuple[Any, Any]:
+    """A connected client, and the local cluster it owns (or ``None``)."""
+    from distributed import Client, LocalCluster
+
+    if workers is not None:
+        cluster = LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            scheduler_kwargs={"allowed_failures": retries},
+            silence_logs=logging.WARNING,
+        )
+        return Client(cluster), cluster
+    try:
+        return Client(scheduler, timeout="20s"), None
+    except (OSError, ValueError) as exc:
+        raise FarmError(f"cannot connect to the scheduler {scheduler}: {exc}") from exc
+
+
+def run_distributed(
+    inputs: Sequence[str],
+    job: Job,
+    on_record: Callable[[FileRecord], None],
+    *,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    retries: int = 2,
+) -> None:
+    """Convert ``inputs`` on a cluster, calling ``on_record`` as each file finishes.
+
+    Exactly one of ``scheduler`` (an address) and ``workers`` (a local cluster's size) is given.
+    """
+    from distributed import as_completed
+
+    client, cluster = _client(scheduler, workers, retries)
+    attempts_of = _attempts_probe()
+    run_id = uuid.uuid4().hex[:8]
+    futures: dict[Any, str] = {}
+    try:
+        for i, path in enumerate(inputs):
+            key = f"bidegree-{output_stem(path)}-{run_id}-{i}"
+            future = client.submit(convert_task, path, job, key=key, pure=False, retries=retries)
+            futures[future] = path
+        for future in as_completed(futures):
+            path = futures[future]
+            try:
+                record = future.result()
+            except Exception as exc:  # KilledWorker, or OSError / MemoryError after its retries
+                record = failed_record(path, job, exc)
+            counted = client.run_on_scheduler(attempts_of, key=future.key, retries=retries)
+            if counted is not None:
+                record.attempts = counted
+            future.release()
+            on_record(record)
+    except BaseException:
+        client.cancel(list(futures))
+        raise
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
