@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Runs every test: formatting and lints, the Rust tests (release mode), the Python, USD and
 # OpenSubdiv-comparison tests under numpy 1.26 (the .venv that has bpy), the Blender tests
-# against the installed extension (their own process), and the Python API tests once more
+# against the installed extension (their own process), the batch tests (their own process:
+# bpy, dask, openjd), and the Python API tests once more
 # under numpy 2.x in a second virtualenv.
 set -euo pipefail
 
@@ -22,10 +23,13 @@ log "Rust tests"
 cargo test --release -p bidegree
 
 log "Python, USD and OpenSubdiv tests (numpy $("$PY" -c 'import numpy; print(numpy.__version__)'))"
-"$PY" -m pytest -q tests --ignore=tests/blender
+"$PY" -m pytest -q tests --ignore=tests/blender --ignore=tests/batch
 
 log "Blender tests (real bpy, the built extension installed)"
 "$PY" -m pytest -q tests/blender
+
+log "Batch tests (real bpy, a dask LocalCluster and scheduler with worker processes, openjd)"
+"$PY" -m pytest -q tests/batch
 
 log "Python API tests under numpy 2"
 NP2="$ROOT/.venv-numpy2"

@@ -17,12 +17,14 @@ and a process killed mid-file (a farm worker, SIGKILL, out of memory) leaves no 
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import itertools
 import os
 import shutil
 import socket
 import time
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
 from typing import Any
@@ -160,7 +162,10 @@ def _new_record(path: str, job: Job, **kwargs: Any) -> FileRecord:
 
 def failed_record(path: str, job: Job, exc: BaseException, **kwargs: Any) -> FileRecord:
     """The record of a file that failed with ``exc`` (its message is the record's error)."""
-    return _new_record(path, job, status="failed", error=f"{type(exc).__name__}: {exc}", **kwargs)
+    message = " ".join(str(exc).split())  # one line in the log, whatever the exception says
+    return _new_record(
+        path, job, status="failed", error=f"{type(exc).__name__}: {message}", **kwargs
+    )
 
 
 def _load(path: str, trust_scripts: bool) -> None:
@@ -198,6 +203,41 @@ def _export_usd(ob: Any, path: str, settings: Settings, depsgraph: Any) -> None:
     export_object_usd(ob, path, settings, depsgraph=depsgraph)
 
 
+class _ObjectError(Exception):
+    """``error`` happened to the object ``name`` of the file being converted."""
+
+    def __init__(self, name: str, error: Exception) -> None:
+        super().__init__(name, error)
+        self.name = name
+        self.error = error
+
+
+@contextlib.contextmanager
+def _object(name: str) -> Iterator[None]:
+    """Tag what goes wrong with the object ``name`` (``OSError`` and ``MemoryError`` stay)."""
+    try:
+        yield
+    except (OSError, MemoryError):
+        raise
+    except Exception as exc:
+        raise _ObjectError(name, exc) from exc
+
+
+def _usd_names(stem: str, sources: list[Any], ext: str) -> list[str]:
+    """USD file names: ``<stem>.<ext>`` for one object, else ``<stem>_<object>[-k].<ext>``."""
+    if len(sources) == 1:
+        return [f"{stem}.{ext}"]
+    names: list[str] = []
+    for ob in sources:
+        base = f"{stem}_{output_stem(ob.name)}"
+        name, k = base, 1
+        while f"{name}.{ext}" in names:  # two object names that differ only in unsafe characters
+            k += 1
+            name = f"{base}-{k}"
+        names.append(f"{name}.{ext}")
+    return names
+
+
 def _write_outputs(path: str, job: Job, stem: str, folder: str) -> tuple[list[str], int, int]:
     """Load ``path``, subdivide its mesh objects and write the outputs into ``folder``.
 
@@ -213,10 +253,8 @@ def _write_outputs(path: str, job: Job, stem: str, folder: str) -> tuple[list[st
     scene = bpy.data.scenes.new("bidegree_results")
     faces = 0
     for ob in sources:
-        try:
+        with _object(ob.name):
             mesh = _subdivide(ob, job.settings, depsgraph)
-        except Exception as exc:
-            raise type(exc)(f"object {ob.name!r}: {exc}") from exc
         faces += len(mesh.polygons)
         result = bpy.data.objects.new(mesh.name, mesh)
         result.matrix_world = ob.matrix_world
@@ -224,10 +262,10 @@ def _write_outputs(path: str, job: Job, stem: str, folder: str) -> tuple[list[st
     names = [f"{stem}.bidegree.blend"]
     bpy.data.libraries.write(os.path.join(folder, names[0]), {scene}, compress=False)
     if job.usd is not None:
-        for ob in sources:
-            name = stem if len(sources) == 1 else f"{stem}_{output_stem(ob.name)}"
-            names.append(f"{name}.{job.usd}")
-            _export_usd(ob, os.path.join(folder, names[-1]), job.settings, depsgraph)
+        for ob, name in zip(sources, _usd_names(stem, sources, job.usd), strict=True):
+            with _object(ob.name):
+                _export_usd(ob, os.path.join(folder, name), job.settings, depsgraph)
+            names.append(name)
     return names, len(sources), faces
 
 
@@ -260,6 +298,8 @@ def convert_file(path: str, job: Job) -> FileRecord:
     writing and ``MemoryError`` are raised instead (another attempt, on another machine, may
     succeed); they leave no output either.
     """
+    import bpy  # noqa: F401  (its first import, a few seconds, is not the file's time)
+
     t0 = time.perf_counter()
     path = os.path.abspath(path)
     stem = output_stem(path)

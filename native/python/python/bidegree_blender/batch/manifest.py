@@ -17,8 +17,8 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import tempfile
 import time
+import uuid
 from collections.abc import Iterator
 from typing import Any
 
@@ -93,9 +93,9 @@ class Manifest:
             entries = self._read_raw()
             entries.update(self._pending)
             data = {"format": FORMAT, "files": [entries[k] for k in sorted(entries)]}
-            fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{MANIFEST_NAME}.", suffix=".tmp")
+            tmp = os.path.join(folder, f".{MANIFEST_NAME}.{os.getpid()}-{uuid.uuid4().hex}.tmp")
             try:
-                with os.fdopen(fd, "w", encoding="utf-8") as f:
+                with open(tmp, "x", encoding="utf-8") as f:
                     json.dump(data, f, indent=1)
                     f.write("\n")
                     f.flush()
