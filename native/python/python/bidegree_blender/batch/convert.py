@@ -106,10 +106,14 @@ class FileRecord:
         return cls(**data)
 
 
+def safe_name(name: str) -> str:
+    """``name`` with every character but letters, digits and ``-_.`` replaced by ``_``."""
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
+
+
 def output_stem(path: str) -> str:
     """The name every output of ``path`` starts with (its file name without the extension)."""
-    name = os.path.splitext(os.path.basename(path))[0]
-    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
+    return safe_name(os.path.splitext(os.path.basename(path))[0])
 
 
 def file_sha256(path: str) -> str:
@@ -162,10 +166,12 @@ def _new_record(path: str, job: Job, **kwargs: Any) -> FileRecord:
 
 def failed_record(path: str, job: Job, exc: BaseException, **kwargs: Any) -> FileRecord:
     """The record of a file that failed with ``exc`` (its message is the record's error)."""
+    where = ""
+    if isinstance(exc, _ObjectError):
+        where, exc = f"object {exc.name!r}: ", exc.error
     message = " ".join(str(exc).split())  # one line in the log, whatever the exception says
-    return _new_record(
-        path, job, status="failed", error=f"{type(exc).__name__}: {message}", **kwargs
-    )
+    error = f"{type(exc).__name__}: {where}{message}"
+    return _new_record(path, job, status="failed", error=error, **kwargs)
 
 
 def _load(path: str, trust_scripts: bool) -> None:
@@ -229,7 +235,7 @@ def _usd_names(stem: str, sources: list[Any], ext: str) -> list[str]:
         return [f"{stem}.{ext}"]
     names: list[str] = []
     for ob in sources:
-        base = f"{stem}_{output_stem(ob.name)}"
+        base = f"{stem}_{safe_name(ob.name)}"
         name, k = base, 1
         while f"{name}.{ext}" in names:  # two object names that differ only in unsafe characters
             k += 1
