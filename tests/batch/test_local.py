@@ -163,7 +163,7 @@ def test_manifest_and_resume(inputs: dict[str, Path], tmp_path: Path) -> None:
     assert (scene["degree"], scene["levels"], scene["objects"]) == (4, 1, 2)
     assert [o["path"] for o in scene["outputs"]] == [
         "scene.bidegree.blend",
-        "scene_Bevelled.usdc",
+        "scene_Arrayed.usdc",
         "scene_Prism.usdc",
     ]
     for o in scene["outputs"]:

@@ -15,8 +15,11 @@ Failures are handled by distributed itself, not here:
 * a task that raises (only ``OSError`` and ``MemoryError`` do, see
   :func:`~bidegree_blender.batch.convert.convert_file`) is run again ``retries`` times.
 
-The attempts a file took are the scheduler's own counts for its task (worker deaths while it ran
-plus retries used), read when the task finishes and written to the manifest.
+The attempts a file took are the scheduler's own counts for its task, read when the task finishes
+and written to the manifest: one, plus the workers that died while they held it (running it, or
+with it waiting in their queue, which distributed counts towards ``allowed-failures`` too), plus
+the retries used. A running scheduler should set ``distributed.scheduler.worker-saturation: 1.0``
+as the local cluster does, so that a worker holds only the file it converts.
 """
 
 from __future__ import annotations
@@ -26,7 +29,7 @@ import uuid
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from .convert import FileRecord, Job, convert_file, failed_record, output_stem
+from .convert import FileRecord, Job, convert_file, failed_record
 
 
 class FarmError(Exception):
@@ -71,17 +74,22 @@ def _attempts_probe() -> Callable[..., int | None]:
 
 def _client(scheduler: str | None, workers: int | None, retries: int) -> tuple[Any, Any]:
     """A connected client, and the local cluster it owns (or ``None``)."""
+    import dask
     from distributed import Client, LocalCluster
 
     if workers is not None:
-        cluster = LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=None,
-            scheduler_kwargs={"allowed_failures": retries},
-            silence_logs=logging.WARNING,
-        )
+        # Saturation 1: a worker holds only the file it converts (once there are more files than
+        # twice the workers, distributed's queuing applies), so a worker that dies costs an
+        # attempt of that file alone and a free worker takes the next file, however long each is.
+        with dask.config.set({"distributed.scheduler.worker-saturation": 1.0}):
+            cluster = LocalCluster(
+                n_workers=workers,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                scheduler_kwargs={"allowed_failures": retries},
+                silence_logs=logging.WARNING,
+            )
         return Client(cluster), cluster
     try:
         return Client(scheduler, timeout="20s"), None
@@ -110,7 +118,7 @@ def run_distributed(
     futures: dict[Any, str] = {}
     try:
         for i, path in enumerate(inputs):
-            key = f"bidegree-{output_stem(path)}-{run_id}-{i}"
+            key = f"bidegree-convert-{run_id}-{i}"  # one task group: "bidegree-convert"
             future = client.submit(convert_task, path, job, key=key, pure=False, retries=retries)
             futures[future] = path
         for future in as_completed(futures):
