@@ -1,0 +1,113 @@
+"""Benchmark (not a test): batch throughput here and on a local dask cluster.
+
+The input is Suzanne with two levels of Catmull-Clark applied (7,872 quads) saved as a .blend and
+copied 20 times; each copy is subdivided at degree 4, level 3 (503,808 faces) and written as
+``.bidegree.blend`` and ``.usdc``. Every run is ``python -m bidegree_blender.batch`` in a child
+process, timed from its start to its exit (interpreter, ``bpy`` import and cluster start
+included), in these modes:
+
+* the local batch (one process, files one after another);
+* ``--workers 1`` and ``--workers 2`` (a ``LocalCluster`` of worker processes, one thread each).
+
+Printed: wall time, files per minute, the work the manifest records (the sum of the files'
+conversion times) and, from extra one-file runs of the local batch and of ``--workers 1``, the
+fixed start-up cost of a cluster and the scheduling overhead per file: the extra time per extra
+file of ``--workers 1`` over the local batch, ``((W1(20) - W1(1)) - (L(20) - L(1))) / 19``.
+
+Usage: ``.venv/bin/python packaging/bench_batch.py [--files 20] [--levels 3] [--keep DIR]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+MAKE_CAGE = """
+import sys, bpy
+bpy.ops.wm.read_factory_settings(use_empty=True)
+bpy.ops.mesh.primitive_monkey_add(size=2.0)
+ob = bpy.context.active_object
+ob.name = "Suzanne"
+mod = ob.modifiers.new("Subdivision", "SUBSURF")
+mod.levels = 2
+bpy.ops.object.modifier_apply(modifier=mod.name)
+bpy.ops.wm.save_as_mainfile(filepath=sys.argv[1])
+"""
+
+
+def _run(inputs: list[Path], out: Path, levels: int, extra: list[str]) -> tuple[float, float]:
+    """Wall seconds of one batch run, and the conversion seconds its manifest records."""
+    shutil.rmtree(out, ignore_errors=True)
+    cmd = [sys.executable, "-m", "bidegree_blender.batch", *map(str, inputs), "--out", str(out)]
+    cmd += ["--degree", "4", "--levels", str(levels), "--usd", *extra]
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        sys.exit(f"batch failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
+    entries = json.loads((out / "bidegree-manifest.json").read_text())["files"]
+    assert len(entries) == len(inputs) and all(e["status"] == "done" for e in entries)
+    return wall, sum(e["seconds"] for e in entries)
+
+
+def _load() -> str:
+    return "load average %.2f %.2f %.2f" % os.getloadavg()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--files", type=int, default=20)
+    parser.add_argument("--levels", type=int, default=3)
+    parser.add_argument("--keep", help="work in this folder and keep it (default: a temporary one)")
+    args = parser.parse_args()
+
+    work = Path(args.keep or tempfile.mkdtemp(prefix="bidegree-bench-batch-"))
+    work.mkdir(parents=True, exist_ok=True)
+    cage = work / "suzanne.blend"
+    subprocess.run([sys.executable, "-c", MAKE_CAGE, str(cage)], check=True, capture_output=True)
+    inputs = []
+    for i in range(args.files):
+        inputs.append(work / f"suzanne_{i:02d}.blend")
+        shutil.copyfile(cage, inputs[-1])
+    out = work / "out"
+
+    print(f"{args.files} copies of Suzanne (7,872 quads), degree 4, level {args.levels}, --usd")
+    print(f"before: {_load()} on {os.cpu_count()} cores")
+    modes = [("local batch", []), ("--workers 1", ["--workers", "1"])]
+    modes.append(("--workers 2", ["--workers", "2"]))
+    one = {name: _run(inputs[:1], out, args.levels, extra)[0] for name, extra in modes[:2]}
+    print(f"{'mode':<12} {'wall s':>8} {'files/min':>10} {'work s':>8} {'ratio':>6}")
+    walls = {}
+    for name, extra in modes:
+        wall, work_s = _run(inputs, out, args.levels, extra)
+        walls[name] = wall
+        ratio = walls["local batch"] / wall
+        print(f"{name:<12} {wall:8.1f} {60 * args.files / wall:10.1f} {work_s:8.1f} {ratio:6.2f}")
+    n = args.files
+    startup = one["--workers 1"] - one["local batch"]
+    per_file = (walls["--workers 1"] - one["--workers 1"]) - (
+        walls["local batch"] - one["local batch"]
+    )
+    print(
+        f"one file: local {one['local batch']:.1f} s, --workers 1 {one['--workers 1']:.1f} s "
+        f"(cluster start-up {startup:.1f} s)"
+    )
+    if n > 1:
+        print(
+            f"scheduling overhead per file (--workers 1 vs local): {1000 * per_file / (n - 1):.0f} ms"
+        )
+    print(f"after: {_load()}")
+    shutil.rmtree(out, ignore_errors=True)
+    if not args.keep:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
