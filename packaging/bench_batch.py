@@ -58,7 +58,7 @@ def _run(inputs: list[Path], out: Path, levels: int, extra: list[str]) -> tuple[
 
 
 def _load() -> str:
-    return "load average %.2f %.2f %.2f" % os.getloadavg()
+    return "load average {:.2f} {:.2f} {:.2f}".format(*os.getloadavg())
 
 
 def main() -> None:
@@ -82,27 +82,21 @@ def main() -> None:
     print(f"before: {_load()} on {os.cpu_count()} cores")
     modes = [("local batch", []), ("--workers 1", ["--workers", "1"])]
     modes.append(("--workers 2", ["--workers", "2"]))
-    one = {name: _run(inputs[:1], out, args.levels, extra)[0] for name, extra in modes[:2]}
+    one = {name: _run(inputs[:1], out, args.levels, extra) for name, extra in modes[:2]}
     print(f"{'mode':<12} {'wall s':>8} {'files/min':>10} {'work s':>8} {'ratio':>6}")
-    walls = {}
+    runs = {}
     for name, extra in modes:
-        wall, work_s = _run(inputs, out, args.levels, extra)
-        walls[name] = wall
-        ratio = walls["local batch"] / wall
+        runs[name] = wall, work_s = _run(inputs, out, args.levels, extra)
+        ratio = runs["local batch"][0] / wall
         print(f"{name:<12} {wall:8.1f} {60 * args.files / wall:10.1f} {work_s:8.1f} {ratio:6.2f}")
-    n = args.files
-    startup = one["--workers 1"] - one["local batch"]
-    per_file = (walls["--workers 1"] - one["--workers 1"]) - (
-        walls["local batch"] - one["local batch"]
-    )
-    print(
-        f"one file: local {one['local batch']:.1f} s, --workers 1 {one['--workers 1']:.1f} s "
-        f"(cluster start-up {startup:.1f} s)"
-    )
-    if n > 1:
-        print(
-            f"scheduling overhead per file (--workers 1 vs local): {1000 * per_file / (n - 1):.0f} ms"
-        )
+    (l1, _), (w1, w1_work) = one["local batch"], one["--workers 1"]
+    print(f"one file: local {l1:.1f} s, --workers 1 {w1:.1f} s (cluster start-up {w1 - l1:.1f} s)")
+    if args.files > 1:
+        (ln, _), (wn, wn_work) = runs["local batch"], runs["--workers 1"]
+        extra_ms = 1000 * ((wn - w1) - (ln - l1)) / (args.files - 1)
+        gap_ms = 1000 * ((wn - w1) - (wn_work - w1_work)) / (args.files - 1)
+        print(f"per extra file, --workers 1 against the local batch: {extra_ms:+.0f} ms")
+        print(f"per extra file, --workers 1 outside the conversion (scheduling): {gap_ms:.0f} ms")
     print(f"after: {_load()}")
     shutil.rmtree(out, ignore_errors=True)
     if not args.keep:
