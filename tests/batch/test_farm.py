@@ -16,10 +16,12 @@ import pytest
 from conftest import (
     BATCH,
     assert_same_outputs,
+    blend_meshes,
     output_files,
     progress_lines,
     read_manifest,
     run_batch,
+    usd_text,
 )
 
 SIX = ["cube", "nonmanifold", "grid", "scene", "garbage", "monkey"]
@@ -66,32 +68,43 @@ def test_local_cluster_matches_the_local_batch(inputs: dict[str, Path], tmp_path
     assert len({e["worker"] for n, e in manifest.items() if n not in FAILURES}) == 2
 
 
-def test_a_killed_worker_is_retried(inputs: dict[str, Path], tmp_path: Path) -> None:
-    out = tmp_path / "out"
-    files = [inputs["slow"], inputs["cube"], inputs["grid"]]
-    proc = subprocess.Popen(
-        [*BATCH, *map(str, files), "--out", str(out), "--levels", "3", "--usd", "--workers", "2"],
+def _kill_writers(proc: subprocess.Popen[str], out: Path, stem: str, kills: int) -> list[int]:
+    """SIGKILL each worker seen writing ``stem``'s outputs, up to ``kills`` of them, then wait.
+
+    A worker names itself in its partial folder, ``.bidegree-partial/<stem>@<host>-<pid>-<n>``;
+    it is killed once the first output is in there (mid-write).
+    """
+    killed: list[int] = []
+    deadline = time.monotonic() + 300
+    while len(killed) < kills and proc.poll() is None and time.monotonic() < deadline:
+        for folder in (out / ".bidegree-partial").glob(f"{stem}@*"):
+            pid = int(folder.name.split("@")[1].split("-")[-2])
+            if pid not in killed and any(folder.iterdir()):
+                os.kill(pid, signal.SIGKILL)
+                killed.append(pid)
+        time.sleep(0.002)
+    return killed
+
+
+def _start(files: list[Path], out: Path, *extra: str) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [*BATCH, *map(str, files), "--out", str(out), "--levels", "3", "--usd", *extra],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
-        cwd=str(tmp_path),
+        cwd=str(out.parent),
     )
-    partial = out / ".bidegree-partial"
-    killed = None
+
+
+def test_a_killed_worker_is_retried(inputs: dict[str, Path], tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    proc = _start([inputs["slow"], inputs["cube"], inputs["grid"]], out, "--workers", "2")
     try:
-        deadline = time.monotonic() + 300
-        while killed is None and proc.poll() is None and time.monotonic() < deadline:
-            # The worker writing slow.blend's outputs names itself: slow@<host>-<pid>-<n>.
-            for folder in partial.glob("slow@*"):
-                if any(folder.iterdir()):
-                    killed = int(folder.name.split("@")[1].split("-")[-2])
-                    os.kill(killed, signal.SIGKILL)
-                    break
-            time.sleep(0.002)
+        killed = _kill_writers(proc, out, "slow", 1)
         stdout, stderr = proc.communicate(timeout=300)
     finally:
         proc.kill()
-    assert killed is not None, "slow.blend was never seen mid-write"
+    assert len(killed) == 1, "slow.blend was never seen mid-write"
     assert proc.returncode == 0, stdout + stderr
     assert "bidegree batch: 3 done, 0 failed" in stdout
     (line,) = [ln for ln in progress_lines(stdout) if "slow.blend" in ln]
@@ -108,8 +121,6 @@ def test_a_killed_worker_is_retried(inputs: dict[str, Path], tmp_path: Path) -> 
     for entry in manifest.values():
         for o in entry["outputs"]:
             assert (out / o["path"]).stat().st_size == o["bytes"]
-    from conftest import blend_meshes, usd_text
-
     assert len(blend_meshes(out / "slow.bidegree.blend")) == 3
     assert "def Mesh" in usd_text(out / "slow_Suzanne.001.usdc")
 
@@ -137,7 +148,7 @@ def scheduler(tmp_path: Path) -> Iterator[str]:
         address = json.loads(info.read_text())["address"]
         procs.append(
             subprocess.Popen(
-                [bindir / "dask", "worker", address, "--nthreads", "1", "--no-dashboard"],
+                [bindir / "dask", "worker", address, *("--nthreads", "1", "--no-nanny")],
                 stdout=subprocess.DEVNULL,
                 stderr=subprocess.DEVNULL,
                 cwd=str(tmp_path),
@@ -177,3 +188,22 @@ def test_scheduler_and_resume(inputs: dict[str, Path], scheduler: str, tmp_path:
     # The same USD bytes again (a .blend holds pointers and differs).
     assert second["grid.obj"]["outputs"][1] == first["grid.obj"]["outputs"][1]
     assert (out / "grid.usda").exists()
+
+
+def test_a_file_that_keeps_killing_workers_fails_after_the_retries(
+    inputs: dict[str, Path], tmp_path: Path
+) -> None:
+    out = tmp_path / "out"
+    proc = _start([inputs["slow"]], out, "--workers", "2", "--retries", "1")
+    try:
+        killed = _kill_writers(proc, out, "slow", 3)
+        stdout, stderr = proc.communicate(timeout=300)
+    finally:
+        proc.kill()
+    assert len(killed) == 2, (killed, stdout + stderr)  # the first attempt and one retry
+    assert proc.returncode == 1, stdout + stderr
+    (line,) = progress_lines(stdout)
+    assert "slow.blend: FAILED after 2 attempts: KilledWorker: " in line
+    entry = read_manifest(out)["slow.blend"]
+    assert (entry["status"], entry["attempts"], entry["outputs"]) == ("failed", 2, [])
+    assert output_files(out) == set()

@@ -16,10 +16,11 @@ Failures are handled by distributed itself, not here:
   :func:`~bidegree_blender.batch.convert.convert_file`) is run again ``retries`` times.
 
 The attempts a file took are the scheduler's own counts for its task, read when the task finishes
-and written to the manifest: one, plus the workers that died while they held it (running it, or
-with it waiting in their queue, which distributed counts towards ``allowed-failures`` too), plus
-the retries used. A running scheduler should set ``distributed.scheduler.worker-saturation: 1.0``
-as the local cluster does, so that a worker holds only the file it converts.
+and written to the manifest: the workers that died while they held it (running it, or with it
+waiting in their queue, which distributed counts towards ``allowed-failures`` too), plus the
+retries used, plus the last attempt unless its worker died too (``KilledWorker``). A running
+scheduler should set ``distributed.scheduler.worker-saturation: 1.0`` as the local cluster does,
+so that a worker holds only the file it converts.
 """
 
 from __future__ import annotations
@@ -55,21 +56,22 @@ def convert_task(path: str, job: Job) -> FileRecord:
     return record
 
 
-def _attempts_probe() -> Callable[..., int | None]:
-    """A function for ``Client.run_on_scheduler``: the attempts the task ``key`` has taken.
+def _interruptions_probe() -> Callable[..., tuple[int, int] | None]:
+    """A function for ``Client.run_on_scheduler``: how often the task ``key`` was started again.
 
+    Returns the workers that died holding it (the scheduler's ``suspicious`` count) and the
+    retries it used (``retries`` counts down), or ``None`` for a task the scheduler forgot.
     Defined inside a function so that cloudpickle sends it by value (a scheduler does not need
     ``bidegree`` installed).
     """
 
-    def attempts(key: str, retries: int, dask_scheduler: Any = None) -> int | None:
+    def interruptions(key: str, retries: int, dask_scheduler: Any = None) -> Any:
         ts = dask_scheduler.tasks.get(key)
         if ts is None:
             return None
-        # ``suspicious``: workers that died while running it; ``retries`` counts down per retry.
-        return 1 + int(ts.suspicious) + max(0, retries - int(ts.retries))
+        return int(ts.suspicious), max(0, retries - int(ts.retries))
 
-    return attempts
+    return interruptions
 
 
 def _client(scheduler: str | None, workers: int | None, retries: int) -> tuple[Any, Any]:
@@ -116,10 +118,10 @@ def run_distributed(
 
     Exactly one of ``scheduler`` (an address) and ``workers`` (a local cluster's size) is given.
     """
-    from distributed import as_completed
+    from distributed import KilledWorker, as_completed
 
     client, cluster = _client(scheduler, workers, retries)
-    attempts_of = _attempts_probe()
+    interruptions = _interruptions_probe()
     run_id = uuid.uuid4().hex[:8]
     futures: dict[Any, str] = {}
     try:
@@ -129,13 +131,16 @@ def run_distributed(
             futures[future] = path
         for future in as_completed(futures):
             path = futures[future]
+            last_ran = 1  # the last attempt ran to its end (its worker did not die)
             try:
                 record = future.result()
-            except Exception as exc:  # KilledWorker, or OSError / MemoryError after its retries
+            except KilledWorker as exc:
+                record, last_ran = failed_record(path, job, exc), 0
+            except Exception as exc:  # OSError / MemoryError after its retries
                 record = failed_record(path, job, exc)
-            counted = client.run_on_scheduler(attempts_of, key=future.key, retries=retries)
-            if counted is not None:
-                record.attempts = counted
+            counts = client.run_on_scheduler(interruptions, key=future.key, retries=retries)
+            if counts is not None:
+                record.attempts = sum(counts) + last_ran
             future.release()
             on_record(record)
     except BaseException:
