@@ -23,11 +23,11 @@ from typing import Any, NoReturn
 import bidegree
 import numpy as np
 
-from ..live import Settings
 from .convert import (
     INPUT_TYPES,
     FileRecord,
     Job,
+    Settings,
     convert_file,
     failed_record,
     output_stem,

@@ -1,8 +1,9 @@
 """One input file, converted in the current ``bpy`` session: load, subdivide, write.
 
-This module is the batch's only contact with the rest of ``bidegree_blender`` (the calls of
-:func:`_subdivide` and :func:`_export_usd` and the :class:`Settings` type), so that a change
-there is one change here.
+This module is the batch's only contact with the rest of ``bidegree_blender``
+(``subdivide_object`` in :func:`_subdivide`, ``export.export_object_usd`` in :func:`_export_usd`,
+``objects.is_result_object`` and the ``live.Settings`` type), so that a change there is one change
+here.
 
 Every file starts from a reset Blender state (a ``.blend`` replaces the session with
 ``open_mainfile``, an ``.obj`` is imported into factory settings) and is opened with its Python
@@ -58,7 +59,7 @@ class Job:
 
     def fingerprint(self) -> dict[str, Any]:
         """Everything that shapes the outputs, as JSON data (compared by ``--resume``)."""
-        return {**asdict(self.settings), "usd": self.usd}
+        return {**asdict(self.settings), "usd": self.usd, "trust_scripts": self.trust_scripts}
 
 
 @dataclass
