@@ -2,9 +2,10 @@
 
 ``--workers N`` starts a :class:`distributed.LocalCluster` of N worker processes with one thread
 each (``bpy`` is not thread-safe; each worker process holds its own Blender session, reset by
-every file it converts); ``--scheduler tcp://HOST:PORT`` uses a running scheduler whose workers
-have ``bidegree`` and ``bpy`` installed and see the same paths (inputs and output folder) as the
-client, which writes the manifest.
+every file it converts, and uses it from one thread only, whatever threads the worker has);
+``--scheduler tcp://HOST:PORT`` uses a running scheduler whose workers have ``bidegree`` and
+``bpy`` installed and see the same paths (inputs and output folder) as the client, which writes
+the manifest.
 
 Failures are handled by distributed itself, not here:
 
@@ -28,6 +29,7 @@ from __future__ import annotations
 import logging
 import uuid
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 from .convert import FileRecord, Job, convert_file, failed_record
@@ -47,11 +49,17 @@ def require_distributed() -> None:
         ) from exc
 
 
+#: The one thread of a worker process that imports and uses ``bpy`` (it is not thread-safe, and
+#: Blender takes the thread that imported it for its main thread): one file at a time on it, even
+#: in a worker started with several threads.
+_BPY_THREAD = ThreadPoolExecutor(max_workers=1, thread_name_prefix="bidegree-bpy")
+
+
 def convert_task(path: str, job: Job) -> FileRecord:
-    """The task a worker runs: :func:`convert_file`, tagged with the worker's address."""
+    """A worker's task: :func:`convert_file` on the ``bpy`` thread, tagged with the worker."""
     from distributed import get_worker
 
-    record = convert_file(path, job)
+    record = _BPY_THREAD.submit(convert_file, path, job).result()
     record.worker = get_worker().address
     return record
 
