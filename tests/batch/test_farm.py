@@ -127,7 +127,10 @@ def test_a_killed_worker_is_retried(inputs: dict[str, Path], tmp_path: Path) -> 
 
 @pytest.fixture
 def scheduler(tmp_path: Path) -> Iterator[str]:
-    """A dask scheduler and one worker (one thread) started with distributed's own CLI."""
+    """A dask scheduler and one worker started with distributed's own CLI.
+
+    The worker has two threads: the batch still converts one file at a time in it, on one thread.
+    """
     bindir = Path(sys.executable).parent
     info = tmp_path / "scheduler.json"
     procs = [
@@ -148,7 +151,7 @@ def scheduler(tmp_path: Path) -> Iterator[str]:
         address = json.loads(info.read_text())["address"]
         procs.append(
             subprocess.Popen(
-                [bindir / "dask", "worker", address, *("--nthreads", "1", "--no-nanny")],
+                [bindir / "dask", "worker", address, *("--nthreads", "2", "--no-nanny")],
                 stdout=subprocess.DEVNULL,
                 stderr=subprocess.DEVNULL,
                 cwd=str(tmp_path),
