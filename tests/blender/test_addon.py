@@ -212,10 +212,13 @@ def test_gui_reads_only_the_cages_that_change(addon: ModuleType, scene: Any) -> 
 def test_one_settings_path() -> None:
     """Settings of the modifier, the batch, the export and subdivide_object are Options."""
     import argparse
+    import dataclasses
 
-    from bidegree_blender import live, pipeline
+    from bidegree_blender import pipeline
+    from bidegree_blender.batch import convert
 
-    assert live.Settings is bidegree.options.Options
+    job_settings = {f.name: f.type for f in dataclasses.fields(convert.Job)}["settings"]
+    assert job_settings in ("Options", bidegree.options.Options)
     options = bidegree.options.Options(
         degree=3, levels=1, rules="classic", limit=True, memory_budget=1 << 20
     )

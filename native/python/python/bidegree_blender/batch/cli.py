@@ -22,12 +22,12 @@ from typing import Any, NoReturn
 
 import bidegree
 import numpy as np
+from bidegree.options import Options
 
 from .convert import (
     INPUT_TYPES,
     FileRecord,
     Job,
-    Settings,
     convert_file,
     failed_record,
     output_stem,
@@ -103,21 +103,13 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _check_settings(settings: Settings) -> None:
+def _check_settings(settings: Options) -> None:
     """Let the core refuse bad settings now, on one quad (its own checks and messages)."""
     quad = bidegree.Mesh(
         np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=np.float64), [[0, 1, 2, 3]]
     )
-    bidegree.estimate(quad, settings.degree, settings.levels)
-    bidegree.subdivide(
-        quad,
-        degree=settings.degree,
-        levels=min(settings.levels, 1),
-        output=settings.output,
-        rules=settings.rules,
-        limit=settings.limit,
-        normals=settings.normals,
-    )
+    settings.estimate(quad)
+    settings.replace(levels=min(settings.levels, 1)).subdivide(quad)
 
 
 def _check_inputs(inputs: Sequence[str]) -> list[str]:
@@ -157,17 +149,17 @@ def _check_out_dir(out: str) -> str:
 
 def check_arguments(args: argparse.Namespace) -> tuple[list[str], Job]:
     """The input paths and the job, or :class:`UsageError` (nothing is written but ``--out``)."""
-    settings = Settings(
-        degree=args.degree,
-        levels=args.levels,
-        output=args.output,
-        boundary=args.boundary,
-        use_creases=not args.no_creases,
-        rules=args.rules,
-        limit=args.limit,
-        normals=args.normals,
-    )
     try:
+        settings = Options(
+            degree=args.degree,
+            levels=args.levels,
+            output=args.output,
+            boundary=args.boundary,
+            use_creases=not args.no_creases,
+            rules=args.rules,
+            limit=args.limit,
+            normals=args.normals,
+        )
         _check_settings(settings)
     except bidegree.BidegreeError as exc:
         raise UsageError(" ".join(str(exc).split())) from exc

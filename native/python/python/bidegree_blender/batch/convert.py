@@ -1,9 +1,9 @@
 """One input file, converted in the current ``bpy`` session: load, subdivide, write.
 
 This module is the batch's only contact with the rest of ``bidegree_blender``
-(``subdivide_object`` in :func:`_subdivide`, ``export.export_object_usd`` in :func:`_export_usd`,
-``objects.is_result_object`` and the ``live.Settings`` type), so that a change there is one change
-here.
+(``pipeline.subdivide_object`` in :func:`_subdivide`, ``export.export_object_usd`` in
+:func:`_export_usd`, ``modifier.is_holder``); its settings are one
+:class:`bidegree.options.Options`, so that a change there is one change here.
 
 Every file starts from a reset Blender state (a ``.blend`` replaces the session with
 ``open_mainfile``, an ``.obj`` is imported into factory settings) and is opened with its Python
@@ -31,11 +31,11 @@ from datetime import UTC, datetime
 from typing import Any
 
 import bidegree
+from bidegree.options import Options
 
-from .. import subdivide_object
 from ..export import export_object_usd
-from ..live import Settings
-from ..objects import is_result_object
+from ..modifier import is_holder
+from ..pipeline import subdivide_object
 
 #: Input file types the batch reads.
 INPUT_TYPES = (".blend", ".obj")
@@ -51,7 +51,7 @@ class Job:
     """What is done to every file of a batch run (the same for all of them)."""
 
     out_dir: str
-    settings: Settings
+    settings: Options
     #: ``"usdc"``, ``"usda"`` or ``None`` (no USD output).
     usd: str | None = None
     #: Open ``.blend`` inputs with their Python scripts enabled.
@@ -187,25 +187,12 @@ def _load(path: str, trust_scripts: bool) -> None:
         bpy.ops.wm.obj_import(filepath=path)
 
 
-def _subdivide(ob: Any, settings: Settings, depsgraph: Any) -> Any:
+def _subdivide(ob: Any, settings: Options, depsgraph: Any) -> Any:
     """``ob``'s subdivided surface as a new mesh datablock."""
-    return subdivide_object(
-        ob,
-        degree=settings.degree,
-        levels=settings.levels,
-        output=settings.output,
-        boundary=settings.boundary,
-        use_creases=settings.use_creases,
-        depsgraph=depsgraph,
-        name=f"{ob.name}.bidegree",
-        memory_budget=settings.memory_budget,
-        rules=settings.rules,
-        limit=settings.limit,
-        normals=settings.normals,
-    )
+    return subdivide_object(ob, depsgraph=depsgraph, name=f"{ob.name}.bidegree", options=settings)
 
 
-def _export_usd(ob: Any, path: str, settings: Settings, depsgraph: Any) -> None:
+def _export_usd(ob: Any, path: str, settings: Options, depsgraph: Any) -> None:
     """Write ``ob``'s subdivided surface (and its cage) to the USD file ``path``."""
     export_object_usd(ob, path, settings, depsgraph=depsgraph)
 
@@ -253,7 +240,7 @@ def _write_outputs(path: str, job: Job, stem: str, folder: str) -> tuple[list[st
     import bpy
 
     _load(path, job.trust_scripts)
-    sources = [ob for ob in bpy.data.objects if ob.type == "MESH" and not is_result_object(ob)]
+    sources = [ob for ob in bpy.data.objects if ob.type == "MESH" and not is_holder(ob)]
     if not sources:
         raise bidegree.EmptyMeshError("no mesh objects")
     depsgraph = bpy.context.evaluated_depsgraph_get()
