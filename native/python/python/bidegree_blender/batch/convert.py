@@ -1,8 +1,8 @@
 """One input file, converted in the current ``bpy`` session: load, subdivide, write.
 
 This module is the batch's only contact with the rest of ``bidegree_blender``
-(``pipeline.subdivide_object`` in :func:`_subdivide`, ``export.export_object_usd`` in
-:func:`_export_usd`, ``modifier.is_holder``); its settings are one
+(``pipeline.subdivide_object`` in :func:`_subdivide`, ``pipeline.evaluated_cage`` and
+``export.export_cage_usd`` in :func:`_export_usd`, ``modifier.is_holder``); its settings are one
 :class:`bidegree.options.Options`, so that a change there is one change here.
 
 Every file starts from a reset Blender state (a ``.blend`` replaces the session with
@@ -33,9 +33,9 @@ from typing import Any
 import bidegree
 from bidegree.options import Options
 
-from ..export import export_object_usd
+from ..export import export_cage_usd
 from ..modifier import is_holder
-from ..pipeline import subdivide_object
+from ..pipeline import evaluated_cage, subdivide_object
 
 #: Input file types the batch reads.
 INPUT_TYPES = (".blend", ".obj")
@@ -194,7 +194,8 @@ def _subdivide(ob: Any, settings: Options, depsgraph: Any) -> Any:
 
 def _export_usd(ob: Any, path: str, settings: Options, depsgraph: Any) -> None:
     """Write ``ob``'s subdivided surface (and its cage) to the USD file ``path``."""
-    export_object_usd(ob, path, settings, depsgraph=depsgraph)
+    cage = evaluated_cage(ob, depsgraph=depsgraph, use_creases=settings.use_creases)
+    export_cage_usd(cage, path, settings)
 
 
 class _ObjectError(Exception):
