@@ -7,9 +7,9 @@ use numpy::{Element, PyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{array2, contiguous, floats, to_i32, Floats};
+use crate::arrays::{array2, check_output, contiguous, floats, to_i32, Floats};
 use crate::cage::PyCage;
-use crate::errors::{invalid, run, to_py_err};
+use crate::errors::{invalid, to_py_err};
 use crate::options::{degree, levels, memory_budget, parse_boundary};
 
 /// Registers the adaptive functions in the extension module.
@@ -54,7 +54,7 @@ fn subdivide_adaptive<'py>(
     memory_budget: Option<u64>,
     measure_leaves: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let cage = &cage.get().inner;
+    let cage = cage.get();
     let options = adaptive_options(
         degree,
         max_level,
@@ -72,19 +72,20 @@ fn subdivide_adaptive<'py>(
 
 fn adaptive<'py, T: Scalar + Element>(
     py: Python<'py>,
-    cage: &bidegree::Cage,
+    cage: &PyCage,
     points: &PyReadonlyArray2<'_, T>,
     options: AdaptiveOptions,
 ) -> PyResult<Bound<'py, PyDict>> {
     let channels = points.shape()[1];
     let data = contiguous(points, "points")?;
-    let (mesh, triangles, face_origin, triangle_level, vertex_level) = run(py, || {
+    let (mesh, triangles, face_origin, triangle_level, vertex_level) = cage.run(py, |cage| {
         if channels != 3 {
             return Err(invalid(format!(
                 "adaptive subdivision needs 3-D points, not {channels} channels"
             )));
         }
         let mesh: AdaptiveMesh<T> = core_adaptive(cage, data, &options)?;
+        check_output(&mesh.points, 3, data)?;
         let triangles = to_i32(mesh.triangles.as_flattened())?;
         let face_origin = to_i32(&mesh.face_origin)?;
         let triangle_level = to_i32(&mesh.triangle_level)?;

@@ -1,13 +1,14 @@
 //! numpy arrays in and out: C-contiguous views of the caller's arrays (no copy), float arrays
 //! of either precision, and core vectors handed to numpy without a copy.
 
-use bidegree::Error;
+use bidegree::{Error, Scalar};
 use numpy::ndarray::Dimension;
 use numpy::{
     Element, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray, PyReadonlyArray2,
     PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
+use rayon::prelude::*;
 
 use crate::errors::{invalid, to_py_err};
 
@@ -67,4 +68,31 @@ pub(crate) fn to_i32(values: &[u32]) -> bidegree::Result<Vec<i32>> {
         .iter()
         .map(|&v| i32::try_from(v).map_err(|_| Error::Internal(format!("index {v} exceeds int32"))))
         .collect()
+}
+
+/// Refuses core output with a NaN or infinite value that finite input did not cause: the
+/// computation overflowed its floating-point type (float32 beyond about 3.4e38), and the
+/// result would silently hold `inf`. NaN in gives NaN out (a plan does not validate the values
+/// it is given), so non-finite output from non-finite `input` passes. One parallel scan of the
+/// output; the input is scanned only when the output has such a value.
+pub(crate) fn check_output<T: Scalar>(
+    output: &[T],
+    channels: usize,
+    input: &[T],
+) -> bidegree::Result<()> {
+    if output.par_iter().all(|x| x.is_finite()) || input.par_iter().any(|x| !x.is_finite()) {
+        return Ok(());
+    }
+    let first = output
+        .par_iter()
+        .position_first(|x| !x.is_finite())
+        .unwrap_or(0);
+    Err(Error::NonFiniteOutput {
+        vertex: first / channels.max(1),
+        scalar: if std::mem::size_of::<T>() == 4 {
+            "float32"
+        } else {
+            "float64"
+        },
+    })
 }

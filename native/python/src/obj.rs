@@ -1,30 +1,75 @@
-//! `bidegree._native.read_obj` / `write_obj`: the core's OBJ reader and writers (`bidegree::io`)
-//! with numpy arrays.
+//! `bidegree._native.read_obj` / `write_obj`: the core's OBJ reader and writer (`bidegree::io`)
+//! with numpy arrays, interruptible by Python's signal handlers (Ctrl-C, the CLI's SIGTERM).
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
-use bidegree::io::{self, ObjMesh};
+use bidegree::io::{self, ObjFloat, ObjMesh, ObjOutput, ObjSource, ReadOptions, Uvs};
 use numpy::{Element, PyArray1, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::arrays::{array2, contiguous, floats, Floats};
-use crate::errors::{invalid, run, to_py_err};
-use crate::options::boundary_name;
+use crate::errors::{invalid, run_interruptible, to_py_err};
+use crate::options::{boundary_name, creasing_name, memory_budget};
 
 /// Registers the OBJ functions in the extension module.
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("DEFAULT_MAX_INPUT_BYTES", io::DEFAULT_MAX_INPUT_BYTES)?;
+    m.add_class::<PyObjSource>()?;
     m.add_function(wrap_pyfunction!(read_obj, m)?)?;
     m.add_function(wrap_pyfunction!(write_obj, m)?)
 }
 
-/// Reads an OBJ file into a dict of numpy arrays: `points` (V,3) float64, `face_sizes` and
-/// `face_indices` int64, `uvs` (T,2) float64, `face_uvs` int64 or None, `crease_edges` (K,2)
-/// int64, `crease_sharpness` float32, `corner_vertices` int64, `corner_sharpness` float32,
-/// `boundary` (`"edge-only"`, `"edge-and-corner"` or None when the file has no tag).
+/// Where the faces, creases and corners of a mesh read by `read_obj` are in its file; handed
+/// to `Cage(..., source=...)` so that errors about them name the file's lines.
+#[pyclass(frozen, module = "bidegree._native", name = "ObjSource")]
+pub(crate) struct PyObjSource {
+    inner: Arc<ObjSource>,
+}
+
+impl PyObjSource {
+    /// The shared source.
+    pub(crate) fn source(&self) -> Arc<ObjSource> {
+        Arc::clone(&self.inner)
+    }
+}
+
+#[pymethods]
+impl PyObjSource {
+    /// The file's name.
+    #[getter]
+    fn name(&self) -> &str {
+        &self.inner.name
+    }
+
+    /// Line of each face (1-based).
+    fn face_lines<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<u64>> {
+        PyArray1::from_iter(py, self.inner.face_lines.iter().map(|&l| l as u64))
+    }
+}
+
+/// Reads an OBJ file (streamed; at most `max_bytes` of input, default 2 GiB, and at most
+/// `memory_budget` bytes for the mesh, default 4 GiB) into a dict of numpy arrays: `points`
+/// (V,3) float64, `face_sizes` and `face_indices` int64, `uvs` (T,2) float64, `face_uvs` int64
+/// or None, `crease_edges` (K,2) int64, `crease_sharpness` float32, `corner_vertices` int64,
+/// `corner_sharpness` float32, `boundary` (`"edge-only"`, `"edge-and-corner"` or None when the
+/// file has no tag), `creasing` (`"uniform"`, `"chaikin"` or None), `warnings` (one line per
+/// kind of statement or tag skipped) and `source` (an `ObjSource`).
 #[pyfunction]
-fn read_obj<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
-    let mesh: ObjMesh = run(py, || io::read_obj(&path))?;
+#[pyo3(signature = (path, max_bytes=None, memory_budget=None))]
+fn read_obj<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    max_bytes: Option<u64>,
+    memory_budget: Option<u64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let options = ReadOptions {
+        max_bytes: max_bytes.unwrap_or(io::DEFAULT_MAX_INPUT_BYTES),
+        memory_budget: self::memory_budget(memory_budget),
+    };
+    let mesh: ObjMesh =
+        run_interruptible(py, |interrupt| io::read_obj(&path, &options, interrupt))?;
     let dict = PyDict::new(py);
     dict.set_item("points", array2(py, mesh.points, 3)?)?;
     dict.set_item("face_sizes", PyArray1::from_vec(py, mesh.face_sizes))?;
@@ -42,12 +87,19 @@ fn read_obj<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>>
     dict.set_item("corner_vertices", PyArray1::from_vec(py, vertices))?;
     dict.set_item("corner_sharpness", PyArray1::from_vec(py, sharpness))?;
     dict.set_item("boundary", mesh.boundary.map(boundary_name))?;
+    dict.set_item("creasing", mesh.creasing.map(creasing_name))?;
+    dict.set_item("warnings", mesh.warnings)?;
+    let source = PyObjSource {
+        inner: Arc::new(mesh.source),
+    };
+    dict.set_item("source", Py::new(py, source)?)?;
     Ok(dict)
 }
 
-/// Writes a polygon mesh as OBJ: `points` (V,3) float32|float64, `face_offsets` uint32 (F+1),
-/// `face_indices` uint32, optional face-varying `uvs` (corners,2) and `normals` (corners,3) of
-/// the same dtype as `points`.
+/// Writes a polygon mesh as OBJ, atomically (a temporary file renamed over `path` when
+/// complete; nothing is left on an error or a signal): `points` (V,3) float32|float64,
+/// `face_offsets` uint32 (F+1), `face_indices` uint32, optional face-varying `uvs` (corners,2)
+/// and `normals` (corners,3) of the same dtype as `points`.
 #[pyfunction]
 #[pyo3(signature = (path, points, face_offsets, face_indices, uvs=None, normals=None))]
 fn write_obj(
@@ -81,11 +133,11 @@ pub(crate) fn write_mesh(
     match floats(points, "points")? {
         Floats::F32(p) => {
             let extra = [same_dtype(py, &uvs, f32s)?, same_dtype(py, &normals, f32s)?];
-            write_typed(py, path, &p, offsets, vertices, extra, io::write_obj_f32)
+            write_typed(py, path, &p, offsets, vertices, extra)
         }
         Floats::F64(p) => {
             let extra = [same_dtype(py, &uvs, f64s)?, same_dtype(py, &normals, f64s)?];
-            write_typed(py, path, &p, offsets, vertices, extra, io::write_obj)
+            write_typed(py, path, &p, offsets, vertices, extra)
         }
     }
 }
@@ -120,18 +172,13 @@ fn same_dtype<'py, T: Element>(
     }
 }
 
-/// Signature of the typed OBJ writers in the core.
-type ObjWriter<T> =
-    fn(&Path, &[T], &[u32], &[u32], Option<(&[T], &[u32])>, Option<&[T]>) -> bidegree::Result<()>;
-
-fn write_typed<T: Element + Sync>(
+fn write_typed<T: Element + ObjFloat>(
     py: Python<'_>,
     path: &Path,
     points: &PyReadonlyArray2<'_, T>,
     offsets: &[u32],
     vertices: &[u32],
     [uvs, normals]: [Option<PyReadonlyArray2<'_, T>>; 2],
-    writer: ObjWriter<T>,
 ) -> PyResult<()> {
     if points.shape()[1] != 3 {
         return Err(to_py_err(
@@ -164,25 +211,12 @@ fn write_typed<T: Element + Sync>(
         }
         None => None,
     };
-    run(py, || {
-        // Face-varying: one UV per face corner, in corner order.
-        let corner_ids: Vec<u32>;
-        let uvs = match uv {
-            Some(values) => {
-                if values.len() / 2 != vertices.len() {
-                    return Err(invalid(format!(
-                        "{} uvs for {} face corners",
-                        values.len() / 2,
-                        vertices.len()
-                    )));
-                }
-                let count = u32::try_from(vertices.len())
-                    .map_err(|_| invalid("too many face corners for OBJ uv indices"))?;
-                corner_ids = (0..count).collect();
-                Some((values, corner_ids.as_slice()))
-            }
-            None => None,
-        };
-        writer(path, data, offsets, vertices, uvs, normals)
-    })
+    let mesh = ObjOutput {
+        points: data,
+        face_offsets: offsets,
+        face_vertices: vertices,
+        uvs: uv.map(Uvs::PerCorner),
+        normals,
+    };
+    run_interruptible(py, |interrupt| io::write_obj(path, &mesh, interrupt))
 }

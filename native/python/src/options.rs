@@ -76,6 +76,14 @@ pub(crate) fn rules_name(rules: Rules) -> &'static str {
     }
 }
 
+/// The Python name of a creasing method.
+pub(crate) fn creasing_name(creasing: Creasing) -> &'static str {
+    match creasing {
+        Creasing::Uniform => "uniform",
+        Creasing::Chaikin => "chaikin",
+    }
+}
+
 /// A degree from Python (`i64`, so that a negative or huge value is reported as the range error
 /// it is; the core checks the range itself).
 pub(crate) fn degree(degree: i64) -> bidegree::Result<u32> {

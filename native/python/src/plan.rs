@@ -4,11 +4,11 @@
 
 use std::path::PathBuf;
 
-use bidegree::{Cage, Error, Options, Plan, Scalar};
+use bidegree::{Error, Options, Plan, Scalar};
 use numpy::{Element, PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-use crate::arrays::{array2, contiguous, floats, to_i32, Floats};
+use crate::arrays::{array2, check_output, contiguous, floats, to_i32, Floats};
 use crate::cage::PyCage;
 use crate::errors::{guard, invalid, run, to_py_err};
 use crate::obj::write_mesh;
@@ -57,8 +57,7 @@ impl PyPlan {
         rules: &str,
         creasing: &str,
     ) -> PyResult<Self> {
-        let cage = &cage.get().inner;
-        let inner = run(py, || {
+        let inner = cage.get().run(py, |cage| {
             Plan::new(
                 cage,
                 &options(
@@ -106,7 +105,9 @@ impl PyPlan {
                 if channels == 0 {
                     return Err(invalid("values need at least one channel"));
                 }
-                plan.limit_positions(data, channels)
+                let out = plan.limit_positions(data, channels)?;
+                check_output(&out, channels, data)?;
+                Ok(out)
             })?;
             array2(py, out, channels)
         }
@@ -136,7 +137,11 @@ impl PyPlan {
                 ));
             }
             let data = contiguous(points, "points")?;
-            let (positions, normals) = run(py, || plan.limit_surface(data))?;
+            let (positions, normals) = run(py, || {
+                let (positions, normals) = plan.limit_surface(data)?;
+                check_output(&positions, 3, data)?;
+                Ok((positions, normals))
+            })?;
             Ok((
                 array2(py, positions, 3)?.into_any(),
                 array2(py, normals, 3)?.into_any(),
@@ -294,30 +299,33 @@ fn evaluate<'py, T: Scalar + Element>(
         if channels == 0 {
             return Err(invalid("values need at least one channel"));
         }
-        if face_varying {
-            plan.evaluate_face_varying(data, channels)
+        let out = if face_varying {
+            plan.evaluate_face_varying(data, channels)?
         } else {
-            plan.evaluate(data, channels)
-        }
+            plan.evaluate(data, channels)?
+        };
+        check_output(&out, channels, data)?;
+        Ok(out)
     })?;
     array2(py, out, channels)
 }
 
 fn evaluate_fresh<'py, T: Scalar + Element>(
     py: Python<'py>,
-    cage: &Cage,
+    cage: &PyCage,
     points: &PyReadonlyArray2<'_, T>,
     options: Options,
     evaluate: bool,
 ) -> PyResult<(PyPlan, Option<Bound<'py, PyAny>>)> {
     let channels = points.shape()[1];
     let data = contiguous(points, "points")?;
-    let (plan, out) = run(py, || {
+    let (plan, out) = cage.run(py, |cage| {
         if channels == 0 {
             return Err(invalid("points need at least one channel"));
         }
         if evaluate {
             let (plan, out) = bidegree::subdivide(cage, data, channels, &options)?;
+            check_output(&out, channels, data)?;
             return Ok((plan, Some(out)));
         }
         bidegree::mesh::validate_geometry(cage, data, channels)?;
@@ -348,7 +356,7 @@ fn subdivide<'py>(
     creasing: &str,
     evaluate: bool,
 ) -> PyResult<(PyPlan, Option<Bound<'py, PyAny>>)> {
-    let cage = &cage.get().inner;
+    let cage = cage.get();
     let options = options(
         degree,
         levels,
@@ -376,8 +384,7 @@ fn estimate(
     output: &str,
     boundary: &str,
 ) -> PyResult<(u64, u64, u64)> {
-    let cage = &cage.get().inner;
-    let estimate = run(py, || {
+    let estimate = cage.get().run(py, |cage| {
         bidegree::estimate(
             cage,
             &options(
