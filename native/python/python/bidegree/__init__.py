@@ -43,12 +43,14 @@ from ._errors import (
     MemoryBudgetError,
     NonFiniteError,
     NonManifoldEdgeError,
+    ObjWarning,
     RepeatedVertexError,
 )
-from ._mesh import Mesh
+from ._mesh import DEFAULT_MAX_INPUT_BYTES, Mesh
 from ._plan import Plan, Result, estimate, subdivide
 
 __all__ = [
+    "DEFAULT_MAX_INPUT_BYTES",
     "DEFAULT_MEMORY_BUDGET",
     "INFINITELY_SHARP",
     "MAX_DEGREE",
@@ -71,6 +73,7 @@ __all__ = [
     "Mesh",
     "NonFiniteError",
     "NonManifoldEdgeError",
+    "ObjWarning",
     "Plan",
     "RepeatedVertexError",
     "Result",

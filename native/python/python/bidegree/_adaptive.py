@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from . import _convert as convert
 from . import _native
 from ._convert import FloatArray
-from ._errors import InvalidInputError
+from ._errors import InvalidInputError, LevelOutOfRangeError
 from ._mesh import Mesh, write_obj_arrays
 
 
@@ -119,6 +119,14 @@ def subdivide_adaptive(
         raise InvalidInputError(f"mesh must be a bidegree.Mesh, not {type(mesh).__name__}")
     degree = convert.int_arg(degree, "degree")
     max_level = convert.int_arg(max_level, "max_level")
+    if not 1 <= max_level <= _native.MAX_LEVELS:
+        # The core refuses it too, but as "levels out of range 0..": say what adaptive allows.
+        error = LevelOutOfRangeError(
+            f"max_level {max_level} is out of range 1..={_native.MAX_LEVELS} (adaptive "
+            "subdivision refines at least one level)"
+        )
+        error.levels, error.max = max_level, _native.MAX_LEVELS
+        raise error
     tol = convert.tolerance(tolerance)
     data = _native.subdivide_adaptive(
         mesh._cage,

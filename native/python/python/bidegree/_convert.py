@@ -91,13 +91,14 @@ def choice(value: Any, choices: tuple[str, ...], what: str) -> str:
     return value
 
 
-def budget(memory_budget: int | None) -> int | None:
-    """A memory budget in bytes (None: the core's default), clamped to u64."""
-    if memory_budget is None:
+def budget(value: int | None, what: str = "memory_budget") -> int | None:
+    """A byte count (a memory budget, an input limit; None: the core's default), clamped to
+    u64."""
+    if value is None:
         return None
-    number = int_arg(memory_budget, "memory_budget")
+    number = int_arg(value, what)
     if number < 0:
-        raise InvalidInputError(f"memory_budget must be >= 0, not {number}")
+        raise InvalidInputError(f"{what} must be >= 0, not {number}")
     return min(number, 2**64 - 1)
 
 

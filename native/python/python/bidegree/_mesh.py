@@ -1,11 +1,12 @@
-"""The cage, :class:`Mesh` (points, faces, creases, corners, UVs, boundary rule), its OBJ reading
-and writing.
+"""The cage, :class:`Mesh` (points, faces, creases, corners, UVs, boundary rule, creasing
+method), its OBJ reading and writing.
 """
 
 from __future__ import annotations
 
 import itertools
 import os
+import warnings
 from collections.abc import Sequence
 from typing import Any
 
@@ -14,13 +15,17 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import _convert as convert
 from . import _native
-from ._convert import Boundary, FloatArray
-from ._errors import InvalidInputError
+from ._convert import Boundary, Creasing, FloatArray
+from ._errors import FaceTooSmallError, InvalidInputError, NonFiniteError, ObjWarning
+
+#: Largest OBJ file :meth:`Mesh.from_obj` reads unless told otherwise (2 GiB).
+DEFAULT_MAX_INPUT_BYTES: int = _native.DEFAULT_MAX_INPUT_BYTES
 
 
 class Mesh:
     """A subdivision cage: points, polygonal faces, and optional creases, corners, face-varying
-    UVs and boundary rule. Construction checks shapes, face sizes, indices and repeated vertices;
+    UVs, boundary rule and creasing method. Construction checks shapes, face sizes, indices,
+    repeated vertices and finite UVs;
     the rest of the topology (manifold edges, consistent orientation, creases that are edges) is
     checked when a :class:`Plan` is built, the geometry (finite points, no zero-area face) by
     :func:`subdivide`.
@@ -37,11 +42,15 @@ class Mesh:
         uvs: (corners, 2) face-varying texture coordinates, one per face corner.
         boundary: ``"edge-only"`` (boundary edges are sharp) or ``"edge-and-corner"`` (also
             boundary vertices of a single face are corners).
+        creasing: ``"uniform"`` or ``"chaikin"``: how semi-sharp creases decrease from level to
+            level with the classic rules (OpenSubdiv's creasing method, the ``t creasemethod``
+            tag of its files); a :class:`Plan` uses it unless told otherwise.
 
     Raises:
-        InvalidInputError: wrong shapes or types, bad sharpness or boundary values.
+        InvalidInputError: wrong shapes or types, bad sharpness, boundary or creasing values.
         EmptyMeshError, FaceTooSmallError, RepeatedVertexError, IndexOutOfRangeError: bad faces,
             creases or corners.
+        NonFiniteError: a UV is NaN or infinite.
     """
 
     def __init__(
@@ -55,9 +64,37 @@ class Mesh:
         corners: tuple[ArrayLike, ArrayLike] | None = None,
         uvs: ArrayLike | None = None,
         boundary: Boundary = "edge-only",
+        creasing: Creasing = "uniform",
     ) -> None:
-        # Mesh.from_obj hands over arrays nobody else holds: no defensive copies for those.
-        copy = not getattr(self, "_arrays_are_ours", False)
+        self._build(
+            points,
+            faces,
+            face_sizes=face_sizes,
+            face_indices=face_indices,
+            creases=creases,
+            corners=corners,
+            uvs=uvs,
+            boundary=boundary,
+            creasing=creasing,
+        )
+
+    def _build(
+        self,
+        points: ArrayLike,
+        faces: Sequence[Sequence[int]] | ArrayLike | None = None,
+        *,
+        face_sizes: ArrayLike | None = None,
+        face_indices: ArrayLike | None = None,
+        creases: tuple[ArrayLike, ArrayLike] | None = None,
+        corners: tuple[ArrayLike, ArrayLike] | None = None,
+        uvs: ArrayLike | None = None,
+        boundary: Boundary = "edge-only",
+        creasing: Creasing = "uniform",
+        copy: bool = True,
+        source: Any = None,
+    ) -> None:
+        """The constructor's work; :meth:`from_obj` hands over arrays nobody else holds (no
+        defensive copies, ``copy=False``) and the file's ``source`` lines for its errors."""
         pts = convert.owned(convert.float_array(points, "points"), points, copy)
         if pts.ndim != 2 or pts.shape[1] != 3:
             raise InvalidInputError(f"points must have shape (V, 3), not {pts.shape}")
@@ -78,6 +115,7 @@ class Mesh:
                     f"face_sizes and face_indices must be 1-D, not {sizes.shape} and "
                     f"{indices.shape}"
                 )
+        _check_face_sizes(sizes)
 
         crease_pair: tuple[NDArray[np.int64], NDArray[np.float32]] | None = None
         if creases is not None:
@@ -113,8 +151,17 @@ class Mesh:
                     f"{len(uv_array)} uvs but the mesh has {len(indices)} face corners "
                     "(uvs are face-varying: one per face corner)"
                 )
+            bad = np.flatnonzero(~np.isfinite(uv_array).all(axis=1))
+            if len(bad):
+                error = NonFiniteError(
+                    f"uvs: face corner {bad[0]} has a non-finite texture coordinate "
+                    f"({len(bad)} such corners)"
+                )
+                error.corner = int(bad[0])
+                raise error
 
         self._boundary: Boundary = convert.choice(boundary, convert.BOUNDARIES, "boundary")  # type: ignore[assignment]
+        self._creasing: Creasing = convert.choice(creasing, convert.CREASING, "creasing")  # type: ignore[assignment]
         empty_i = np.zeros(0, dtype=np.int64)
         empty_f = np.zeros(0, dtype=np.float32)
         self._cage = _native.Cage(
@@ -125,6 +172,7 @@ class Mesh:
             crease_pair[1] if crease_pair else empty_f,
             corner_pair[0] if corner_pair else empty_i,
             corner_pair[1] if corner_pair else empty_f,
+            source,
         )
         self._points = convert.readonly(pts)
         self._face_sizes = convert.readonly(sizes)
@@ -163,21 +211,51 @@ class Mesh:
         return sizes, indices.reshape(-1)
 
     @classmethod
-    def from_obj(cls, path: str | os.PathLike[str], *, boundary: Boundary | None = None) -> Mesh:
+    def from_obj(
+        cls,
+        path: str | os.PathLike[str],
+        *,
+        boundary: Boundary | None = None,
+        creasing: Creasing | None = None,
+        max_bytes: int | None = None,
+        memory_budget: int | None = None,
+    ) -> Mesh:
         """Reads an OBJ file: ``v``, ``vt`` (as face-varying uvs when every face corner has
         one), ``f`` (any index form, negative indices), and OpenSubdiv's ``t crease``,
-        ``t corner`` and ``t interpolateboundary`` tags.
+        ``t corner``, ``t interpolateboundary`` and ``t creasemethod`` tags. The file is
+        streamed; LF, CRLF and CR line ends and a UTF-8 byte order mark are accepted.
+
+        Errors found later in the mesh (by this constructor, :class:`Plan` or
+        :func:`subdivide`: repeated vertices, non-manifold edges, orientation, creases that are
+        no edges) name the file's line and its 1-based vertex indices.
 
         Args:
             path: the file.
             boundary: overrides the file's ``t interpolateboundary`` tag; without either the
                 boundary is ``"edge-only"``.
+            creasing: overrides the file's ``t creasemethod`` tag (``normal`` is
+                ``"uniform"``); without either the creasing is ``"uniform"``.
+            max_bytes: refuse files larger than this (default :data:`DEFAULT_MAX_INPUT_BYTES`,
+                2 GiB).
+            memory_budget: refuse files whose mesh would take more bytes than this while
+                reading (default 4 GiB).
 
         Raises:
-            BidegreeIOError: the file cannot be read or is malformed (``path:LINE: message``).
+            BidegreeIOError: the file cannot be read, is malformed or too large
+                (``path:LINE: message``).
+            MemoryBudgetError: the mesh would not fit ``memory_budget``.
             BidegreeError: the topology is invalid (see :class:`Mesh`).
+
+        Warns:
+            ObjWarning: the file has statements or tags that were skipped (one per kind).
         """
-        data = _native.read_obj(os.fspath(path))
+        data = _native.read_obj(
+            os.fspath(path),
+            convert.budget(max_bytes, "max_bytes"),
+            convert.budget(memory_budget),
+        )
+        for message in data["warnings"]:
+            warnings.warn(message, ObjWarning, stacklevel=2)
         uvs = None
         if data["face_uvs"] is not None:
             uvs = data["uvs"][data["face_uvs"]]
@@ -187,19 +265,19 @@ class Mesh:
         corners = None
         if len(data["corner_sharpness"]):
             corners = (data["corner_vertices"], data["corner_sharpness"])
-        chosen = boundary if boundary is not None else (data["boundary"] or "edge-only")
         mesh = cls.__new__(cls)
-        mesh._arrays_are_ours = True
-        mesh.__init__(  # type: ignore[misc]
+        mesh._build(
             data["points"],
             face_sizes=data["face_sizes"],
             face_indices=data["face_indices"],
             creases=creases,
             corners=corners,
             uvs=uvs,
-            boundary=chosen,
+            boundary=boundary if boundary is not None else (data["boundary"] or "edge-only"),
+            creasing=creasing if creasing is not None else (data["creasing"] or "uniform"),
+            copy=False,
+            source=data["source"],
         )
-        del mesh._arrays_are_ours
         return mesh
 
     def write_obj(self, path: str | os.PathLike[str]) -> None:
@@ -242,6 +320,11 @@ class Mesh:
         return self._boundary
 
     @property
+    def creasing(self) -> Creasing:
+        """``"uniform"`` or ``"chaikin"``: the creasing method plans use unless told otherwise."""
+        return self._creasing
+
+    @property
     def num_vertices(self) -> int:
         """Number of points (including isolated ones)."""
         return len(self._points)
@@ -264,11 +347,27 @@ class Mesh:
             extras.append(f"corners={len(self._corners[1])}")
         if self._uvs is not None:
             extras.append("uvs")
+        if self._creasing != "uniform":
+            extras.append(f"creasing={self._creasing!r}")
         extra = (", " + ", ".join(extras)) if extras else ""
         return (
             f"Mesh(vertices={self.num_vertices}, faces={self.num_faces}, "
             f"boundary={self._boundary!r}, dtype={self._points.dtype}{extra})"
         )
+
+
+def _check_face_sizes(sizes: NDArray[np.int64]) -> None:
+    """Faces have at least 3 vertices (the core says so too; this names negative sizes)."""
+    small = np.flatnonzero(sizes < 3)
+    if len(small):
+        face, size = int(small[0]), int(sizes[small[0]])
+        if size < 0:
+            text = f"face {face} has size {size} in face_sizes; a size counts the face's vertices"
+        else:
+            text = f"face {face} has {size} vertices"
+        error = FaceTooSmallError(f"{text}; faces need at least 3")
+        error.face, error.size = face, size
+        raise error
 
 
 def write_obj_arrays(

@@ -92,6 +92,8 @@ class Plan(_Output):
             3 is Catmull-Clark exactly as OpenSubdiv's catmark, 2 the original Doo-Sabin).
         creasing: ``"uniform"`` or ``"chaikin"``: how classic degree-3 semi-sharp creases
             decrease from level to level (OpenSubdiv's creasing method; Blender uses uniform).
+            Default: the mesh's (:attr:`Mesh.creasing`, from an OBJ file's ``t creasemethod``
+            tag), else uniform.
 
     Raises:
         NonManifoldEdgeError, InconsistentOrientationError, CreaseNotAnEdgeError: bad topology.
@@ -111,7 +113,7 @@ class Plan(_Output):
         output: Output = "primal",
         memory_budget: int | None = None,
         rules: Rules = "averaging",
-        creasing: Creasing = "uniform",
+        creasing: Creasing | None = None,
     ) -> None:
         if not isinstance(mesh, Mesh):
             raise InvalidInputError(f"mesh must be a bidegree.Mesh, not {type(mesh).__name__}")
@@ -123,7 +125,7 @@ class Plan(_Output):
             mesh.boundary,
             convert.budget(memory_budget),
             convert.choice(rules, convert.RULES, "rules"),
-            convert.choice(creasing, convert.CREASING, "creasing"),
+            _creasing(mesh, creasing),
         )
         self._init(mesh, native)
         convert.warn_isolated(self.isolated_vertices, stacklevel=2)
@@ -316,7 +318,7 @@ def subdivide(
     output: Output = "primal",
     memory_budget: int | None = None,
     rules: Rules = "averaging",
-    creasing: Creasing = "uniform",
+    creasing: Creasing | None = None,
     *,
     limit: bool = False,
     normals: bool = False,
@@ -349,12 +351,19 @@ def subdivide(
         mesh.boundary,
         convert.budget(memory_budget),
         convert.choice(rules, convert.RULES, "rules"),
-        convert.choice(creasing, convert.CREASING, "creasing"),
+        _creasing(mesh, creasing),
         evaluate=not limit,
     )
     plan = Plan._wrap(mesh, native)
     convert.warn_isolated(plan.isolated_vertices, stacklevel=2)
     return _result(plan, mesh.points, points, limit, normals)
+
+
+def _creasing(mesh: Mesh, creasing: Creasing | None) -> str:
+    """The creasing method of a request: the one asked for, else the mesh's."""
+    if creasing is None:
+        return mesh.creasing
+    return convert.choice(creasing, convert.CREASING, "creasing")
 
 
 def _result(
