@@ -70,7 +70,7 @@ pub struct ObjOutput<'a, T> {
 
 /// Writes `mesh` as OBJ at `path`, atomically (see the module documentation). The input is
 /// checked first (consistent arrays, finite values), so a refused mesh writes nothing;
-/// `interrupt` is asked between batches whether to stop (its error is returned, the target is
+/// `interrupt` is asked after every chunk (about 1 MB) whether to stop (its error is returned, the target is
 /// untouched).
 pub fn write_obj<T: ObjFloat>(
     path: &Path,
@@ -195,7 +195,7 @@ fn push_float<T: ObjFloat>(out: &mut Vec<u8>, buffer: &mut ryu::Buffer, x: T) {
 }
 
 /// Formats `count` items in parallel chunks (in a bounded number of buffers at a time) and
-/// writes them in order, asking `interrupt` after every batch.
+/// writes them in order, asking `interrupt` after every chunk.
 fn write_parallel<W: Write>(
     out: &mut W,
     count: usize,
@@ -221,8 +221,8 @@ fn write_parallel<W: Write>(
             .collect();
         for buffer in &buffers {
             out.write_all(buffer)?;
+            interrupt().map_err(Written::Stopped)?;
         }
-        interrupt().map_err(Written::Stopped)?;
         start = end;
     }
     Ok(())

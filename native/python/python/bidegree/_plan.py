@@ -144,7 +144,9 @@ class Plan(_Output):
     def evaluate(self, points: ArrayLike) -> FloatArray:
         """Subdivides per-vertex values: (V, C) -> (N, C) for any C >= 1 (positions, colours,
         weights, ...); a (V,) array is one channel and gives (N,). float32 stays float32, float64
-        stays float64. No validation of the values (NaN in, NaN out): see :func:`subdivide`.
+        stays float64. Values must be finite (:class:`NonFiniteError` names the vertex); a result
+        that overflows its dtype (float32 beyond about 3.4e38) raises :class:`NonFiniteError`
+        too.
         """
         values, flat = convert.values_2d(points, self._mesh.num_vertices, "points", "vertices")
         out = self._native_plan.evaluate(values)
