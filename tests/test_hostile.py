@@ -326,7 +326,7 @@ def test_float32_overflow_is_an_error_not_inf(tmp_path: Path) -> None:
     ).all()
     values = CUBE_POINTS.copy()
     values[0, 0] = np.nan
-    with pytest.raises(bidegree.NonFiniteError, match="^vertex 0 has a non-finite coordinate"):
+    with pytest.raises(bidegree.NonFiniteError, match=r"^vertex 0 has a non-finite coordinate"):
         bidegree.Plan(cube(), levels=1).evaluate(values)
 
 
