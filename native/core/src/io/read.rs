@@ -337,14 +337,19 @@ impl<'a> Parser<'a> {
             _ if UNUSED_STATEMENTS.contains(&keyword) => Ok(()),
             _ if FREE_FORM_STATEMENTS.contains(&keyword) => {
                 self.ignore(
-                    format!("free-form geometry ('{keyword}') is not supported and was ignored"),
+                    format!(
+                        "free-form geometry ('{}') is not supported and was ignored",
+                        shown(keyword)
+                    ),
                     line,
                 );
                 Ok(())
             }
             _ => {
-                let shown: String = keyword.chars().take(40).collect();
-                self.ignore(format!("unknown statement '{shown}' was ignored"), line);
+                self.ignore(
+                    format!("unknown statement '{}' was ignored", shown(keyword)),
+                    line,
+                );
                 Ok(())
             }
         };
@@ -363,7 +368,10 @@ impl<'a> Parser<'a> {
         let mut extra = 0;
         for token in tokens {
             parse_f64(token).map_err(|_| {
-                format!("'{token}' after the coordinates: a 'v' line holds x y z, then optionally w or r g b")
+                format!(
+                    "'{}' after the coordinates: a 'v' line holds x y z, then optionally w or r g b",
+                    shown(token)
+                )
             })?;
             extra += 1;
         }
@@ -391,7 +399,8 @@ impl<'a> Parser<'a> {
         }
         if let Some(extra) = tokens.next() {
             return Err(format!(
-                "'{extra}' after the coordinates: a 'vt' line holds u, then optionally v and w"
+                "'{}' after the coordinates: a 'vt' line holds u, then optionally v and w",
+                shown(extra)
             ));
         }
         self.mesh.uvs.push(u);
@@ -410,11 +419,15 @@ impl<'a> Parser<'a> {
             let normal = parts.next();
             if parts.next().is_some() {
                 return Err(format!(
-                    "bad face corner '{token}' (forms: v, v/vt, v//vn, v/vt/vn)"
+                    "bad face corner '{}' (forms: v, v/vt, v//vn, v/vt/vn)",
+                    shown(token)
                 ));
             }
             if vertex.is_empty() {
-                return Err(format!("bad face corner '{token}': no vertex index"));
+                return Err(format!(
+                    "bad face corner '{}': no vertex index",
+                    shown(token)
+                ));
             }
             let v = self.resolve(vertex, num_vertices, line, PendingKind::Vertex)?;
             self.mesh.face_vertices.push(v);
@@ -492,18 +505,24 @@ impl<'a> Parser<'a> {
         let name = tokens
             .next()
             .ok_or_else(|| "'t' needs a tag name".to_string())?;
+        let name = shown(name);
+        let name = name.as_str();
         let counts = tokens
             .next()
             .ok_or_else(|| format!("tag '{name}' needs argument counts (ints/floats/strings)"))?;
         let counts: Vec<&str> = counts.split('/').collect();
         let parse_count = |s: &str| {
-            s.parse::<usize>()
-                .map_err(|_| format!("tag '{name}': bad argument counts '{}'", counts.join("/")))
+            s.parse::<usize>().map_err(|_| {
+                format!(
+                    "tag '{name}': bad argument counts '{}'",
+                    shown(&counts.join("/"))
+                )
+            })
         };
         if counts.len() != 3 {
             return Err(format!(
                 "tag '{name}': argument counts must look like ints/floats/strings, got '{}'",
-                counts.join("/")
+                shown(&counts.join("/"))
             ));
         }
         let (num_ints, num_floats, num_strings) = (
@@ -600,7 +619,8 @@ impl<'a> Parser<'a> {
                     "chaikin" => Creasing::Chaikin,
                     other => {
                         return Err(format!(
-                            "unknown creasemethod '{other}' (normal or chaikin)"
+                            "unknown creasemethod '{}' (normal or chaikin)",
+                            shown(other)
                         ))
                     }
                 });
@@ -608,9 +628,8 @@ impl<'a> Parser<'a> {
             // Other OpenSubdiv tags (hole, smoothtriangles, facevaryinginterpolateboundary,
             // ...) change OpenSubdiv's surface in ways this scheme does not follow.
             other => {
-                let shown: String = other.chars().take(40).collect();
                 self.ignore(
-                    format!("tag '{shown}' is not supported and was ignored"),
+                    format!("tag '{other}' is not supported and was ignored"),
                     line,
                 );
             }
@@ -682,17 +701,31 @@ impl<'a> Parser<'a> {
     }
 }
 
+/// A token of the file as a message shows it: control characters escaped (a file cannot write
+/// to the user's terminal through an error), at most 40 characters.
+fn shown(token: &str) -> String {
+    let mut text: String = token
+        .chars()
+        .take(40)
+        .flat_map(char::escape_debug)
+        .collect();
+    if token.chars().nth(40).is_some() {
+        text.push_str("...");
+    }
+    text
+}
+
 fn parse_f64(token: &str) -> LineResult<f64> {
     token
         .parse::<f64>()
-        .map_err(|_| format!("'{token}' is not a number"))
+        .map_err(|_| format!("'{}' is not a number", shown(token)))
 }
 
 /// A coordinate: a number, and finite (`nan`, `inf` and `1e999` parse as numbers).
 fn parse_finite(token: &str) -> LineResult<f64> {
     let x = parse_f64(token)?;
     if !x.is_finite() {
-        return Err(format!("'{token}' is not a finite number"));
+        return Err(format!("'{}' is not a finite number", shown(token)));
     }
     Ok(x)
 }
@@ -700,15 +733,15 @@ fn parse_finite(token: &str) -> LineResult<f64> {
 fn parse_index(token: &str) -> LineResult<i64> {
     token
         .parse::<i64>()
-        .map_err(|_| format!("'{token}' is not an integer index"))
+        .map_err(|_| format!("'{}' is not an integer index", shown(token)))
 }
 
 fn parse_sharpness(token: &str) -> LineResult<f32> {
     let s = token
         .parse::<f32>()
-        .map_err(|_| format!("'{token}' is not a sharpness value"))?;
+        .map_err(|_| format!("'{}' is not a sharpness value", shown(token)))?;
     if s.is_nan() || s < 0.0 {
-        return Err(format!("sharpness {token} must be a number >= 0"));
+        return Err(format!("sharpness {} must be a number >= 0", shown(token)));
     }
     Ok(s)
 }

@@ -521,6 +521,12 @@ fn trailing_garbage_and_non_finite_numbers_are_errors() {
             "<obj>:1: tag 'creasemethod' needs exactly 1 string",
         ),
         ("v 0 0 0\nv\x001 0 0\n", "<obj>:2: NUL byte"),
+        // Control characters are escaped, long tokens cut: a file cannot write to a terminal.
+        ("v 0 0 \x1b[2J\n", "<obj>:1: '\\u{1b}[2J' is not a number"),
+        (
+            "v 0 0 0 0123456789012345678901234567890123456789xyz\n",
+            "<obj>:1: '0123456789012345678901234567890123456789...' after",
+        ),
     ];
     for (text, expected) in cases {
         let message = io_message(text);

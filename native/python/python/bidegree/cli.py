@@ -86,8 +86,14 @@ def _printing_warnings() -> Iterator[None]:
             yield
         finally:
             for warning in caught:
-                text = " ".join(str(warning.message).split("\n"))
-                print(f"bidegree: warning: {text}", file=sys.stderr)
+                print(f"bidegree: warning: {_one_line(str(warning.message))}", file=sys.stderr)
+
+
+def _one_line(text: str) -> str:
+    """``text`` as one printable line: line breaks become spaces, other control characters
+    (which a file's content could carry into a message) are escaped."""
+    text = " ".join(text.splitlines())
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in text)
 
 
 def parse_size(text: str) -> int:
@@ -391,11 +397,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         with _signals_stop_the_work(), _printing_warnings():
             return int(handler(args) or 0)
     except (bidegree.BidegreeError, CliError, OSError) as exc:
-        message = " ".join(str(exc).split("\n")) or type(exc).__name__
-        print(f"bidegree: error: {message}", file=sys.stderr)
+        print(f"bidegree: error: {_one_line(str(exc)) or type(exc).__name__}", file=sys.stderr)
         detail = getattr(exc, "detail", None)
         if detail and os.environ.get("BIDEGREE_DEBUG", "0") not in ("", "0"):
-            print(f"bidegree: debug: {' '.join(str(detail).split())}", file=sys.stderr)
+            print(f"bidegree: debug: {_one_line(str(detail))}", file=sys.stderr)
         return 2
     except MemoryError:
         print("bidegree: error: out of memory (lower --levels or --memory-budget)", file=sys.stderr)
