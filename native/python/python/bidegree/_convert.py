@@ -64,10 +64,9 @@ def readonly(array: np.ndarray) -> np.ndarray:
     return array
 
 
-def owned(array: np.ndarray, source: Any, copy: bool = True) -> np.ndarray:
-    """``array`` as an array that shares no memory with the caller's ``source`` (unless
-    ``copy`` is False: arrays bidegree made itself and hands over)."""
-    if copy and isinstance(source, np.ndarray) and np.shares_memory(array, source):
+def owned(array: np.ndarray, source: Any) -> np.ndarray:
+    """``array`` as an array that shares no memory with the caller's ``source``."""
+    if isinstance(source, np.ndarray) and np.shares_memory(array, source):
         return array.copy()
     return array
 

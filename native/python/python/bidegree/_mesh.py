@@ -66,36 +66,7 @@ class Mesh:
         boundary: Boundary = "edge-only",
         creasing: Creasing = "uniform",
     ) -> None:
-        self._build(
-            points,
-            faces,
-            face_sizes=face_sizes,
-            face_indices=face_indices,
-            creases=creases,
-            corners=corners,
-            uvs=uvs,
-            boundary=boundary,
-            creasing=creasing,
-        )
-
-    def _build(
-        self,
-        points: ArrayLike,
-        faces: Sequence[Sequence[int]] | ArrayLike | None = None,
-        *,
-        face_sizes: ArrayLike | None = None,
-        face_indices: ArrayLike | None = None,
-        creases: tuple[ArrayLike, ArrayLike] | None = None,
-        corners: tuple[ArrayLike, ArrayLike] | None = None,
-        uvs: ArrayLike | None = None,
-        boundary: Boundary = "edge-only",
-        creasing: Creasing = "uniform",
-        copy: bool = True,
-        source: Any = None,
-    ) -> None:
-        """The constructor's work; :meth:`from_obj` hands over arrays nobody else holds (no
-        defensive copies, ``copy=False``) and the file's ``source`` lines for its errors."""
-        pts = convert.owned(convert.float_array(points, "points"), points, copy)
+        pts = convert.owned(convert.float_array(points, "points"), points)
         if pts.ndim != 2 or pts.shape[1] != 3:
             raise InvalidInputError(f"points must have shape (V, 3), not {pts.shape}")
 
@@ -106,16 +77,13 @@ class Mesh:
         else:
             if face_sizes is None or face_indices is None:
                 raise InvalidInputError("give faces, or both face_sizes and face_indices")
-            sizes = convert.owned(convert.int_array(face_sizes, "face_sizes"), face_sizes, copy)
-            indices = convert.owned(
-                convert.int_array(face_indices, "face_indices"), face_indices, copy
-            )
+            sizes = convert.owned(convert.int_array(face_sizes, "face_sizes"), face_sizes)
+            indices = convert.owned(convert.int_array(face_indices, "face_indices"), face_indices)
             if sizes.ndim != 1 or indices.ndim != 1:
                 raise InvalidInputError(
                     f"face_sizes and face_indices must be 1-D, not {sizes.shape} and "
                     f"{indices.shape}"
                 )
-        _check_face_sizes(sizes)
 
         crease_pair: tuple[NDArray[np.int64], NDArray[np.float32]] | None = None
         if creases is not None:
@@ -141,11 +109,30 @@ class Mesh:
 
         uv_array: FloatArray | None = None
         if uvs is not None:
-            uv_array = convert.owned(convert.float_array(uvs, "uvs"), uvs, copy)
+            uv_array = convert.owned(convert.float_array(uvs, "uvs"), uvs)
             if uv_array.ndim != 2 or uv_array.shape[1] != 2:
                 raise InvalidInputError(
                     f"uvs must have shape (corners, 2) (face-varying), not {uv_array.shape}"
                 )
+        self._finish(pts, sizes, indices, crease_pair, corner_pair, uv_array, boundary, creasing)
+
+    def _finish(
+        self,
+        pts: FloatArray,
+        sizes: NDArray[np.int64],
+        indices: NDArray[np.int64],
+        crease_pair: tuple[NDArray[np.int64], NDArray[np.float32]] | None,
+        corner_pair: tuple[NDArray[np.int64], NDArray[np.float32]] | None,
+        uv_array: FloatArray | None,
+        boundary: Boundary,
+        creasing: Creasing,
+        source: Any = None,
+    ) -> None:
+        """Checks and builds the cage from converted arrays that are the mesh's own (the
+        constructor's copies, or what :meth:`from_obj` read, with the file's ``source``
+        lines for its errors)."""
+        _check_face_sizes(sizes)
+        if uv_array is not None:
             if len(uv_array) != len(indices):
                 raise InvalidInputError(
                     f"{len(uv_array)} uvs but the mesh has {len(indices)} face corners "
@@ -266,17 +253,16 @@ class Mesh:
         if len(data["corner_sharpness"]):
             corners = (data["corner_vertices"], data["corner_sharpness"])
         mesh = cls.__new__(cls)
-        mesh._build(
+        mesh._finish(
             data["points"],
-            face_sizes=data["face_sizes"],
-            face_indices=data["face_indices"],
-            creases=creases,
-            corners=corners,
-            uvs=uvs,
-            boundary=boundary if boundary is not None else (data["boundary"] or "edge-only"),
-            creasing=creasing if creasing is not None else (data["creasing"] or "uniform"),
-            copy=False,
-            source=data["source"],
+            data["face_sizes"],
+            data["face_indices"],
+            creases,
+            corners,
+            uvs,
+            boundary if boundary is not None else (data["boundary"] or "edge-only"),
+            creasing if creasing is not None else (data["creasing"] or "uniform"),
+            data["source"],
         )
         return mesh
 
