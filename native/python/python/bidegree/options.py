@@ -65,7 +65,8 @@ class Options:
             from its own data (Blender); an OBJ cage keeps its ``t interpolateboundary`` tag
             unless the caller overrides it.
         rules: ``"averaging"`` or ``"classic"``.
-        creasing: ``"uniform"`` or ``"chaikin"`` (classic semi-sharp creases).
+        creasing: ``"uniform"`` or ``"chaikin"`` (classic semi-sharp creases); ``None``: the
+            mesh's own (an OBJ cage's ``t creasemethod`` tag, else uniform).
         use_creases: honour the cage's creases and corners (off: everything smooth).
         limit: output vertices on the limit surface.
         normals: limit normals per face corner.
@@ -79,7 +80,7 @@ class Options:
     output: str = "primal"
     boundary: str = "edge-only"
     rules: str = "averaging"
-    creasing: str = "uniform"
+    creasing: str | None = None
     use_creases: bool = True
     limit: bool = False
     normals: bool = False
@@ -93,6 +94,8 @@ class Options:
         set_field(self, "levels", _integer(self.levels, "levels"))
         for name, allowed in _CHOICES.items():
             value = getattr(self, name)
+            if value is None and name == "creasing":
+                continue
             if not isinstance(value, str) or value not in allowed:
                 choices = " or ".join(repr(c) for c in allowed)
                 raise bidegree.InvalidInputError(f"{name} must be {choices}, not {value!r}")
