@@ -1,29 +1,56 @@
-"""Benchmark (not a test): bidegree live updates vs Blender's Subdivision Surface modifier.
+"""Benchmark (not a test): bidegree in the modifier stack against Blender's Subdivision Surface.
 
-One ``bpy`` process.  The cage is Suzanne subdivided twice (Catmull-Clark, applied), so it is
-all quads.  Timed, each as the median of several repetitions:
+One ``bpy`` process with the extension's handlers registered from ``addon/bidegree``. Cages:
+Suzanne subdivided twice (7,872 quads) and three times (31,488 quads), Catmull-Clark applied.
+For each cage, level (2, 3) and scheme (bidegree classic degree 3 = what Subsurf computes, and
+bidegree's default averaging degree 4), two operations are timed, each as the median of several
+repetitions, with everything Blender does included (handlers, mesh writes, both depsgraph
+passes, the evaluated mesh read back):
 
-* **cached update** at degree 4, level 2: move a vertex, let the depsgraph re-evaluate, then
-  the live update through the cached plan (read the evaluated cage, hash, ``Plan.evaluate``,
-  write positions) -- what the add-on does on every edit;
-* **fresh update**: the same with an empty cache (plan built, full mesh written);
-* **Blender Subsurf level 2** on the same cage: move a vertex, depsgraph re-evaluation of an
-  object with the modifier and access to its evaluated mesh (which forces Blender's lazy
-  subdivision wrapper to subdivide; CPU OpenSubdiv, as in background mode).
+* **edit**: move one vertex of the cage (its shape keys' basis), ``view_layer.update()``, touch
+  the evaluated
+  mesh (as drawing or exporting would; it makes Subsurf's lazy wrapper subdivide);
+* **frame**: step a shape-key animation one frame (``scene.frame_set``), touch the evaluated
+  mesh.
 
-Usage: ``.venv/bin/python packaging/bench_blender.py [--repeat 15] [--degree 4] [--levels 2]``
-Prints the times and the ratios (target: cached update no slower than Blender's modifier).
+The reference is an object with Blender's Subdivision Surface modifier (CPU OpenSubdiv, as in
+background mode) at the same level on the same cage, timed the same way in the same run. The
+ratio column is bidegree's time over Subsurf's (target: at most 0.5 on every row); the first
+update (plan built, full mesh written) is reported as ``fresh``.
+
+Usage: ``.venv/bin/python packaging/bench_blender.py [--repeat 7] [--cages 8k,30k]
+[--levels 2,3]``. Prints the load average first: on a shared machine, compare ratios only.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
+import os
 import statistics
+import sys
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import bpy
-from bidegree_blender import LiveCache, Settings, objects
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _register_addon() -> None:
+    """Register the extension's handlers and operators from the source tree (its package name
+    would clash with the ``bidegree`` wheel, so it is loaded under another one)."""
+    spec = importlib.util.spec_from_file_location(
+        "bidegree_addon",
+        ROOT / "addon" / "bidegree" / "__init__.py",
+        submodule_search_locations=[str(ROOT / "addon" / "bidegree")],
+    )
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["bidegree_addon"] = module
+    spec.loader.exec_module(module)
+    module.register()
 
 
 def _median_ms(fn: Callable[[], None], repeat: int) -> float:
@@ -35,102 +62,163 @@ def _median_ms(fn: Callable[[], None], repeat: int) -> float:
     return statistics.median(times)
 
 
-def make_cage() -> bpy.types.Mesh:
-    """Suzanne with two levels of Catmull-Clark applied (a pure-quad cage)."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+def make_cage(subdivisions: int) -> bpy.types.Mesh:
+    """Suzanne with ``subdivisions`` levels of Catmull-Clark applied (a pure-quad cage)."""
     bpy.ops.mesh.primitive_monkey_add()
     monkey = bpy.context.active_object
     mod = monkey.modifiers.new("Subd", "SUBSURF")
-    mod.levels = 2
-    dg = bpy.context.evaluated_depsgraph_get()
-    cage = bpy.data.meshes.new_from_object(monkey.evaluated_get(dg))
+    mod.levels = subdivisions
+    cage = bpy.data.meshes.new_from_object(
+        monkey.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    )
     bpy.data.objects.remove(monkey)
     return cage
 
 
-def main() -> None:
-    """Run the benchmark and print the results."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeat", type=int, default=15)
-    parser.add_argument("--degree", type=int, default=4)
-    parser.add_argument("--levels", type=int, default=2)
-    args = parser.parse_args()
+def _objects(scene: bpy.types.Scene, cage: bpy.types.Mesh, name: str) -> list[bpy.types.Object]:
+    """Two objects on copies of ``cage``: one to edit, one with a shape key animated over
+    frames 1..100 (edits of a shape-keyed mesh go through its basis key, not its vertices)."""
+    edited = bpy.data.objects.new(f"{name} edit", cage.copy())
+    animated = bpy.data.objects.new(f"{name} frame", cage.copy())
+    for obj in (edited, animated):
+        scene.collection.objects.link(obj)
+    animated.shape_key_add(name="Basis")
+    key = animated.shape_key_add(name="Bend", from_mix=False)
+    for point in key.data:
+        point.co.z += 0.2 * point.co.x * point.co.x
+    block = animated.data.shape_keys.key_blocks["Bend"]
+    block.value = 0.0
+    block.keyframe_insert("value", frame=1)
+    block.value = 1.0
+    block.keyframe_insert("value", frame=100)
+    return [edited, animated]
 
-    cage = make_cage()
+
+def _show_only(objects: list[bpy.types.Object], shown: bpy.types.Object) -> None:
+    for obj in objects:
+        obj.hide_viewport = obj is not shown
+    bpy.context.view_layer.update()
+
+
+def _touch(obj: bpy.types.Object) -> bytes:
+    """Read the evaluated mesh's positions (drawing or exporting would; it makes Subsurf's lazy
+    wrapper subdivide); returns them."""
+    ev = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    positions = ev.data.attributes["position"].data
+    out = bytearray(12 * len(positions))
+    positions.foreach_get("vector", memoryview(out).cast("f"))
+    return bytes(out)
+
+
+def _timings(
+    pair: list[bpy.types.Object], everything: list[bpy.types.Object], repeat: int
+) -> tuple[float, float]:
+    """(edit ms, frame ms) of the pair (edited, animated), each alone visible; checks that
+    every timed step changed the evaluated surface."""
+    edited, animated = pair
     scene = bpy.context.scene
-    view_layer = bpy.context.view_layer
-
-    source = bpy.data.objects.new("Source", cage)
-    scene.collection.objects.link(source)
-    result_mesh = bpy.data.meshes.new("Result")
-    result = bpy.data.objects.new("Result", result_mesh)
-    scene.collection.objects.link(result)
-    result.parent = source
-
-    blender = bpy.data.objects.new("Blender", cage.copy())
-    scene.collection.objects.link(blender)
-    blender.modifiers.new("Subd", "SUBSURF").levels = args.levels
-    blender.hide_viewport = True  # evaluated only when timed
-    view_layer.update()
-
-    settings = Settings(degree=args.degree, levels=args.levels)
-    cache = LiveCache()
     step = [0]
+    last = [b""]
 
-    def nudge(mesh: bpy.types.Mesh) -> None:
+    def changed(now: bytes) -> None:
+        assert now != last[0], "the evaluated surface did not change"
+        last[0] = now
+
+    def edit() -> None:
         step[0] += 1
-        v = mesh.vertices[step[0] % len(mesh.vertices)]
-        v.co.z += 1e-3 if step[0] % 2 else -1e-3
-        mesh.update()
+        point = edited.data.vertices[step[0] % len(edited.data.vertices)]
+        point.co.z += 1e-2 if step[0] % 2 else -1e-2
+        edited.data.update()
+        bpy.context.view_layer.update()
+        changed(_touch(edited))
 
-    def live_cached() -> None:
-        nudge(source.data)
-        view_layer.update()
-        report = objects.update_result(cache, source, result, settings)
-        assert report.action == "reused", report.action
-        view_layer.update()
+    frame = [1]
 
-    def live_fresh() -> None:
-        cache.clear()
-        nudge(source.data)
-        view_layer.update()
-        report = objects.update_result(cache, source, result, settings)
-        assert report.action == "built", report.action
-        view_layer.update()
+    def next_frame() -> None:
+        frame[0] = frame[0] % 99 + 1
+        scene.frame_set(frame[0])
+        changed(_touch(animated))
 
-    live_fresh()  # warm-up (allocations, first depsgraph of the result)
-    fresh_ms = _median_ms(live_fresh, max(3, args.repeat // 3))
-    live_cached()
-    cached_ms = _median_ms(live_cached, args.repeat)
+    _show_only(everything, edited)
+    last[0] = _touch(edited)
+    edit()  # warm-up: caches
+    edit_ms = _median_ms(edit, repeat)
+    _show_only(everything, animated)
+    last[0] = _touch(animated)
+    next_frame()
+    return edit_ms, _median_ms(next_frame, repeat)
 
-    source.hide_viewport = True
-    result.hide_viewport = True
-    blender.hide_viewport = False
-    view_layer.update()
 
-    def blender_update() -> None:
-        nudge(blender.data)
-        view_layer.update()
-        # Blender evaluates the last Subsurf lazily (a "subdivision wrapper" mesh): touching the
-        # evaluated mesh is what makes it subdivide, as drawing or exporting would.
-        ev = blender.evaluated_get(bpy.context.evaluated_depsgraph_get())
-        assert len(ev.data.vertices) > len(blender.data.vertices)
+def main() -> None:
+    """Run the benchmark and print the rows."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=7)
+    parser.add_argument("--cages", default="8k,30k")
+    parser.add_argument("--levels", default="2,3")
+    args = parser.parse_args()
+    levels = [int(x) for x in args.levels.split(",")]
+    cages = {"8k": 2, "30k": 3}
+    cages = {k: v for k, v in cages.items() if k in args.cages.split(",")}
 
-    blender_update()
-    blender_ms = _median_ms(blender_update, args.repeat)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    _register_addon()
+    import bidegree_blender
+    from bidegree_blender import modifier
 
-    faces_out = len(result_mesh.polygons)
-    ev = blender.evaluated_get(bpy.context.evaluated_depsgraph_get())
-    blender_faces = len(ev.data.polygons)
-    print(f"cage: Suzanne subdivided twice, {len(cage.polygons)} faces, {len(cage.vertices)} verts")
-    print(f"bidegree degree {args.degree} level {args.levels}: {faces_out} faces")
-    print(f"Blender Subsurf level {args.levels}: {blender_faces} faces")
-    print(f"bidegree cached update : {cached_ms:8.2f} ms (median of {args.repeat})")
-    print(f"bidegree fresh update  : {fresh_ms:8.2f} ms")
-    print(f"Blender Subsurf update : {blender_ms:8.2f} ms (median of {args.repeat})")
-    print(f"ratio cached / Subsurf : {cached_ms / blender_ms:8.2f}  (target <= 1)")
-    print(f"ratio fresh / Subsurf  : {fresh_ms / blender_ms:8.2f}")
-    print(f"ratio fresh / cached   : {fresh_ms / cached_ms:8.2f}")
+    print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    print(
+        f"{'cage':>5} {'faces':>6} {'lvl':>3} {'scheme':<12} {'out faces':>9} "
+        f"{'fresh ms':>9} {'edit ms':>8} {'frame ms':>8} {'edit x':>7} {'frame x':>7}"
+    )
+    scene = bpy.context.scene
+    for label, subdivisions in cages.items():
+        cage = make_cage(subdivisions)
+        for level in levels:
+            reference = _objects(scene, cage, "Subsurf")
+            for obj in reference:
+                obj.modifiers.new("Subsurf", "SUBSURF").levels = level
+            rows = []
+            for scheme, settings in (
+                ("classic 3", {"degree": 3, "rules": "classic"}),
+                ("averaging 4", {"degree": 4}),
+            ):
+                pair = _objects(scene, cage, scheme)
+                for obj in pair:
+                    bidegree_blender.add_modifier(obj, levels=level, **settings)
+                rows.append((scheme, pair))
+            everything = reference + [obj for _, pair in rows for obj in pair]
+            ref_edit, ref_frame = _timings(reference, everything, args.repeat)
+            ref_faces = len(  # the animated one is the one still visible
+                reference[1].evaluated_get(bpy.context.evaluated_depsgraph_get()).data.polygons
+            )
+            print(
+                f"{label:>5} {len(cage.polygons):>6} {level:>3} {'Subsurf':<12} {ref_faces:>9} "
+                f"{'':>9} {ref_edit:>8.1f} {ref_frame:>8.1f} {1.0:>7.2f} {1.0:>7.2f}",
+                flush=True,
+            )
+            for scheme, pair in rows:
+                for other in everything:
+                    other.hide_viewport = other is not pair[0]
+                t0 = time.perf_counter()
+                bpy.context.view_layer.update()
+                _touch(pair[0])
+                fresh = (time.perf_counter() - t0) * 1000.0
+                mods = [modifier.bidegree_modifiers(obj)[0] for obj in pair]
+                edit, frame = _timings(pair, everything, args.repeat)
+                for obj, mod in zip(pair, mods, strict=True):
+                    state = modifier.status(obj, mod)
+                    assert state.error == "" and state.action == "reused", state
+                faces = modifier.status(pair[0], mods[0]).result_faces
+                print(
+                    f"{label:>5} {len(cage.polygons):>6} {level:>3} {scheme:<12} {faces:>9} "
+                    f"{fresh:>9.1f} {edit:>8.1f} {frame:>8.1f} {edit / ref_edit:>7.2f} "
+                    f"{frame / ref_frame:>7.2f}",
+                    flush=True,
+                )
+            for obj in everything:
+                bpy.data.objects.remove(obj)
+            modifier.cleanup()
+    print(f"load average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 
 
 if __name__ == "__main__":

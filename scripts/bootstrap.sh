@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Prepares a fresh machine (Python 3.11 and Rust given; nothing else assumed) and is cheap to
-# re-run: a virtualenv at <repo>/.venv with bpy, usd-core, maturin, pytest, matplotlib and ruff;
+# re-run: a virtualenv at <repo>/.venv with bpy, usd-core, maturin, pytest, matplotlib and ruff
+# (and the batch's farm extra: dask.distributed, tqdm; and openjd-cli);
 # the bidegree wheel and the Blender extension zip built into dist/ (packaging/build.sh, host
 # wheel); and that wheel installed into .venv, so `.venv/bin/bidegree` and
 # `.venv/bin/python -c "import bidegree"` work.
@@ -44,4 +45,10 @@ BIDEGREE_NO_ZIG="${BIDEGREE_NO_ZIG:-1}" bash "$ROOT/packaging/build.sh" >/dev/nu
 WHEEL="$(ls -t "$ROOT"/dist/bidegree-*.whl | head -n 1)"
 log "installing $(basename "$WHEEL") into $VENV"
 "$PY" -m pip install --quiet --force-reinstall --no-deps "$WHEEL"
+# The batch's optional 'farm' extra (dask.distributed, tqdm) from the wheel's own metadata, and
+# the Open Job Description CLI that checks and runs packaging/openjd/template.yaml (tests).
+if ! "$PY" -c "import distributed, tqdm" >/dev/null 2>&1 || [ ! -x "$VENV/bin/openjd" ]; then
+    log "installing the farm extra (dask.distributed, tqdm) and openjd-cli into $VENV"
+    "$PY" -m pip install --quiet "$WHEEL[farm]" "openjd-cli>=0.8"
+fi
 "$PY" -c "import bidegree; print('[bootstrap] bidegree', bidegree.__version__, 'ready in', '$VENV')" >&2

@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Runs every test: formatting and lints, the Rust tests (release mode), the Python, USD and
-# OpenSubdiv-comparison tests under numpy 1.26 (the .venv that has bpy), the Blender tests
-# against the installed extension (their own process), and the Python API tests once more
-# under numpy 2.x in a second virtualenv.
+# OpenSubdiv-comparison tests under numpy 1.26 (the .venv that has bpy 5.0), the Blender tests
+# against the installed extension (their own process), the batch tests (their own process: bpy,
+# dask, openjd), the same Blender tests under the manifest's minimum Blender (bpy 4.2 LTS, a
+# second virtualenv: they take ~20 s, so all of them run there), and the Python API tests once
+# more under numpy 2.x in a third virtualenv.
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -22,10 +24,24 @@ log "Rust tests"
 cargo test --release -p bidegree
 
 log "Python, USD and OpenSubdiv tests (numpy $("$PY" -c 'import numpy; print(numpy.__version__)'))"
-"$PY" -m pytest -q tests --ignore=tests/blender
+"$PY" -m pytest -q tests --ignore=tests/blender --ignore=tests/batch
 
 log "Blender tests (real bpy, the built extension installed)"
 "$PY" -m pytest -q tests/blender
+
+log "Batch tests (real bpy, a dask LocalCluster and scheduler with worker processes, openjd)"
+"$PY" -m pytest -q tests/batch
+
+log "Blender tests under the manifest's minimum Blender ($(sed -n 's/^blender_version_min = "\(.*\)"/\1/p' addon/bidegree/blender_manifest.toml): bpy 4.2 LTS)"
+BPY42="$ROOT/.venv-bpy42"
+if [ ! -x "$BPY42/bin/python" ]; then
+    "$("$PY" -c 'import sys; print(sys._base_executable)')" -m venv "$BPY42"
+fi
+if ! "$BPY42/bin/python" -c 'import bpy, pxr, pytest, sys; sys.exit(bpy.app.version[:2] != (4, 2))' 2>/dev/null; then
+    "$BPY42/bin/python" -m pip install --quiet "bpy==4.2.*" "usd-core>=24.8" pytest
+fi
+"$BPY42/bin/python" -m pip install --quiet --force-reinstall --no-deps "$(ls -t dist/bidegree-*.whl | head -n 1)"
+"$BPY42/bin/python" -m pytest -q tests/blender -p no:cacheprovider
 
 log "Python API tests under numpy 2"
 NP2="$ROOT/.venv-numpy2"

@@ -249,8 +249,12 @@ def test_io_errors(tmp_path: Path) -> None:
 
 
 def test_panic_becomes_internal_error() -> None:
-    with pytest.raises(bidegree.InternalError, match="deliberate panic"):
+    # The message is the typed error alone; the panic's text and place are its detail.
+    with pytest.raises(bidegree.InternalError, match="a bug in bidegree") as caught:
         bidegree._native._panic_for_tests()
+    assert "deliberate panic" not in str(caught.value)
+    assert "deliberate panic" in caught.value.detail
+    assert "errors.rs" in caught.value.detail
     # The extension still works afterwards.
     assert bidegree.subdivide(cube(), degree=3, levels=1).num_faces == 24
 

@@ -1,28 +1,24 @@
 """bidegree: higher-degree subdivision surfaces for Blender (extension entry point).
 
-The extension is a thin GUI layer; the work is done by the ``bidegree`` wheel
-(Rust core) and its ``bidegree_blender`` package.  Scripts can drive it
-without the GUI::
+The extension is a thin GUI layer: ``handlers`` wires Blender's application handlers to
+:mod:`bidegree_blender.modifier`, ``operators`` and ``panel`` are the buttons. The work is done by
+the ``bidegree`` wheel (Rust core) and its ``bidegree_blender`` package, which scripts use
+directly::
 
-    mod = sys.modules[bpy.context.preferences.addons["bl_ext.user_default.bidegree"].module]
-    obj.bidegree.enabled = True      # creates the live result
-    mod.update(obj)                  # explicit update (headless bpy has no timers)
+    import bidegree_blender
+    mod = bidegree_blender.add_modifier(obj, degree=3, levels=2)   # a real entry of obj.modifiers
+    bpy.context.view_layer.update()                                # the surface is evaluated
 """
 
 from __future__ import annotations
 
-from . import live, operators, panel, properties
+from . import handlers, operators, panel
 
-#: Explicit update entry point (see :func:`live.update`).
-update = live.update
-#: The plan cache (its ``stats`` count plan builds / reuses / skips).
-CACHE = live.CACHE
-
-_modules = (properties, operators, panel, live)
+_modules = (operators, panel, handlers)
 
 
 def register() -> None:
-    """Register properties, operators, the panel and the live-update handlers."""
+    """Register the operators, the panel and the application handlers."""
     for mod in _modules:
         mod.register()
 

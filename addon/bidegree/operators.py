@@ -1,4 +1,4 @@
-"""Operators of the bidegree extension: Apply, Export USD, Remove, Update."""
+"""Operators of the bidegree extension: Add, Apply, Export USD."""
 
 from __future__ import annotations
 
@@ -7,13 +7,11 @@ from typing import Any, ClassVar
 
 import bidegree_blender
 import bpy
-from bidegree_blender import export
+from bidegree_blender import export, modifier
 from bpy.props import StringProperty
 from bpy_extras.io_utils import ExportHelper
 
 import bidegree
-
-from . import live
 
 
 def _mesh_object(context: bpy.types.Context) -> bpy.types.Object | None:
@@ -21,50 +19,20 @@ def _mesh_object(context: bpy.types.Context) -> bpy.types.Object | None:
     return obj if obj is not None and obj.type == "MESH" else None
 
 
-class BIDEGREE_OT_apply(bpy.types.Operator):
-    """Bake the bidegree surface into the object's mesh (modifiers are applied too)"""
-
-    bl_idname = "object.bidegree_apply"
-    bl_label = "Apply"
-    bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
-
-    @classmethod
-    def poll(cls, context: bpy.types.Context) -> bool:
-        obj = _mesh_object(context)
-        return obj is not None and obj.mode == "OBJECT"
-
-    def execute(self, context: bpy.types.Context) -> set[str]:
-        obj = _mesh_object(context)
-        assert obj is not None
-        props = obj.bidegree
-        settings = live.settings_of(obj)
-        try:
-            mesh = bidegree_blender.subdivide_object(
-                obj,
-                degree=settings.degree,
-                levels=settings.levels,
-                output=settings.output,
-                boundary=settings.boundary,
-                use_creases=settings.use_creases,
-                depsgraph=context.evaluated_depsgraph_get(),
-            )
-        except bidegree.BidegreeError as exc:
-            props.last_error = f"{type(exc).__name__}: {exc}"
-            self.report({"ERROR"}, props.last_error)
-            return {"CANCELLED"}
-        live.remove(obj)
-        props.enabled = False
-        bidegree_blender.objects.bake_into_object(obj, mesh, None)
-        props.last_error = ""
-        self.report({"INFO"}, f"bidegree applied: {len(mesh.polygons)} faces")
-        return {"FINISHED"}
+def _active_bidegree(obj: bpy.types.Object) -> bpy.types.Modifier | None:
+    """The active modifier if it is a bidegree one, else the object's first bidegree one."""
+    mods = modifier.bidegree_modifiers(obj)
+    active = obj.modifiers.active
+    if active is not None and active in mods:
+        return active
+    return mods[0] if mods else None
 
 
-class BIDEGREE_OT_remove(bpy.types.Operator):
-    """Turn bidegree off for this object and delete its live result"""
+class BIDEGREE_OT_add(bpy.types.Operator):
+    """Add a bidegree subdivision surface modifier at the end of the stack"""
 
-    bl_idname = "object.bidegree_remove"
-    bl_label = "Remove"
+    bl_idname = "object.bidegree_add"
+    bl_label = "bidegree Surface"
     bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
 
     @classmethod
@@ -74,32 +42,40 @@ class BIDEGREE_OT_remove(bpy.types.Operator):
     def execute(self, context: bpy.types.Context) -> set[str]:
         obj = _mesh_object(context)
         assert obj is not None
-        live.remove(obj)
-        obj.bidegree.enabled = False
-        obj.bidegree.last_error = ""
+        mod = bidegree_blender.add_modifier(obj)
+        obj.modifiers.active = mod
+        # Render surfaces are written by the render job's handlers: Blender's rule for that is
+        # a locked interface (otherwise renders show the viewport surface).
+        scene = context.scene
+        if scene is not None and not scene.render.use_lock_interface:
+            scene.render.use_lock_interface = True
+            self.report({"INFO"}, "bidegree: Render > Lock Interface turned on for render levels")
         return {"FINISHED"}
 
 
-class BIDEGREE_OT_update(bpy.types.Operator):
-    """Recompute the live bidegree surface of this object now"""
+class BIDEGREE_OT_apply(bpy.types.Operator):
+    """Apply the bidegree modifier (Blender's own Apply: the mesh becomes what is shown)"""
 
-    bl_idname = "object.bidegree_update"
-    bl_label = "Update"
-    bl_options: ClassVar[set[str]] = {"REGISTER"}
+    bl_idname = "object.bidegree_apply"
+    bl_label = "Apply"
+    bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
         obj = _mesh_object(context)
-        return obj is not None and obj.bidegree.enabled
+        return obj is not None and obj.mode == "OBJECT" and _active_bidegree(obj) is not None
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         obj = _mesh_object(context)
         assert obj is not None
-        action = live.update(obj)
-        if action == "error":
-            self.report({"ERROR"}, obj.bidegree.last_error)
-            return {"CANCELLED"}
-        return {"FINISHED"}
+        mod = _active_bidegree(obj)
+        assert mod is not None
+        with context.temp_override(object=obj, active_object=obj):
+            try:
+                return bpy.ops.object.modifier_apply(modifier=mod.name)  # type: ignore[no-any-return]
+            except RuntimeError as exc:
+                self.report({"ERROR"}, str(exc).removeprefix("Error: ").strip())
+                return {"CANCELLED"}
 
 
 class BIDEGREE_OT_export_usd(bpy.types.Operator, ExportHelper):
@@ -114,40 +90,51 @@ class BIDEGREE_OT_export_usd(bpy.types.Operator, ExportHelper):
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
-        return _mesh_object(context) is not None
+        obj = _mesh_object(context)
+        return obj is not None and _active_bidegree(obj) is not None
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         obj = _mesh_object(context)
         assert obj is not None
-        settings = live.settings_of(obj)
+        mod = _active_bidegree(obj)
+        assert mod is not None
         path = bpy.path.abspath(self.filepath)
         try:
-            export.export_object_usd(
-                obj, path, settings, depsgraph=context.evaluated_depsgraph_get()
-            )
+            export.export_modifier_usd(obj, mod, path, depsgraph=context.evaluated_depsgraph_get())
         except (bidegree.BidegreeError, OSError, RuntimeError) as exc:
-            obj.bidegree.last_error = f"{type(exc).__name__}: {exc}"
-            self.report({"ERROR"}, obj.bidegree.last_error)
+            self.report({"ERROR"}, f"{type(exc).__name__}: {exc}")
             return {"CANCELLED"}
         self.report({"INFO"}, f"bidegree: wrote {os.path.basename(path)}")
         return {"FINISHED"}
 
 
-classes: tuple[Any, ...] = (
-    BIDEGREE_OT_apply,
-    BIDEGREE_OT_remove,
-    BIDEGREE_OT_update,
-    BIDEGREE_OT_export_usd,
-)
+classes: tuple[Any, ...] = (BIDEGREE_OT_add, BIDEGREE_OT_apply, BIDEGREE_OT_export_usd)
+
+
+def _menu_entry(self: Any, context: bpy.types.Context) -> None:
+    self.layout.operator(BIDEGREE_OT_add.bl_idname, icon="MOD_SUBSURF")
+
+
+def _modifier_menu() -> Any:
+    """The Add Modifier menu's Generate section (Blender 4.2+), else the menu itself."""
+    return getattr(bpy.types, "OBJECT_MT_modifier_add_generate", None) or getattr(
+        bpy.types, "OBJECT_MT_modifier_add", None
+    )
 
 
 def register() -> None:
-    """Register the operators."""
+    """Register the operators and the Add Modifier menu entry."""
     for cls in classes:
         bpy.utils.register_class(cls)
+    menu = _modifier_menu()
+    if menu is not None:
+        menu.append(_menu_entry)
 
 
 def unregister() -> None:
-    """Unregister the operators."""
+    """Unregister the operators and the menu entry."""
+    menu = _modifier_menu()
+    if menu is not None:
+        menu.remove(_menu_entry)
     for cls in reversed(classes):
         bpy.utils.unregister_class(cls)

@@ -1,15 +1,17 @@
-"""The bidegree panel (Properties editor, Modifiers tab)."""
+"""The bidegree panel (Properties editor, Modifiers tab): status and actions of the object's
+bidegree modifiers, beside the modifiers themselves (whose inputs are the settings)."""
 
 from __future__ import annotations
 
 import bpy
+from bidegree_blender import modifier
 
 
 class BIDEGREE_PT_surface(bpy.types.Panel):
-    """Settings, status and actions of the object's bidegree surface."""
+    """Status, errors and actions of the object's bidegree surfaces."""
 
     bl_idname = "BIDEGREE_PT_surface"
-    bl_label = "bidegree Surface"
+    bl_label = "bidegree"
     bl_space_type = "PROPERTIES"
     bl_region_type = "WINDOW"
     bl_context = "modifier"
@@ -17,52 +19,33 @@ class BIDEGREE_PT_surface(bpy.types.Panel):
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
         obj = getattr(context, "object", None)
-        return obj is not None and obj.type == "MESH" and "bidegree_result_of" not in obj
-
-    def draw_header(self, context: bpy.types.Context) -> None:
-        self.layout.prop(context.object.bidegree, "enabled", text="")
+        return obj is not None and obj.type == "MESH" and not modifier.is_holder(obj)
 
     def draw(self, context: bpy.types.Context) -> None:
         layout = self.layout
-        layout.use_property_split = True
-        props = context.object.bidegree
-
-        col = layout.column()
-        col.active = props.enabled
-        col.prop(props, "degree")
-        col.prop(props, "rules")
-        sub = col.column(align=True)
-        sub.prop(props, "levels", text="Levels Viewport")
-        sub.prop(props, "render_levels", text="Render")
-        col.prop(props, "output")
-        col.prop(props, "boundary")
-        col.prop(props, "use_creases")
-        col.prop(props, "uv_mode")
-        sub = col.column(heading="Limit Surface", align=True)
-        sub.prop(props, "use_limit", text="Positions")
-        sub.prop(props, "use_limit_normals", text="Normals")
-        col.prop(props, "adaptive")
-        sub = col.column()
-        sub.active = props.adaptive
-        sub.prop(props, "tolerance")
-
-        box = layout.box()
-        status = box.column(align=True)
-        status.label(
-            text=f"Cage: {props.cage_faces:,} faces   Result: {props.result_faces:,} faces"
-        )
-        if props.last_action:
-            status.label(text=f"Last update: {props.last_update_ms:.1f} ms ({props.last_action})")
-        if props.last_warning:
-            status.label(text=props.last_warning, icon="INFO")
-        if props.last_error:
-            for i, chunk in enumerate(_wrap(props.last_error, 60)):
-                status.label(text=chunk, icon="ERROR" if i == 0 else "BLANK1")
-
+        obj = context.object
+        mods = modifier.bidegree_modifiers(obj)
+        if not mods:
+            layout.operator("object.bidegree_add", icon="MOD_SUBSURF")
+            return
+        for mod in mods:
+            state = modifier.status(obj, mod)
+            box = layout.box()
+            col = box.column(align=True)
+            col.label(text=mod.name, icon="MOD_SUBSURF")
+            col.label(text=f"Cage: {state.cage_faces:,} faces   Result: {state.result_faces:,}")
+            if state.action:
+                col.label(text=f"Last update: {state.milliseconds:.1f} ms ({state.action})")
+            if state.warning:
+                col.label(text=state.warning, icon="INFO")
+            for text, icon in ((state.error, "ERROR"), (state.render_error, "RENDER_STILL")):
+                for i, chunk in enumerate(_wrap(text, 60)):
+                    col.label(text=chunk, icon=icon if i == 0 else "BLANK1")
         row = layout.row(align=True)
         row.operator("object.bidegree_apply", icon="CHECKMARK")
         row.operator("object.bidegree_export_usd", icon="EXPORT")
-        row.operator("object.bidegree_remove", icon="X")
+        if not context.scene.render.use_lock_interface:
+            layout.label(text="Render > Lock Interface is off: renders use viewport levels")
 
 
 def _wrap(text: str, width: int) -> list[str]:

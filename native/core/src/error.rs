@@ -66,6 +66,35 @@ pub enum Error {
     /// A bug: an internal invariant failed (a caught panic). Please report it.
     #[error("internal error: {0}")]
     Internal(String),
+    /// The output has a NaN or infinite value although the input was finite: the values
+    /// overflow the floating-point type of the computation (float32 beyond about 3.4e38).
+    #[error(
+        "output vertex {vertex} is not finite: the input's values overflow {scalar} in the \
+         computation (scale the cage down or use float64)"
+    )]
+    NonFiniteOutput { vertex: usize, scalar: &'static str },
+    /// The work was stopped by its caller (a signal such as Ctrl-C); nothing was written.
+    #[error("interrupted: {0}")]
+    Interrupted(String),
+    /// An error restated in the terms of the file the mesh came from: `message` names the file,
+    /// the line (when the error has one) and the file's own indices (1-based OBJ vertices);
+    /// `error` is the same error in the mesh's 0-based terms, with its kind and details.
+    #[error("{message}")]
+    InFile {
+        message: String,
+        line: Option<usize>,
+        error: Box<Error>,
+    },
+}
+
+impl Error {
+    /// The error itself, without the file context of [`Error::InFile`].
+    pub fn kind(&self) -> &Error {
+        match self {
+            Error::InFile { error, .. } => error.kind(),
+            other => other,
+        }
+    }
 }
 
 /// Result type of the crate.

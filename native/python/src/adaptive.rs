@@ -7,40 +7,31 @@ use numpy::{Element, PyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use super::{
-    array2, contiguous, floats, invalid, parse_boundary, run, to_i32, to_py_err, Floats, PyCage,
-};
-use bidegree::{Error, DEFAULT_MEMORY_BUDGET, MAX_DEGREE, MAX_LEVELS};
+use crate::arrays::{array2, check_output, contiguous, floats, to_i32, Floats};
+use crate::cage::PyCage;
+use crate::errors::{invalid, to_py_err};
+use crate::options::{degree, levels, memory_budget, parse_boundary};
 
 /// Registers the adaptive functions in the extension module.
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(subdivide_adaptive, m)?)
 }
 
-/// Options from Python arguments (degree and level as `i64`, so that negative or huge values
-/// are reported as the range errors they are).
+/// Options from Python arguments.
 fn adaptive_options(
     degree: i64,
     max_level: i64,
     tolerance: f64,
     boundary: &str,
-    memory_budget: Option<u64>,
+    budget: Option<u64>,
     measure_leaves: bool,
 ) -> bidegree::Result<AdaptiveOptions> {
-    let degree = u32::try_from(degree).map_err(|_| Error::DegreeOutOfRange {
-        degree,
-        max: MAX_DEGREE,
-    })?;
-    let max_level = u32::try_from(max_level).map_err(|_| Error::LevelOutOfRange {
-        levels: max_level,
-        max: MAX_LEVELS,
-    })?;
     Ok(AdaptiveOptions {
-        degree,
-        max_level,
+        degree: self::degree(degree)?,
+        max_level: levels(max_level)?,
         tolerance,
         boundary: parse_boundary(boundary)?,
-        memory_budget: memory_budget.unwrap_or(DEFAULT_MEMORY_BUDGET),
+        memory_budget: memory_budget(budget),
         measure_leaves,
     })
 }
@@ -63,7 +54,7 @@ fn subdivide_adaptive<'py>(
     memory_budget: Option<u64>,
     measure_leaves: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let cage = &cage.get().inner;
+    let cage = cage.get();
     let options = adaptive_options(
         degree,
         max_level,
@@ -81,19 +72,20 @@ fn subdivide_adaptive<'py>(
 
 fn adaptive<'py, T: Scalar + Element>(
     py: Python<'py>,
-    cage: &bidegree::Cage,
+    cage: &PyCage,
     points: &PyReadonlyArray2<'_, T>,
     options: AdaptiveOptions,
 ) -> PyResult<Bound<'py, PyDict>> {
     let channels = points.shape()[1];
     let data = contiguous(points, "points")?;
-    let (mesh, triangles, face_origin, triangle_level, vertex_level) = run(py, || {
+    let (mesh, triangles, face_origin, triangle_level, vertex_level) = cage.run(py, |cage| {
         if channels != 3 {
             return Err(invalid(format!(
                 "adaptive subdivision needs 3-D points, not {channels} channels"
             )));
         }
         let mesh: AdaptiveMesh<T> = core_adaptive(cage, data, &options)?;
+        check_output(&mesh.points, 3, data)?;
         let triangles = to_i32(mesh.triangles.as_flattened())?;
         let face_origin = to_i32(&mesh.face_origin)?;
         let triangle_level = to_i32(&mesh.triangle_level)?;

@@ -5,6 +5,10 @@ core's error and its details as attributes (for example ``RepeatedVertexError.fa
 ``.vertex``). All errors derive from :class:`BidegreeError`; input errors are also
 :class:`ValueError`, index errors :class:`IndexError`, file errors :class:`OSError`, so ordinary
 ``except`` clauses work too.
+
+Errors about a mesh read from an OBJ file are told in the file's terms: the message starts with
+``path:LINE:`` and uses the file's 1-based vertex indices (tags keep their 0-based ones), the
+attribute ``line`` holds the line, and the other attributes keep the mesh's 0-based indices.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ __all__ = [
     "MemoryBudgetError",
     "NonFiniteError",
     "NonManifoldEdgeError",
+    "ObjWarning",
     "RepeatedVertexError",
 ]
 
@@ -52,7 +57,9 @@ class IndexOutOfRangeError(BidegreeError, IndexError):
 
 
 class NonFiniteError(BidegreeError, ValueError):
-    """A coordinate is NaN or infinite (attribute ``vertex``)."""
+    """A coordinate is NaN or infinite (attribute ``vertex``; ``corner`` for face-varying
+    values such as UVs), or a result overflowed its floating-point type although its input was
+    finite (float32 beyond about 3.4e38; ``vertex`` is then the output vertex)."""
 
 
 class DegenerateFaceError(BidegreeError, ValueError):
@@ -95,8 +102,16 @@ class BidegreeIOError(BidegreeError, OSError):
 
 
 class InternalError(BidegreeError, RuntimeError):
-    """A bug in bidegree (a caught panic of the Rust core). Please report it."""
+    """A bug in bidegree (a caught panic of the Rust core). Please report it. The message
+    says no more than that; the attribute ``detail`` holds the panic's text and location in the
+    source, for the report."""
 
 
 class IsolatedVerticesWarning(UserWarning):
     """Cage vertices that belong to no face were dropped from the output."""
+
+
+class ObjWarning(UserWarning):
+    """An OBJ file has statements or tags bidegree does not use (unknown statements, free-form
+    geometry, OpenSubdiv tags other than crease, corner, interpolateboundary and creasemethod):
+    they were skipped. One warning per kind, ``path:LINE:`` of the first one."""

@@ -16,6 +16,7 @@ MAX_DEGREE: int
 MAX_LEVELS: int
 DEFAULT_MEMORY_BUDGET: int
 INFINITELY_SHARP: float
+DEFAULT_MAX_INPUT_BYTES: int
 
 _Float: TypeAlias = NDArray[np.float32] | NDArray[np.float64]
 _Output: TypeAlias = Literal["primal", "dual"]
@@ -31,6 +32,7 @@ class Cage:
         crease_sharpness: NDArray[np.float32],
         corner_vertices: NDArray[np.int64],
         corner_sharpness: NDArray[np.float32],
+        source: ObjSource | None = None,
     ) -> None: ...
     @property
     def num_vertices(self) -> int: ...
@@ -99,6 +101,15 @@ class _ObjData(TypedDict):
     corner_vertices: NDArray[np.int64]
     corner_sharpness: NDArray[np.float32]
     boundary: _Boundary | None
+    creasing: Literal["uniform", "chaikin"] | None
+    warnings: list[str]
+    source: ObjSource
+
+class ObjSource:
+    """Lines of the faces, creases and corners of a file read by :func:`read_obj`."""
+    @property
+    def name(self) -> str: ...
+    def face_lines(self) -> NDArray[np.uint64]: ...
 
 def subdivide(
     cage: Cage,
@@ -115,7 +126,9 @@ def subdivide(
 def estimate(
     cage: Cage, degree: int, levels: int, output: str = "primal", boundary: str = "edge-only"
 ) -> tuple[int, int, int]: ...
-def read_obj(path: str | os.PathLike[str]) -> _ObjData: ...
+def read_obj(
+    path: str | os.PathLike[str], max_bytes: int | None = None, memory_budget: int | None = None
+) -> _ObjData: ...
 def write_obj(
     path: str | os.PathLike[str],
     points: _Float,

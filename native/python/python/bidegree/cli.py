@@ -9,22 +9,28 @@ Other modules can provide subcommands: a module ``bidegree.<name>`` listed in
 :data:`OPTIONAL_SUBCOMMANDS` that defines ``add_arguments(parser)`` and ``run(args) -> int`` is
 registered as ``bidegree <name>`` when it imports.
 
-Errors (bad files, invalid meshes, refused requests) print one line, ``bidegree: error: ...``,
-on stderr and exit with status 2.
+Errors (bad files, invalid meshes, refused requests, a bug in the core) print one line,
+``bidegree: error: ...``, on stderr and exit with status 2; warnings print
+``bidegree: warning: ...`` lines. SIGINT (Ctrl-C) and SIGTERM stop the work, remove any output
+file being written (the target keeps what it had) and exit with 130 and 143. With
+``BIDEGREE_DEBUG=1`` in the environment an internal error also prints where the core failed.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
+import signal
 import sys
 import time
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 import bidegree
+from bidegree.options import Options
 
 #: Modules ``bidegree.<name>`` registered as subcommands when they import (with help text).
 OPTIONAL_SUBCOMMANDS: dict[str, str] = {
@@ -38,6 +44,57 @@ _SIZE_SUFFIXES = {"k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40}
 
 class CliError(Exception):
     """A user error found by the command line itself (bad option value, missing module)."""
+
+
+class Terminated(BaseException):
+    """Raised by the SIGTERM handler (a ``BaseException`` like ``KeyboardInterrupt``: it stops
+    the work wherever it is, and cleanup code runs on the way out)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def _signals_stop_the_work() -> Iterator[None]:
+    """SIGTERM raises :class:`Terminated` while the command runs (SIGINT already raises
+    ``KeyboardInterrupt``). The core's file readers and writers run Python's signal handlers
+    between chunks, so either signal stops a long read or write and removes its temporary
+    file. Outside the main thread (``main`` called from a worker) nothing is installed."""
+
+    def terminate(signum: int, frame: Any) -> None:
+        raise Terminated(signum)
+
+    try:
+        previous = signal.signal(signal.SIGTERM, terminate)
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+@contextlib.contextmanager
+def _printing_warnings() -> Iterator[None]:
+    """Prints bidegree's warnings (isolated vertices, skipped OBJ statements) as
+    ``bidegree: warning: ...`` lines on stderr, each once."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", bidegree.IsolatedVerticesWarning)
+        warnings.simplefilter("always", bidegree.ObjWarning)
+        try:
+            yield
+        finally:
+            for warning in caught:
+                print(f"bidegree: warning: {_one_line(str(warning.message))}", file=sys.stderr)
+
+
+def _one_line(text: str) -> str:
+    """``text`` as one printable line: line breaks become spaces, other control characters
+    (which a file's content could carry into a message) are escaped."""
+    text = " ".join(text.splitlines())
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in text)
 
 
 def parse_size(text: str) -> int:
@@ -96,11 +153,25 @@ def _add_subdivide(parser: argparse.ArgumentParser) -> None:
         help="averaging (default, any degree) or classic (3: OpenSubdiv catmark, 2: Doo-Sabin)",
     )
     parser.add_argument(
+        "--creasing",
+        choices=("uniform", "chaikin"),
+        default=None,
+        help="classic rules: how semi-sharp creases decrease per level (default: the OBJ's "
+        "'t creasemethod' tag, else uniform)",
+    )
+    parser.add_argument(
         "--memory-budget",
         type=parse_size,
         default=None,
         metavar="BYTES",
         help="refuse requests estimated above this size (e.g. 8G; default 4G)",
+    )
+    parser.add_argument(
+        "--max-input-bytes",
+        type=parse_size,
+        default=None,
+        metavar="BYTES",
+        help="refuse input files larger than this (e.g. 8G; default 2G)",
     )
     parser.add_argument(
         "--limit",
@@ -147,22 +218,11 @@ def _run_adaptive(args: argparse.Namespace, say: Callable[[str], None]) -> int:
     if args.limit or args.normals:
         raise CliError("--adaptive does not compute limit positions or normals yet")
     start = time.perf_counter()
-    cage = bidegree.Mesh.from_obj(args.input, boundary=args.boundary)
+    cage = _read_cage(args)
     say(f"cage: {cage.num_vertices} vertices, {cage.num_faces} faces ({args.input})")
     max_level = args.levels if args.max_level is None else args.max_level
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", bidegree.IsolatedVerticesWarning)
-        result = bidegree.subdivide_adaptive(
-            cage,
-            degree=args.degree,
-            max_level=max_level,
-            tolerance=args.tolerance,
-            memory_budget=args.memory_budget,
-        )
+    result = Options.from_namespace(args).subdivide_adaptive(cage)
     elapsed = time.perf_counter() - start
-    for warning in caught:
-        text = " ".join(str(warning.message).split("\n"))
-        print(f"bidegree: warning: {text}", file=sys.stderr)
     leaves = ", ".join(
         f"{n} at level {level}" for level, n in enumerate(result.leaves_per_level) if n
     )
@@ -178,6 +238,17 @@ def _run_adaptive(args: argparse.Namespace, say: Callable[[str], None]) -> int:
     result.write_obj(args.out)
     say(f"wrote {args.out} in {_seconds(time.perf_counter() - start)}")
     return 0
+
+
+def _read_cage(args: argparse.Namespace) -> bidegree.Mesh:
+    """The input cage, with the file's tags unless the options override them."""
+    return bidegree.Mesh.from_obj(
+        args.input,
+        boundary=args.boundary,
+        creasing=args.creasing,
+        max_bytes=args.max_input_bytes,
+        memory_budget=args.memory_budget,
+    )
 
 
 def _export_usd(path: str, cage: bidegree.Mesh, result: bidegree.Result) -> None:
@@ -200,7 +271,7 @@ def _run_subdivide(args: argparse.Namespace) -> int:
         return _run_adaptive(args, say)
 
     start = time.perf_counter()
-    cage = bidegree.Mesh.from_obj(args.input, boundary=args.boundary)
+    cage = _read_cage(args)
     read_time = time.perf_counter() - start
     say(
         f"cage: {cage.num_vertices} vertices, {cage.num_faces} faces ({args.input}, read in "
@@ -208,22 +279,8 @@ def _run_subdivide(args: argparse.Namespace) -> int:
     )
 
     start = time.perf_counter()
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", bidegree.IsolatedVerticesWarning)
-        result = bidegree.subdivide(
-            cage,
-            degree=args.degree,
-            levels=args.levels,
-            output=args.output,
-            memory_budget=args.memory_budget,
-            rules=args.rules,
-            limit=args.limit,
-            normals=args.normals,
-        )
+    result = Options.from_namespace(args).subdivide(cage)
     subdivide_time = time.perf_counter() - start
-    for warning in caught:
-        text = " ".join(str(warning.message).split("\n"))
-        print(f"bidegree: warning: {text}", file=sys.stderr)
     surface = ", limit positions" if args.limit else ""
     surface += ", limit normals" if args.normals else ""
     say(
@@ -322,14 +379,23 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help(sys.stderr)
         return 2
     try:
-        return int(handler(args) or 0)
+        with _signals_stop_the_work(), _printing_warnings():
+            return int(handler(args) or 0)
     except (bidegree.BidegreeError, CliError, OSError) as exc:
-        message = " ".join(str(exc).split("\n")) or type(exc).__name__
-        print(f"bidegree: error: {message}", file=sys.stderr)
+        print(f"bidegree: error: {_one_line(str(exc)) or type(exc).__name__}", file=sys.stderr)
+        detail = getattr(exc, "detail", None)
+        if detail and os.environ.get("BIDEGREE_DEBUG", "0") not in ("", "0"):
+            print(f"bidegree: debug: {_one_line(str(detail))}", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print("bidegree: error: out of memory (lower --levels or --memory-budget)", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("bidegree: interrupted", file=sys.stderr)
         return 130
+    except Terminated as exc:
+        print(f"bidegree: terminated ({exc})", file=sys.stderr)
+        return 128 + exc.signum
 
 
 if __name__ == "__main__":

@@ -19,7 +19,14 @@ How OpenSubdiv is run: Blender as a Python module (``bpy``)
     ``boundary_smooth='ALL'`` = edge-only, ``'PRESERVE_CORNERS'`` = edge-and-corner; creases as
     the ``crease_edge`` / ``crease_vert`` float attributes, Blender value c = sqrt(sharpness / 10)
     clamped to 1, which Blender turns back into sharpness 10 c^2), the depsgraph evaluates it,
-    and the result is read back with ``foreach_get``.  Binding OpenSubdiv directly from Rust
+    and the result is read back with ``foreach_get``.  UVs go in as the UV map and come back per
+    face corner, refined in one of OpenSubdiv's six face-varying modes (:data:`UV_SMOOTH`); every
+    face carries its cage face's index through the modifier as an integer face attribute, which
+    is how holes (which Blender does not have) are left out of the result, and boundary
+    ``none`` (which Blender does not have either) is edge-only with OpenSubdiv's boundary faces
+    as holes; loose edges go in as edges (Blender makes their vertices infinitely sharp).
+    ``docs/research/`` says how each of these was checked against OpenSubdiv itself.  Binding
+    OpenSubdiv directly from Rust
     (e.g. the ``opensubdiv-petite`` crate behind a cargo feature) remains possible later; it would
     remove the bpy dependency of this tool but needs a C++ build of OpenSubdiv.
 
@@ -61,9 +68,12 @@ from typing import Any
 import numpy as np
 
 __all__ = [
+    "UV_SMOOTH",
     "Comparison",
     "SurfaceMesh",
     "add_arguments",
+    "blender_mesh",
+    "boundary_none_holes",
     "compare",
     "distances_to_mesh",
     "nearest_point_distances",
@@ -82,11 +92,14 @@ _CHUNK = 65_536  # (query, triangle) pairs evaluated at once (cache-sized)
 
 @dataclass
 class SurfaceMesh:
-    """A polygon mesh: points (N, 3) float64, face_sizes (F,) int32, face_indices (sum,) int32."""
+    """A polygon mesh: points (N, 3) float64, face_sizes (F,) int32, face_indices (sum,) int32;
+    optionally the cage face of each face (F,) int32 and face-varying values (sum, 2) float64."""
 
     points: np.ndarray
     face_sizes: np.ndarray
     face_indices: np.ndarray
+    face_origin: np.ndarray | None = None
+    uvs: np.ndarray | None = None
 
     @property
     def num_vertices(self) -> int:
@@ -405,49 +418,94 @@ def _pair_arrays(value: Any) -> tuple[np.ndarray, np.ndarray] | None:
     return first, second
 
 
-def opensubdiv_surface(
-    cage: Any, levels: int, *, limit: bool = False, boundary: str | None = None
-) -> SurfaceMesh:
-    """OpenSubdiv Catmull-Clark surface of ``cage`` after ``levels`` uniform levels (via bpy).
+#: Face-varying modes (OpenSubdiv's ``Sdc::Options::FVarLinearInterpolation``, issue 14's names)
+#: -> Blender's ``uv_smooth`` (``BKE_subdiv_fvar_interpolation_from_uv_smooth``). Blender's
+#: ``NONE`` is OpenSubdiv's linear ``ALL`` and Blender's ``SMOOTH_ALL`` OpenSubdiv's ``NONE``.
+UV_SMOOTH = {
+    "none": "SMOOTH_ALL",
+    "corners-only": "PRESERVE_CORNERS",
+    "corners-plus1": "PRESERVE_CORNERS_AND_JUNCTIONS",
+    "corners-plus2": "PRESERVE_CORNERS_JUNCTIONS_AND_CONCAVE",
+    "boundaries": "PRESERVE_BOUNDARIES",
+    "all": "NONE",
+}
 
-    Args:
-        cage: a :class:`bidegree.Mesh` (points, face_sizes, face_indices, creases, corners,
-            boundary).
-        levels: refinement levels, 0..11 (Blender's limit).
-        limit: False = uniformly refined points; True = the refined vertices at their limit
-            positions.
-        boundary: ``"edge-only"`` or ``"edge-and-corner"``; default: the cage's.
+#: Name of the face attribute that carries each cage face's index through the modifier.
+_ORIGIN = "bidegree_compare_origin"
 
-    Returns the refined mesh (points float64; only faces' vertices, loose vertices dropped).
+
+def _edge_keys(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
+    lo, hi = np.minimum(a, b).astype(np.int64), np.maximum(a, b).astype(np.int64)
+    return lo * n + hi
+
+
+def boundary_none_holes(cage: Any) -> np.ndarray:
+    """The faces OpenSubdiv makes holes under ``VTX_BOUNDARY_NONE`` (sorted face indices).
+
+    ``Far::TopologyRefinerFactoryBase::prepareComponentTagsAndSharpness``: every face at a vertex
+    that has a boundary edge (one face) which the user did not make infinitely sharp. A degenerate
+    edge (a face repeating a vertex consecutively) is an edge of its own with one face there.
     """
-    import bpy  # Blender as a Python module: runs OpenSubdiv
+    sizes = np.asarray(cage.face_sizes, dtype=np.int64)
+    idx = np.asarray(cage.face_indices, dtype=np.int64)
+    n = int(np.asarray(cage.points).shape[0])
+    starts = np.zeros(sizes.size, dtype=np.int64)
+    np.cumsum(sizes[:-1], out=starts[1:])
+    face = np.repeat(np.arange(sizes.size), sizes)
+    nxt = np.arange(1, idx.size + 1)
+    nxt[starts + sizes - 1] = starts
+    a, b = idx, idx[nxt]
+    keys = _edge_keys(a, b, n)
+    _, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
+    boundary = (counts[inverse] == 1) | (a == b)
+    creases = _pair_arrays(getattr(cage, "creases", None))
+    if creases is not None:
+        pairs, sharp = creases
+        pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+        infinite = np.asarray(sharp, dtype=np.float64) >= 10.0
+        sharp_keys = _edge_keys(pairs[infinite, 0], pairs[infinite, 1], n)
+        boundary &= ~np.isin(keys, sharp_keys)
+    open_vertices = np.zeros(n, dtype=bool)
+    open_vertices[a[boundary]] = True
+    open_vertices[b[boundary]] = True
+    return np.unique(face[open_vertices[idx]])
 
-    levels = int(levels)
-    if not 0 <= levels <= MAX_BPY_LEVELS:
-        raise ValueError(
-            f"OpenSubdiv (Blender) levels must be in 0..{MAX_BPY_LEVELS}, got {levels}"
-        )
-    boundary = boundary or str(getattr(cage, "boundary", "edge-only"))
-    smooth = {"edge-only": "ALL", "edge-and-corner": "PRESERVE_CORNERS"}.get(boundary)
-    if smooth is None:
-        raise ValueError(f"unknown boundary mode {boundary!r}")
+
+def blender_mesh(cage: Any, name: str) -> Any:
+    """A new ``bpy.types.Mesh`` of ``cage`` as :func:`opensubdiv_surface` hands it to Blender.
+
+    Faces (a face may repeat a vertex), ``loose_edges`` when present, each face's index in the
+    integer face attribute ``bidegree_compare_origin`` (Blender's modifier carries it to every
+    child face), ``uvs`` as the UV map ``UVMap``, creases and corners as the ``crease_edge`` /
+    ``crease_vert`` attributes (Blender value ``c`` with sharpness ``10 c^2``). The caller owns
+    the mesh (``bpy.data.meshes.remove``).
+    """
+    import bpy
 
     points = np.asarray(cage.points, dtype=np.float32)
     sizes = np.asarray(cage.face_sizes, dtype=np.int32)
     indices = np.asarray(cage.face_indices, dtype=np.int32)
     starts = np.zeros(sizes.size, dtype=np.int32)
     np.cumsum(sizes[:-1], out=starts[1:])
-
-    me = bpy.data.meshes.new("bidegree_compare_cage")
-    obj = None
+    uvs = getattr(cage, "uvs", None)
+    loose = np.asarray(getattr(cage, "loose_edges", None) or [], dtype=np.int32).reshape(-1, 2)
+    me = bpy.data.meshes.new(name)
     try:
         me.vertices.add(points.shape[0])
         me.vertices.foreach_set("co", points.ravel())
+        if len(loose):
+            me.edges.add(len(loose))
+            me.edges.foreach_set("vertices", loose.ravel())
         me.loops.add(indices.size)
         me.loops.foreach_set("vertex_index", indices)
         me.polygons.add(sizes.size)
         me.polygons.foreach_set("loop_start", starts)
         me.update(calc_edges=True)
+        origin = me.attributes.new(_ORIGIN, "INT", "FACE")
+        origin.data.foreach_set("value", np.arange(sizes.size, dtype=np.int32))
+        if uvs is not None:
+            layer = me.uv_layers.new(name="UVMap")
+            layer.data.foreach_set("uv", np.asarray(uvs, dtype=np.float32).ravel())
 
         creases = _pair_arrays(getattr(cage, "creases", None))
         if creases is not None:
@@ -478,7 +536,66 @@ def opensubdiv_surface(
             attr = me.attributes.new("crease_vert", "FLOAT", "POINT")
             attr.data.foreach_set("value", values)
         me.update()
+    except BaseException:
+        bpy.data.meshes.remove(me)
+        raise
+    return me
 
+
+def opensubdiv_surface(
+    cage: Any,
+    levels: int,
+    *,
+    limit: bool = False,
+    boundary: str | None = None,
+    uv_mode: str = "all",
+) -> SurfaceMesh:
+    """OpenSubdiv Catmull-Clark surface of ``cage`` after ``levels`` uniform levels (via bpy).
+
+    Args:
+        cage: a :class:`bidegree.Mesh` or anything with its attributes (points, face_sizes,
+            face_indices, creases, corners, boundary; ``uvs`` (one per face corner), ``holes``
+            (face indices) and ``loose_edges`` (vertex pairs) are read when present).
+        levels: refinement levels, 0..11 (Blender's limit).
+        limit: False = uniformly refined points; True = the refined vertices at their limit
+            positions.
+        boundary: ``"edge-only"``, ``"edge-and-corner"`` or ``"none"``; default: the cage's.
+        uv_mode: how ``cage.uvs`` is refined, one of :data:`UV_SMOOTH` (OpenSubdiv's
+            face-varying modes; ``"all"`` is linear).
+
+    Blender has no holes and no boundary mode ``none``; both are what OpenSubdiv makes of them:
+    the refinement of the whole cage (holes do not change any rule; under ``none`` the boundary
+    rule reaches no vertex of a face that is kept, see ``docs/research/non-manifold.md``), with
+    the faces that come from a hole (``none``: from :func:`boundary_none_holes`) left out.
+    Blender makes a vertex on a loose edge infinitely sharp and drops vertices in no face.
+
+    Returns the refined mesh: points float64 (only vertices of the faces kept), ``face_origin``
+    (the cage face of each face) and, when the cage has UVs, ``uvs`` per face corner.
+    """
+    import bpy  # Blender as a Python module: runs OpenSubdiv
+
+    levels = int(levels)
+    if not 0 <= levels <= MAX_BPY_LEVELS:
+        raise ValueError(
+            f"OpenSubdiv (Blender) levels must be in 0..{MAX_BPY_LEVELS}, got {levels}"
+        )
+    boundary = boundary or str(getattr(cage, "boundary", "edge-only"))
+    smooth = {"edge-only": "ALL", "edge-and-corner": "PRESERVE_CORNERS", "none": "ALL"}.get(
+        boundary
+    )
+    if smooth is None:
+        raise ValueError(f"unknown boundary mode {boundary!r}")
+    if uv_mode not in UV_SMOOTH:
+        raise ValueError(f"unknown face-varying mode {uv_mode!r}; one of {sorted(UV_SMOOTH)}")
+
+    has_uvs = getattr(cage, "uvs", None) is not None
+    holes = np.asarray(getattr(cage, "holes", None) or [], dtype=np.int64)
+    if boundary == "none":
+        holes = np.union1d(holes, boundary_none_holes(cage))
+
+    me = blender_mesh(cage, "bidegree_compare_cage")
+    obj = None
+    try:
         obj = bpy.data.objects.new("bidegree_compare_cage", me)
         bpy.context.scene.collection.objects.link(obj)
         mod = obj.modifiers.new("OpenSubdiv", "SUBSURF")
@@ -490,7 +607,7 @@ def opensubdiv_surface(
         mod.boundary_smooth = smooth
         mod.use_creases = True
         mod.use_custom_normals = False
-        mod.uv_smooth = "NONE"
+        mod.uv_smooth = UV_SMOOTH[uv_mode]
 
         depsgraph = bpy.context.evaluated_depsgraph_get()
         evaluated = obj.evaluated_get(depsgraph)
@@ -505,6 +622,13 @@ def opensubdiv_surface(
             out.polygons.foreach_get("loop_start", loop_start)
             vidx = np.empty(nl, dtype=np.int32)
             out.loops.foreach_get("vertex_index", vidx)
+            face_origin = np.empty(nf, dtype=np.int32)
+            out.attributes[_ORIGIN].data.foreach_get("value", face_origin)
+            corner_uvs = None
+            if has_uvs:
+                corner_uvs = np.empty(2 * nl, dtype=np.float32)
+                out.uv_layers["UVMap"].data.foreach_get("uv", corner_uvs)
+                corner_uvs = corner_uvs.reshape(-1, 2).astype(np.float64)
         finally:
             evaluated.to_mesh_clear()
     finally:
@@ -512,20 +636,29 @@ def opensubdiv_surface(
             bpy.data.objects.remove(obj, do_unlink=True)
         bpy.data.meshes.remove(me)
 
-    # polygons are stored in loop order in Blender; be safe if they are not
+    # Faces in loop order (Blender stores them so; be safe if not), holes left out.
     order = np.argsort(loop_start, kind="stable")
-    loop_start, loop_total = loop_start[order], loop_total[order]
-    if not np.array_equal(loop_start[1:], np.cumsum(loop_total)[:-1]) or (
-        nf and loop_start[0] != 0
-    ):
-        pieces = [vidx[s : s + t] for s, t in zip(loop_start, loop_total, strict=True)]
-        vidx = np.concatenate(pieces) if pieces else vidx[:0]
-    # drop loose vertices (Blender keeps them; bidegree drops them)
+    if holes.size:
+        order = order[~np.isin(face_origin[order], holes)]
+    loop_start, loop_total, face_origin = loop_start[order], loop_total[order], face_origin[order]
+    ends = np.cumsum(loop_total, dtype=np.int64)
+    total = int(ends[-1]) if ends.size else 0
+    corners_kept = np.repeat(loop_start - (ends - loop_total), loop_total) + np.arange(total)
+    vidx = vidx[corners_kept]
+    if corner_uvs is not None:
+        corner_uvs = corner_uvs[corners_kept]
+    # drop vertices no kept face uses (Blender keeps loose ones; bidegree drops them)
     used = np.unique(vidx)
     remap = np.full(nv, -1, dtype=np.int64)
     remap[used] = np.arange(used.size)
     pts = co.reshape(-1, 3).astype(np.float64)[used]
-    return SurfaceMesh(pts, loop_total.astype(np.int32), remap[vidx].astype(np.int32))
+    return SurfaceMesh(
+        pts,
+        loop_total.astype(np.int32),
+        remap[vidx].astype(np.int32),
+        face_origin=face_origin.astype(np.int32),
+        uvs=corner_uvs,
+    )
 
 
 # --------------------------------------------------------------------------------------------

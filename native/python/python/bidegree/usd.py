@@ -98,6 +98,11 @@ class _Topology:
             raise InvalidInputError(f"{what}: no points")
         if not np.all(np.isfinite(pts)):
             raise InvalidInputError(f"{what}: points contain NaN or infinite values")
+        largest = float(np.abs(pts).max())
+        if largest > np.finfo(np.float32).max:
+            raise InvalidInputError(
+                f"{what}: points reach {largest:.3g}, beyond float32 (USD writes point3f)"
+            )
         sizes = np.asarray(face_sizes)
         indices = np.asarray(face_indices)
         if sizes.ndim != 1 or indices.ndim != 1:

@@ -48,6 +48,8 @@ class CageArrays:
         edge_creases: ``(E,)`` float32 crease values in ``[0, 1]`` or ``None``.
         vert_creases: ``(V,)`` float32 crease values in ``[0, 1]`` or ``None``.
         uv_maps: UV map name -> ``(C, 2)`` float32 face-varying coordinates.
+        vertex_groups: vertex group name -> ``(V,)`` float32 weights (0 where a vertex is not
+            in the group), in the object's group order.
         active_uv: name of the active render UV map (or ``None``).
         material_index: ``(F,)`` int32 or ``None`` when the mesh has no such attribute.
         sharp_face: ``(F,)`` bool or ``None`` when the mesh has no such attribute.
@@ -64,6 +66,7 @@ class CageArrays:
     active_uv: str | None = None
     material_index: np.ndarray | None = None
     sharp_face: np.ndarray | None = None
+    vertex_groups: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def num_vertices(self) -> int:
@@ -131,8 +134,12 @@ def read_mesh(mesh: bpy.types.Mesh, *, use_creases: bool = True) -> CageArrays:
     ne = len(mesh.edges)
     nc = len(mesh.loops)
     nf = len(mesh.polygons)
+    position = mesh.attributes.get("position")
+    if nv == 0 or position is None:
+        # An empty mesh has no position attribute at all.
+        raise bidegree.EmptyMeshError("the mesh has no vertices to subdivide")
 
-    points = _get(mesh.attributes["position"].data, "vector", nv, np.float32, 3)
+    points = _get(position.data, "vector", nv, np.float32, 3)
     edges = (
         _get(mesh.attributes[".edge_verts"].data, "value", ne, np.int32, 2)
         if ne
@@ -181,6 +188,39 @@ def read_mesh(mesh: bpy.types.Mesh, *, use_creases: bool = True) -> CageArrays:
     if attr is not None and nf:
         cage.sharp_face = _get(attr.data, "value", nf, bool)
     return cage
+
+
+def read_vertex_groups(mesh: bpy.types.Mesh, names: list[str]) -> dict[str, np.ndarray]:
+    """The weights of the vertex groups ``names`` (the object's groups, in order) on ``mesh``.
+
+    Blender has no bulk access to vertex group weights, so this walks the vertices in Python:
+    it is only called for meshes that have vertex groups.
+    """
+    weights = np.zeros((len(names), len(mesh.vertices)), dtype=np.float32)
+    for vertex in mesh.vertices:
+        for element in vertex.groups:
+            if element.group < len(names):
+                weights[element.group, vertex.index] = element.weight
+    return {name: weights[i] for i, name in enumerate(names)}
+
+
+def write_vertex_groups(obj: bpy.types.Object, groups: dict[str, np.ndarray]) -> None:
+    """Make ``groups`` (name -> weight per vertex) the vertex groups of ``obj``'s mesh.
+
+    Weights of zero are left out (as Blender stores them); the others are added one call per
+    distinct value, since Blender has no bulk write of vertex group weights.
+    """
+    obj.vertex_groups.clear()
+    for name, weights in groups.items():
+        group = obj.vertex_groups.new(name=name)
+        nonzero = np.flatnonzero(weights > 0.0)
+        if not len(nonzero):
+            continue
+        values, inverse = np.unique(weights[nonzero], return_inverse=True)
+        order = np.argsort(inverse, kind="stable")
+        bounds = np.searchsorted(inverse[order], np.arange(len(values) + 1))
+        for k, value in enumerate(values):
+            group.add(nonzero[order[bounds[k] : bounds[k + 1]]].tolist(), float(value), "REPLACE")
 
 
 def check_cage(cage: CageArrays) -> None:
@@ -274,7 +314,7 @@ def write_mesh(
 
     Per-face data of the cage (``material_index``, ``sharp_face``) is carried over
     through ``face_origin``; ``uv_maps`` (name -> ``(C, 2)``) become UV maps;
-    ``normals`` (one per face corner) become custom normals (:func:`write_normals`).
+    ``normals`` (one per face corner) become custom normals.
 
     Returns:
         ``mesh`` itself.
@@ -297,7 +337,8 @@ def write_mesh(
     mesh.loops.add(nc)
     mesh.polygons.add(nf)
 
-    _set(mesh.attributes["position"].data, "vector", points, np.float32)
+    if nv:
+        _set(mesh.attributes["position"].data, "vector", points, np.float32)
     if ne:
         _set(mesh.attributes[".edge_verts"].data, "value", edges, np.int32)
     if nc:
@@ -335,56 +376,30 @@ def write_mesh(
     return mesh
 
 
-def write_result(
-    mesh: bpy.types.Mesh,
-    result: Any,
-    *,
-    points: np.ndarray | None = None,
-    cage: CageArrays | None = None,
-    uv_maps: dict[str, np.ndarray] | None = None,
-    active_uv: str | None = None,
-    materials: list[Any] | None = None,
-) -> bpy.types.Mesh:
-    """Write a :class:`bidegree.Result` (optionally with other ``points``) into ``mesh``; its
-    limit normals, when it has them, become custom normals."""
-    return write_mesh(
-        mesh,
-        points=result.points if points is None else points,
-        face_sizes=result.face_sizes,
-        corner_verts=result.face_indices,
-        edges=result.edges,
-        corner_edges=result.corner_edges,
-        face_origin=result.face_origin,
-        cage=cage,
-        uv_maps=uv_maps,
-        active_uv=active_uv,
-        materials=materials,
-        normals=getattr(result, "normals", None),
-    )
-
-
-def read_positions(mesh: bpy.types.Mesh) -> np.ndarray:
-    """Vertex positions of ``mesh`` as a ``(V, 3)`` float32 array."""
-    return _get(mesh.attributes["position"].data, "vector", len(mesh.vertices), np.float32, 3)
-
-
 def write_positions(
     mesh: bpy.types.Mesh, points: np.ndarray, normals: np.ndarray | None = None
 ) -> None:
     """Overwrite the vertex positions of ``mesh`` (same vertex count) and its custom normals
-    (:func:`write_normals`; ``None`` removes them) and tag it for redraw."""
+    (``None`` removes them) and tag it for redraw."""
     _set(mesh.attributes["position"].data, "vector", points, np.float32)
     _set_normals(mesh, normals)
     mesh.update(calc_edges=False)
 
 
-#: The corner attribute Blender reads custom normals from (a float vector per corner is the
-#: "free" storage of Blender 5: written directly, no encoding into normal spaces).
+#: The corner attribute Blender 5 reads custom normals from (a float vector per corner, the
+#: "free" storage: written directly, no encoding into normal spaces).
 CUSTOM_NORMAL = "custom_normal"
 
 
 def _set_normals(mesh: bpy.types.Mesh, normals: np.ndarray | None) -> None:
     """Custom normals per face corner (``None``: none, the shading comes from the faces)."""
+    import bpy
+
+    if bpy.app.version < (5, 0, 0):
+        # Blender 4 encodes custom normals into normal spaces; only its own call writes them.
+        if normals is not None:
+            mesh.normals_split_custom_set(np.ascontiguousarray(normals, dtype=np.float32))
+        return
     existing = mesh.attributes.get(CUSTOM_NORMAL)
     if normals is None:
         if existing is not None:

@@ -1,0 +1,144 @@
+"""Adaptive subdivision (the paper's §3): :func:`subdivide_adaptive` and its
+:class:`AdaptiveResult`, a crack-free triangle mesh.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from . import _convert as convert
+from . import _native
+from ._convert import FloatArray
+from ._errors import InvalidInputError, LevelOutOfRangeError
+from ._mesh import Mesh, write_obj_arrays
+
+
+class AdaptiveResult:
+    """An adaptively subdivided surface as a crack-free triangle mesh.
+
+    Attributes:
+        points: (N, 3) in the dtype of the cage's points. Vertex ``i`` is, bit for bit, vertex
+            ``vertex_id[i]`` of the uniform result at level ``vertex_level[i]``.
+        triangles: int32 (T, 3), oriented as the cage's faces.
+        face_origin: int32 (T,), the cage face of each triangle.
+        triangle_level: int32 (T,), the level of the quadtree leaf each triangle comes from.
+        vertex_level: int32 (N,), the level whose point each vertex carries (the finest level
+            of the leaves around it).
+        vertex_id: int64 (N,), the vertex's id in the uniform level ``vertex_level``.
+        leaves_per_level: int64 (max_level + 1,), quadtree leaves at each level.
+        max_error: with ``measure_leaves=True``, the largest flatness error of any leaf
+            (relative to the cage's bounding-box diagonal), else None.
+    """
+
+    def __init__(self, data: dict[str, Any], degree: int, max_level: int, tolerance: float) -> None:
+        self.points: FloatArray = data["points"]
+        self.triangles: NDArray[np.int32] = convert.readonly(data["triangles"])
+        self.face_origin: NDArray[np.int32] = convert.readonly(data["face_origin"])
+        self.triangle_level: NDArray[np.int32] = convert.readonly(data["triangle_level"])
+        self.vertex_level: NDArray[np.int32] = convert.readonly(data["vertex_level"])
+        self.vertex_id: NDArray[np.int64] = convert.readonly(data["vertex_id"])
+        self.leaves_per_level: NDArray[np.int64] = convert.readonly(data["leaves_per_level"])
+        self.max_error: float | None = data["max_error"]
+        self.degree = degree
+        self.max_level = max_level
+        self.tolerance = tolerance
+
+    @property
+    def num_vertices(self) -> int:
+        """Number of output vertices."""
+        return len(self.points)
+
+    @property
+    def num_triangles(self) -> int:
+        """Number of output triangles."""
+        return len(self.triangles)
+
+    @property
+    def num_leaves(self) -> int:
+        """Number of quadtree leaves (quads before triangulation)."""
+        return int(self.leaves_per_level.sum())
+
+    def write_obj(self, path: str | os.PathLike[str]) -> None:
+        """Writes the triangles as OBJ (``v``, ``f``).
+
+        Raises:
+            BidegreeIOError: the file cannot be written.
+        """
+        points = np.ascontiguousarray(self.points)
+        if points.dtype not in (np.float32, np.float64):
+            points = points.astype(np.float64)
+        sizes = np.full(len(self.triangles), 3, dtype=np.int64)
+        write_obj_arrays(path, points, sizes, self.triangles.reshape(-1), None)
+
+    def __repr__(self) -> str:
+        return (
+            f"AdaptiveResult(vertices={self.num_vertices}, triangles={self.num_triangles}, "
+            f"leaves={self.num_leaves}, degree={self.degree}, max_level={self.max_level}, "
+            f"tolerance={self.tolerance}, dtype={self.points.dtype})"
+        )
+
+
+def subdivide_adaptive(
+    mesh: Mesh,
+    degree: int = 4,
+    max_level: int = 4,
+    tolerance: float = 1e-3,
+    memory_budget: int | None = None,
+    measure_leaves: bool = False,
+) -> AdaptiveResult:
+    """Subdivides ``mesh`` adaptively (the paper's §3): a quadtree per quad of level 1, refined
+    while a node is not flat enough, up to ``max_level``, with neighbouring leaves (sharing an
+    edge or a corner) at most one level apart, drawn as crack-free triangles.
+
+    Args:
+        mesh: the cage (3-D points; creases, corners and the boundary rule are honoured).
+        degree: averaging steps per level, ``1..=MAX_DEGREE``.
+        max_level: deepest level, ``1..=MAX_LEVELS``.
+        tolerance: flatness tolerance relative to the diagonal of the cage's bounding box: a
+            node is refined while the points of its children deviate from its bilinear patch by
+            more than this. 0 refines everywhere (uniform ``max_level``).
+        memory_budget: refuse work estimated above this many bytes (default 4 GiB).
+        measure_leaves: also measure every leaf's error (one level more of work around the
+            leaves) and report the largest as ``max_error``.
+
+    Every vertex is bit for bit the vertex of the uniform result at its level.
+
+    Raises:
+        NonFiniteError, DegenerateFaceError: bad geometry.
+        NonManifoldEdgeError, InconsistentOrientationError, CreaseNotAnEdgeError: bad topology.
+        DegreeOutOfRangeError, LevelOutOfRangeError, MemoryBudgetError, InvalidInputError.
+
+    Warns:
+        IsolatedVerticesWarning: the cage has vertices in no face (they are dropped).
+    """
+    if not isinstance(mesh, Mesh):
+        raise InvalidInputError(f"mesh must be a bidegree.Mesh, not {type(mesh).__name__}")
+    degree = convert.int_arg(degree, "degree")
+    max_level = convert.int_arg(max_level, "max_level")
+    if not 1 <= max_level <= _native.MAX_LEVELS:
+        # The core refuses it too, but as "levels out of range 0..": say what adaptive allows.
+        error = LevelOutOfRangeError(
+            f"max_level {max_level} is out of range 1..={_native.MAX_LEVELS} (adaptive "
+            "subdivision refines at least one level)"
+        )
+        error.levels, error.max = max_level, _native.MAX_LEVELS
+        raise error
+    tol = convert.tolerance(tolerance)
+    data = _native.subdivide_adaptive(
+        mesh._cage,
+        mesh.points,
+        degree,
+        max_level,
+        tol,
+        mesh.boundary,
+        convert.budget(memory_budget),
+        bool(measure_leaves),
+    )
+    used = np.zeros(mesh.num_vertices, dtype=bool)
+    used[mesh.face_indices] = True
+    convert.warn_isolated(np.flatnonzero(~used).astype(np.int32), stacklevel=2)
+    return AdaptiveResult(data, degree, max_level, tol)

@@ -1,0 +1,399 @@
+"""Subdivision: :class:`Plan` (the topology work, done once), :class:`Result` (a subdivided
+mesh), :func:`subdivide` (both in one call) and :func:`estimate`.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from . import _convert as convert
+from . import _native
+from ._convert import Boundary, Creasing, FloatArray, Output, Rules
+from ._errors import InvalidInputError
+from ._mesh import Mesh
+
+
+class _Output:
+    """What a :class:`Plan` and its :class:`Result` objects share, read from the native plan in
+    one place: the options and the output topology (each array fetched once per plan and shared
+    read-only)."""
+
+    _native_plan: Any
+    _arrays: dict[str, NDArray[np.int32]]
+
+    def _array(self, name: str) -> NDArray[np.int32]:
+        """The native plan's array ``name``, fetched on first use and kept (read-only)."""
+        array = self._arrays.get(name)
+        if array is None:
+            array = self._arrays[name] = convert.readonly(getattr(self._native_plan, name)())
+        return array
+
+    @property
+    def degree(self) -> int:
+        """Degree of the scheme."""
+        return int(self._native_plan.degree)
+
+    @property
+    def levels(self) -> int:
+        """Number of levels."""
+        return int(self._native_plan.levels)
+
+    @property
+    def output(self) -> Output:
+        """``"primal"`` or ``"dual"``."""
+        return self._native_plan.output  # type: ignore[no-any-return]
+
+    @property
+    def boundary(self) -> Boundary:
+        """``"edge-only"`` or ``"edge-and-corner"`` (from the mesh)."""
+        return self._native_plan.boundary  # type: ignore[no-any-return]
+
+    @property
+    def face_sizes(self) -> NDArray[np.int32]:
+        """(F,) corners of each output face, int32, read-only."""
+        return self._array("face_sizes")
+
+    @property
+    def face_indices(self) -> NDArray[np.int32]:
+        """Output vertex of each output face corner, int32, read-only."""
+        return self._array("face_indices")
+
+    @property
+    def face_origin(self) -> NDArray[np.int32]:
+        """(F,) cage face each output face comes from, int32, read-only."""
+        return self._array("face_origin")
+
+    @property
+    def edges(self) -> NDArray[np.int32]:
+        """(E, 2) edges of the output mesh, int32, read-only (built on first use)."""
+        return self._array("edges")
+
+    @property
+    def corner_edges(self) -> NDArray[np.int32]:
+        """Edge (row of :attr:`edges`) from each output face corner to the next, int32."""
+        return self._array("corner_edges")
+
+
+class Plan(_Output):
+    """The topology work of a subdivision, done once: evaluate it for any number of point sets
+    (a deforming cage, per-frame) or other per-vertex attributes.
+
+    Args:
+        mesh: the cage.
+        degree: averaging steps per level, ``1..=MAX_DEGREE`` (3 ~ Catmull-Clark, 4 biquartic).
+        levels: refinement levels, ``0..=MAX_LEVELS``; each multiplies the face count by ~4.
+        output: ``"primal"`` (the drawing mesh) or ``"dual"`` (the true dual mesh).
+        memory_budget: refuse requests estimated to need more bytes (default 4 GiB).
+        rules: ``"averaging"`` (repeated averaging, any degree) or ``"classic"`` (degrees 1..3:
+            3 is Catmull-Clark exactly as OpenSubdiv's catmark, 2 the original Doo-Sabin).
+        creasing: ``"uniform"`` or ``"chaikin"``: how classic degree-3 semi-sharp creases
+            decrease from level to level (OpenSubdiv's creasing method; Blender uses uniform).
+            Default: the mesh's (:attr:`Mesh.creasing`, from an OBJ file's ``t creasemethod``
+            tag), else uniform.
+
+    Raises:
+        NonManifoldEdgeError, InconsistentOrientationError, CreaseNotAnEdgeError: bad topology.
+        DegreeOutOfRangeError, LevelOutOfRangeError, MemoryBudgetError, InvalidInputError.
+
+    Warns:
+        IsolatedVerticesWarning: the cage has vertices in no face (they are dropped).
+    """
+
+    _mesh: Mesh
+
+    def __init__(
+        self,
+        mesh: Mesh,
+        degree: int = 4,
+        levels: int = 2,
+        output: Output = "primal",
+        memory_budget: int | None = None,
+        rules: Rules = "averaging",
+        creasing: Creasing | None = None,
+    ) -> None:
+        if not isinstance(mesh, Mesh):
+            raise InvalidInputError(f"mesh must be a bidegree.Mesh, not {type(mesh).__name__}")
+        native = _native.Plan(
+            mesh._cage,
+            convert.int_arg(degree, "degree"),
+            convert.int_arg(levels, "levels"),
+            convert.choice(output, convert.OUTPUTS, "output"),
+            mesh.boundary,
+            convert.budget(memory_budget),
+            convert.choice(rules, convert.RULES, "rules"),
+            _creasing(mesh, creasing),
+        )
+        self._init(mesh, native)
+        convert.warn_isolated(self.isolated_vertices, stacklevel=2)
+
+    @classmethod
+    def _wrap(cls, mesh: Mesh, native: Any) -> Plan:
+        plan = cls.__new__(cls)
+        plan._init(mesh, native)
+        return plan
+
+    def _init(self, mesh: Mesh, native: Any) -> None:
+        self._mesh = mesh
+        self._native_plan = native
+        self._arrays = {}
+
+    def evaluate(self, points: ArrayLike) -> FloatArray:
+        """Subdivides per-vertex values: (V, C) -> (N, C) for any C >= 1 (positions, colours,
+        weights, ...); a (V,) array is one channel and gives (N,). float32 stays float32, float64
+        stays float64. Values must be finite (:class:`NonFiniteError` names the vertex); a result
+        that overflows its dtype (float32 beyond about 3.4e38) raises :class:`NonFiniteError`
+        too.
+        """
+        values, flat = convert.values_2d(points, self._mesh.num_vertices, "points", "vertices")
+        out = self._native_plan.evaluate(values)
+        return out.reshape(-1) if flat else out
+
+    def limit_positions(self, points: ArrayLike | None = None) -> FloatArray:
+        """Exact limit positions at the output vertices: (V, C) -> (N, C) for any per-vertex
+        attribute; the first V' rows (V' cage vertices in faces) are the limits of the cage
+        vertices. Default: the cage's own points.
+
+        Every degree of the averaging rules (eigenvector masks of the paper's §4 at interior
+        vertices, the B-spline of the curve on boundaries and creases; vertices near irregular
+        points or creases are refined a few levels further first, see
+        :attr:`limit_extra_levels`), and classic degree 3 (OpenSubdiv's limit masks). Needs the
+        primal output.
+
+        Raises:
+            InvalidInputError: dual output, classic rules at degree 2, wrong shapes.
+            MemoryBudgetError: the extra levels would not fit the memory budget.
+        """
+        if points is None:
+            values: FloatArray = self._mesh.points
+            flat = False
+        else:
+            values, flat = convert.values_2d(points, self._mesh.num_vertices, "points", "vertices")
+        out = self._native_plan.limit_positions(values)
+        return out.reshape(-1) if flat else out
+
+    def limit_surface(self, points: ArrayLike | None = None) -> tuple[FloatArray, FloatArray]:
+        """Limit positions (N, 3) and unit limit normals (output corners, 3), in the order of
+        :attr:`face_indices` (face-varying, like Blender's custom split normals and USD's
+        ``faceVarying`` normals): smooth vertices have one normal at all their corners; at
+        boundaries, creases and corners each side has its own. Averaging rules only.
+
+        Interior normals are exact (subdominant eigenvectors); normals at curve vertices are
+        one-sided estimates from the finer level the limit is computed on (first-order in its
+        spacing). Degree 1 gives each face's bilinear normal. Degenerate geometry gives zeros.
+        """
+        positions, normals = self._native_plan.limit_surface(self._points(points))
+        return positions, normals
+
+    @property
+    def limit_extra_levels(self) -> int:
+        """Levels the limit evaluation refines beyond :attr:`levels` so that every output
+        vertex has a clean neighbourhood (0 on regular meshes); built on first use."""
+        return int(self._native_plan.limit_extra_levels)
+
+    def evaluate_face_varying(self, values: ArrayLike) -> FloatArray:
+        """Interpolates per-face-corner values (e.g. UVs) linearly: (corners, C) -> (output
+        corners, C), in the order of :attr:`face_indices`."""
+        array, flat = convert.values_2d(values, self._mesh.num_corners, "values", "face corners")
+        out = self._native_plan.evaluate_face_varying(array)
+        return out.reshape(-1) if flat else out
+
+    def result(
+        self, points: ArrayLike | None = None, *, limit: bool = False, normals: bool = False
+    ) -> Result:
+        """A :class:`Result` for ``points`` (default: the cage's own points), with uvs when the
+        cage has them. ``limit``: the points are pushed to the limit surface
+        (:meth:`limit_positions`); ``normals``: the result carries the limit normals
+        (:meth:`limit_surface`)."""
+        return _result(self, self._points(points), None, limit, normals)
+
+    def _points(self, points: ArrayLike | None) -> FloatArray:
+        """``points`` checked as (V, 3), or the cage's own points."""
+        if points is None:
+            return self._mesh.points
+        values, _ = convert.values_2d(points, self._mesh.num_vertices, "points", "vertices")
+        if values.shape[1] != 3:
+            raise InvalidInputError(f"points must have shape (V, 3), not {values.shape}")
+        return values
+
+    @property
+    def mesh(self) -> Mesh:
+        """The cage this plan was made for."""
+        return self._mesh
+
+    @property
+    def rules(self) -> Rules:
+        """``"averaging"`` or ``"classic"``."""
+        return self._native_plan.rules  # type: ignore[no-any-return]
+
+    @property
+    def num_output_vertices(self) -> int:
+        """Vertices of the output mesh."""
+        return int(self._native_plan.num_output_vertices)
+
+    @property
+    def num_output_faces(self) -> int:
+        """Faces of the output mesh."""
+        return int(self._native_plan.num_output_faces)
+
+    @property
+    def isolated_vertices(self) -> NDArray[np.int32]:
+        """Cage vertices in no face (dropped), int32, read-only."""
+        return self._array("isolated_vertices")
+
+    def __repr__(self) -> str:
+        return (
+            f"Plan(degree={self.degree}, levels={self.levels}, output={self.output!r}, "
+            f"boundary={self.boundary!r}, input_vertices={self._mesh.num_vertices}, "
+            f"output_vertices={self.num_output_vertices}, output_faces={self.num_output_faces})"
+        )
+
+
+class Result(_Output):
+    """A subdivided mesh: ``points`` (N, 3) in the dtype of the input (refined points, or limit
+    positions with ``limit=True``), the polygons (``face_sizes``, ``face_indices``, int32),
+    ``face_origin`` (cage face of each face), ``edges`` (E, 2), ``corner_edges``, ``uvs``
+    (output corners, 2) when the cage has uvs and ``normals`` (output corners, 3) with
+    ``normals=True``.
+    Topology arrays are shared with the :class:`Plan` and read-only; ``points`` is yours.
+    """
+
+    def __init__(self, plan: Plan, points: FloatArray, normals: FloatArray | None = None) -> None:
+        self._plan = plan
+        self._native_plan = plan._native_plan
+        self._arrays = plan._arrays
+        self.points: FloatArray = points
+        #: (output corners, 3) unit limit normals, one per face corner, when asked for.
+        self.normals: FloatArray | None = normals
+        mesh_uvs = plan.mesh.uvs
+        self.uvs: FloatArray | None = (
+            plan.evaluate_face_varying(mesh_uvs) if mesh_uvs is not None else None
+        )
+
+    @property
+    def plan(self) -> Plan:
+        """The plan that made this result (to evaluate further point sets)."""
+        return self._plan
+
+    @property
+    def num_vertices(self) -> int:
+        """Number of output vertices."""
+        return len(self.points)
+
+    @property
+    def num_faces(self) -> int:
+        """Number of output faces."""
+        return int(self._native_plan.num_output_faces)
+
+    def write_obj(self, path: str | os.PathLike[str]) -> None:
+        """Writes the result as OBJ (``v``, ``vt`` when there are uvs, ``vn`` per face corner
+        when there are normals, ``f``), fast.
+
+        Raises:
+            BidegreeIOError: the file cannot be written.
+            InvalidInputError: ``points`` was replaced by an array of another shape.
+        """
+        points = np.ascontiguousarray(self.points)
+        if points.dtype not in (np.float32, np.float64):
+            points = points.astype(np.float64)
+        uvs = normals = None
+        if self.uvs is not None:
+            uvs = np.ascontiguousarray(self.uvs, dtype=points.dtype)
+        if self.normals is not None:
+            normals = np.ascontiguousarray(self.normals, dtype=points.dtype)
+        self._native_plan.write_obj(os.fspath(path), points, uvs, normals)
+
+    def __repr__(self) -> str:
+        return (
+            f"Result(vertices={self.num_vertices}, faces={self.num_faces}, degree={self.degree}, "
+            f"levels={self.levels}, output={self.output!r}, dtype={self.points.dtype})"
+        )
+
+
+def subdivide(
+    mesh: Mesh,
+    degree: int = 4,
+    levels: int = 2,
+    output: Output = "primal",
+    memory_budget: int | None = None,
+    rules: Rules = "averaging",
+    creasing: Creasing | None = None,
+    *,
+    limit: bool = False,
+    normals: bool = False,
+) -> Result:
+    """Subdivides ``mesh``: validates its geometry (finite points, no zero-area face), builds
+    the plan and evaluates it, in one call into the core. Options as in :class:`Plan`; the
+    result's :attr:`Result.plan` can evaluate further point sets.
+
+    ``limit=True`` puts the output vertices on the limit surface (:meth:`Plan.limit_positions`);
+    ``normals=True`` adds the unit limit normals per face corner as :attr:`Result.normals`
+    (:meth:`Plan.limit_surface`). Both need the primal output and the averaging rules (classic
+    degree 3 has limit positions, not normals).
+
+    Raises:
+        NonFiniteError, DegenerateFaceError: bad geometry.
+        NonManifoldEdgeError, InconsistentOrientationError, CreaseNotAnEdgeError: bad topology.
+        DegreeOutOfRangeError, LevelOutOfRangeError, MemoryBudgetError, InvalidInputError.
+
+    Warns:
+        IsolatedVerticesWarning: the cage has vertices in no face (they are dropped).
+    """
+    if not isinstance(mesh, Mesh):
+        raise InvalidInputError(f"mesh must be a bidegree.Mesh, not {type(mesh).__name__}")
+    native, points = _native.subdivide(
+        mesh._cage,
+        mesh.points,
+        convert.int_arg(degree, "degree"),
+        convert.int_arg(levels, "levels"),
+        convert.choice(output, convert.OUTPUTS, "output"),
+        mesh.boundary,
+        convert.budget(memory_budget),
+        convert.choice(rules, convert.RULES, "rules"),
+        _creasing(mesh, creasing),
+        evaluate=not limit,
+    )
+    plan = Plan._wrap(mesh, native)
+    convert.warn_isolated(plan.isolated_vertices, stacklevel=2)
+    return _result(plan, mesh.points, points, limit, normals)
+
+
+def _creasing(mesh: Mesh, creasing: Creasing | None) -> str:
+    """The creasing method of a request: the one asked for, else the mesh's."""
+    if creasing is None:
+        return mesh.creasing
+    return convert.choice(creasing, convert.CREASING, "creasing")
+
+
+def _result(
+    plan: Plan, values: FloatArray, refined: FloatArray | None, limit: bool, normals: bool
+) -> Result:
+    """The :class:`Result` of ``values`` through ``plan`` (``refined``: already evaluated)."""
+    native = plan._native_plan
+    if normals:
+        positions, corner_normals = native.limit_surface(values)
+        if limit:
+            return Result(plan, positions, corner_normals)
+        points = refined if refined is not None else native.evaluate(values)
+        return Result(plan, points, corner_normals)
+    if limit:
+        return Result(plan, native.limit_positions(values))
+    return Result(plan, refined if refined is not None else native.evaluate(values))
+
+
+def estimate(mesh: Mesh, degree: int, levels: int, output: Output = "primal") -> dict[str, int]:
+    """Output size and peak memory of a request, without doing it (and without a budget):
+    ``{"vertices": ..., "faces": ..., "bytes": ...}``."""
+    if not isinstance(mesh, Mesh):
+        raise InvalidInputError(f"mesh must be a bidegree.Mesh, not {type(mesh).__name__}")
+    vertices, faces, nbytes = _native.estimate(
+        mesh._cage,
+        convert.int_arg(degree, "degree"),
+        convert.int_arg(levels, "levels"),
+        convert.choice(output, convert.OUTPUTS, "output"),
+        mesh.boundary,
+    )
+    return {"vertices": int(vertices), "faces": int(faces), "bytes": int(nbytes)}

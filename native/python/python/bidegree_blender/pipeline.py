@@ -1,0 +1,371 @@
+"""The pure pipeline of the Blender layer: a cage read from Blender in, a surface written out.
+
+``read`` (an evaluated object into :class:`mesh_io.CageArrays`) -> ``check`` (geometry) ->
+``plan`` -> ``evaluate`` (a :class:`Surface`: every array the result mesh needs) -> ``write``
+(into a ``bpy.types.Mesh``). Nothing here caches, registers or keeps state: the live modifier
+(:mod:`bidegree_blender.modifier`, through :mod:`bidegree_blender.cache`), the batch, the USD
+export and :func:`subdivide_object` all run these same steps with one
+:class:`bidegree.options.Options`.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import bidegree
+import numpy as np
+from bidegree.options import Options
+
+from . import mesh_io
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    import bpy
+
+__all__ = [
+    "GeometryCheck",
+    "Surface",
+    "adaptive_surface",
+    "build_plan",
+    "cage_mesh",
+    "check_geometry",
+    "evaluated_cage",
+    "object_materials",
+    "plan_surface",
+    "subdivide_cage",
+    "subdivide_object",
+    "write_positions",
+    "write_surface",
+]
+
+
+def object_materials(obj: bpy.types.Object) -> list[Any]:
+    """Materials of ``obj``'s slots in order (object-linked slots included)."""
+    return [slot.material for slot in obj.material_slots]
+
+
+def evaluated_cage(
+    obj: bpy.types.Object,
+    *,
+    depsgraph: bpy.types.Depsgraph | None = None,
+    use_creases: bool = True,
+) -> mesh_io.CageArrays:
+    """Read ``obj``'s evaluated mesh (as ``depsgraph`` evaluated it) into numpy arrays, with
+    the weights of its vertex groups.
+
+    The temporary evaluated mesh is freed before returning.
+
+    Raises:
+        bidegree.InvalidInputError: ``obj`` is not a mesh object.
+        bidegree.EmptyMeshError: the evaluated mesh has no vertices or no faces.
+    """
+    import bpy
+
+    if not isinstance(obj, bpy.types.Object) or obj.type != "MESH":
+        kind = getattr(obj, "type", type(obj).__name__)
+        raise bidegree.InvalidInputError(
+            f"{getattr(obj, 'name', obj)!r} is not a mesh object (type {kind})"
+        )
+    if depsgraph is None:
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+    eval_obj = obj.evaluated_get(depsgraph)
+    tmp = eval_obj.to_mesh()
+    try:
+        cage = mesh_io.read_mesh(tmp, use_creases=use_creases)
+        names = [group.name for group in eval_obj.vertex_groups]
+        if names:
+            cage.vertex_groups = mesh_io.read_vertex_groups(tmp, names)
+    finally:
+        eval_obj.to_mesh_clear()
+    mesh_io.check_cage(cage)
+    return cage
+
+
+class GeometryCheck:
+    """Rejects non-finite positions and zero-area faces before they reach the core.
+
+    The fan triangulation of the faces is precomputed once per topology, so a check of new
+    positions (every frame of an animation) is a handful of vectorised numpy operations.
+    """
+
+    def __init__(self, face_sizes: np.ndarray, corner_verts: np.ndarray) -> None:
+        sizes = np.asarray(face_sizes, dtype=np.int64)
+        starts = np.zeros(len(sizes), dtype=np.int64)
+        if len(sizes):
+            np.cumsum(sizes[:-1], out=starts[1:])
+        ntri = np.maximum(sizes - 2, 0)
+        self.num_faces = len(sizes)
+        self.face_of_tri = np.repeat(np.arange(len(sizes)), ntri)
+        local = np.arange(int(ntri.sum())) - np.repeat(np.cumsum(ntri) - ntri, ntri)
+        first = starts[self.face_of_tri]
+        self.v0 = corner_verts[first]
+        self.v1 = corner_verts[first + local + 1]
+        self.v2 = corner_verts[first + local + 2]
+
+    def __call__(self, points: np.ndarray) -> None:
+        """Raise on bad ``points``.
+
+        Raises:
+            bidegree.NonFiniteError: a position is NaN or infinite.
+            bidegree.DegenerateFaceError: a face has (numerically) zero area.
+        """
+        finite = np.isfinite(points).all(axis=1)
+        if not finite.all():
+            bad = int(np.flatnonzero(~finite)[0])
+            raise bidegree.NonFiniteError(f"vertex {bad} has a non-finite position")
+        if self.num_faces == 0:
+            return
+        # Relative to the mesh's extent, so that the squares stay finite at any scale (float64
+        # only where the extent itself overflows float32).
+        pts = np.asarray(points)
+        extent = pts.max(axis=0) - pts.min(axis=0) if len(pts) else np.zeros(3)
+        if not np.isfinite(extent).all():
+            pts = pts.astype(np.float64)
+            extent = pts.max(axis=0) - pts.min(axis=0)
+        scale = float(extent.max())
+        pts = pts / (scale if scale > 0 else 1.0)
+        p0 = pts[self.v0]
+        cross = np.cross(pts[self.v1] - p0, pts[self.v2] - p0)
+        tri_area = np.sqrt(np.einsum("ij,ij->i", cross, cross))
+        area = np.bincount(self.face_of_tri, weights=tri_area, minlength=self.num_faces)
+        degenerate = np.flatnonzero(area <= 1e-12)
+        if len(degenerate):
+            raise bidegree.DegenerateFaceError(
+                f"face {int(degenerate[0])} has zero area ({len(degenerate)} degenerate "
+                "face(s)); merge or dissolve them (Mesh > Clean Up > Degenerate Dissolve)"
+            )
+
+
+def check_geometry(cage: mesh_io.CageArrays) -> None:
+    """One-off :class:`GeometryCheck` of ``cage`` (see there for the errors raised)."""
+    GeometryCheck(cage.face_sizes, cage.corner_verts)(cage.points)
+
+
+def cage_mesh(cage: mesh_io.CageArrays, options: Options) -> bidegree.Mesh:
+    """``cage`` as a :class:`bidegree.Mesh` with the boundary rule and creases of ``options``."""
+    return mesh_io.to_bidegree_mesh(
+        cage, boundary=options.boundary, use_creases=options.use_creases
+    )
+
+
+def _with_warnings(make: Callable[[], Any]) -> tuple[Any, list[str]]:
+    """``make()`` with its warnings (isolated vertices, ...) collected as text."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        made = make()
+    return made, [str(w.message) for w in caught]
+
+
+def build_plan(cage: mesh_io.CageArrays, options: Options) -> tuple[bidegree.Plan, list[str]]:
+    """The :class:`bidegree.Plan` of ``cage`` and the warnings building it gave."""
+    bmesh = cage_mesh(cage, options)
+    return _with_warnings(lambda: options.plan(bmesh))
+
+
+@dataclass
+class Surface:
+    """Every array of a subdivided surface that is written into a Blender mesh.
+
+    Point data is per output vertex, corner data per output face corner (in the order of
+    ``corner_verts``), face data is carried from the cage through ``face_origin``.
+    """
+
+    points: np.ndarray
+    face_sizes: np.ndarray
+    corner_verts: np.ndarray
+    edges: np.ndarray
+    corner_edges: np.ndarray
+    face_origin: np.ndarray
+    #: Limit normals per face corner (custom normals), or ``None``.
+    normals: np.ndarray | None = None
+    #: UV map name -> (corners, 2).
+    uv_maps: dict[str, np.ndarray] = field(default_factory=dict)
+    #: Vertex group name -> (points,) weights (every group of the cage, in its order).
+    vertex_groups: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def num_faces(self) -> int:
+        """Faces of the surface."""
+        return len(self.face_sizes)
+
+
+def _plan_uv_maps(plan: bidegree.Plan, cage: mesh_io.CageArrays) -> dict[str, np.ndarray]:
+    """Every UV map of ``cage`` through ``plan`` (linear face-varying), in one pass."""
+    if not cage.uv_maps:
+        return {}
+    names = list(cage.uv_maps)
+    stacked = np.concatenate([cage.uv_maps[n] for n in names], axis=1)
+    out = np.asarray(plan.evaluate_face_varying(stacked))
+    return {n: out[:, 2 * i : 2 * i + 2] for i, n in enumerate(names)}
+
+
+def plan_vertex_groups(plan: bidegree.Plan, cage: mesh_io.CageArrays) -> dict[str, np.ndarray]:
+    """Every vertex group of ``cage`` through ``plan`` (the scheme applied to the weights, like
+    positions), clamped to Blender's ``[0, 1]``."""
+    if not cage.vertex_groups:
+        return {}
+    names = list(cage.vertex_groups)
+    stacked = np.stack([cage.vertex_groups[n] for n in names], axis=1)
+    out = np.clip(np.asarray(plan.evaluate(stacked)), 0.0, 1.0)
+    return {n: out[:, i] for i, n in enumerate(names)}
+
+
+def plan_surface(
+    plan: bidegree.Plan,
+    cage: mesh_io.CageArrays,
+    options: Options,
+    *,
+    with_attributes: bool = True,
+) -> Surface:
+    """The :class:`Surface` of ``cage`` through ``plan`` (``with_attributes=False``: points and
+    normals only, for a positions-only update of a mesh that has the rest)."""
+    points, normals = options.evaluate(plan, cage.points)
+    surface = Surface(
+        points=points,
+        face_sizes=plan.face_sizes,
+        corner_verts=plan.face_indices,
+        edges=plan.edges,
+        corner_edges=plan.corner_edges,
+        face_origin=plan.face_origin,
+        normals=normals,
+    )
+    if with_attributes:
+        surface.uv_maps = _plan_uv_maps(plan, cage)
+        surface.vertex_groups = plan_vertex_groups(plan, cage)
+    return surface
+
+
+def triangle_edges(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The edges (E, 2) of a triangle mesh and the edge of each corner (to the next corner)."""
+    tris = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    a = tris.reshape(-1)
+    b = np.roll(tris, -1, axis=1).reshape(-1)
+    keys = np.minimum(a, b) << 32 | np.maximum(a, b)
+    unique, corner_edges = np.unique(keys, return_inverse=True)
+    edges = np.stack([unique >> 32, unique & 0xFFFFFFFF], axis=-1)
+    return edges.astype(np.int32), corner_edges.reshape(-1).astype(np.int32)
+
+
+def adaptive_surface(cage: mesh_io.CageArrays, options: Options) -> tuple[Surface, list[str]]:
+    """The adaptive :class:`Surface` of ``cage`` (triangles; face data through ``face_origin``;
+    no UVs and no vertex group weights: the core evaluates no attributes for adaptive output)."""
+    bmesh = cage_mesh(cage, options)
+    result, notes = _with_warnings(lambda: options.subdivide_adaptive(bmesh))
+    edges, corner_edges = triangle_edges(result.triangles)
+    surface = Surface(
+        points=result.points,
+        face_sizes=np.full(result.num_triangles, 3, dtype=np.int32),
+        corner_verts=np.asarray(result.triangles, dtype=np.int32).reshape(-1),
+        edges=edges,
+        corner_edges=corner_edges,
+        face_origin=result.face_origin,
+    )
+    if cage.vertex_groups:
+        # The core evaluates no attributes on adaptive output: the groups keep their names.
+        surface.vertex_groups = {
+            name: np.zeros(len(result.points), dtype=np.float32) for name in cage.vertex_groups
+        }
+        notes.append("adaptive surfaces keep the vertex groups' names, not their weights")
+    return surface, notes
+
+
+def subdivide_cage(cage: mesh_io.CageArrays, options: Options) -> tuple[Surface, list[str]]:
+    """Check ``cage`` and subdivide it with ``options`` (uniform or adaptive), no cache."""
+    check_geometry(cage)
+    if options.adaptive:
+        return adaptive_surface(cage, options)
+    plan, notes = build_plan(cage, options)
+    return plan_surface(plan, cage, options), notes
+
+
+def write_surface(
+    mesh: bpy.types.Mesh,
+    surface: Surface,
+    cage: mesh_io.CageArrays,
+    materials: list[Any] | None,
+    *,
+    holder: bpy.types.Object | None = None,
+) -> None:
+    """Replace ``mesh``'s geometry with ``surface`` (topology, positions, UV maps, face data
+    of the cage through ``face_origin``, custom normals; vertex groups need the object that
+    holds ``mesh``, ``holder``)."""
+    mesh_io.write_mesh(
+        mesh,
+        points=surface.points,
+        face_sizes=surface.face_sizes,
+        corner_verts=surface.corner_verts,
+        edges=surface.edges,
+        corner_edges=surface.corner_edges,
+        face_origin=surface.face_origin,
+        cage=cage,
+        uv_maps=surface.uv_maps,
+        active_uv=cage.active_uv,
+        materials=materials,
+        normals=surface.normals,
+    )
+    if holder is not None:
+        mesh_io.write_vertex_groups(holder, surface.vertex_groups)
+
+
+def write_positions(mesh: bpy.types.Mesh, surface: Surface) -> None:
+    """Overwrite the positions (and custom normals) of ``mesh``, which has ``surface``'s
+    topology already."""
+    mesh_io.write_positions(mesh, surface.points, surface.normals)
+
+
+def subdivide_object(
+    obj: bpy.types.Object,
+    degree: int = 4,
+    levels: int = 2,
+    output: str = "primal",
+    boundary: str = "edge-only",
+    use_creases: bool = True,
+    depsgraph: bpy.types.Depsgraph | None = None,
+    *,
+    name: str | None = None,
+    memory_budget: int | None = None,
+    rules: str = "averaging",
+    limit: bool = False,
+    normals: bool = False,
+    options: Options | None = None,
+) -> bpy.types.Mesh:
+    """Subdivide ``obj``'s evaluated mesh and return a new mesh datablock.
+
+    Modifiers of ``obj`` are honoured (the evaluated mesh is used). Materials, per-face
+    material indices, flat/smooth shading (through ``face_origin``) and every UV map (linear
+    interpolation) carry over; edge and vertex creases shape the surface (sharpness
+    ``10 * c**2``). ``limit`` puts the vertices on the limit surface, ``normals`` writes its
+    limit normals as custom normals. ``options`` (a :class:`bidegree.options.Options`) replaces
+    every keyword setting at once.
+
+    Raises:
+        bidegree.BidegreeError: a subclass describing bad input (not a mesh object, no
+            vertices or faces, non-manifold edge, loose edges, zero-area face, a setting of
+            the wrong type, degree/level out of range, memory budget, ...). Nothing is
+            created and ``obj`` is untouched.
+    """
+    import bpy
+
+    if options is None:
+        options = Options(
+            degree=degree,
+            levels=levels,
+            output=output,
+            boundary=boundary,
+            use_creases=use_creases,
+            memory_budget=memory_budget,
+            rules=rules,
+            limit=limit,
+            normals=normals,
+        )
+    cage = evaluated_cage(obj, depsgraph=depsgraph, use_creases=options.use_creases)
+    surface, _notes = subdivide_cage(cage, options)
+    mesh = bpy.data.meshes.new(name or f"{obj.name}_bidegree")
+    try:
+        write_surface(mesh, surface, cage, object_materials(obj))
+    except BaseException:
+        bpy.data.meshes.remove(mesh)
+        raise
+    return mesh

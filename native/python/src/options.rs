@@ -1,0 +1,129 @@
+//! Option strings and numbers from Python into the core's option types, and back.
+
+use bidegree::{
+    Boundary, Creasing, Error, Options, OutputKind, Rules, DEFAULT_MEMORY_BUDGET, MAX_DEGREE,
+    MAX_LEVELS,
+};
+
+use crate::errors::invalid;
+
+/// `"primal"` or `"dual"`.
+pub(crate) fn parse_output(output: &str) -> bidegree::Result<OutputKind> {
+    match output {
+        "primal" => Ok(OutputKind::Primal),
+        "dual" => Ok(OutputKind::Dual),
+        other => Err(invalid(format!(
+            "output must be 'primal' or 'dual', not {other:?}"
+        ))),
+    }
+}
+
+/// `"edge-only"` or `"edge-and-corner"`.
+pub(crate) fn parse_boundary(boundary: &str) -> bidegree::Result<Boundary> {
+    match boundary {
+        "edge-only" => Ok(Boundary::EdgeOnly),
+        "edge-and-corner" => Ok(Boundary::EdgeAndCorner),
+        other => Err(invalid(format!(
+            "boundary must be 'edge-only' or 'edge-and-corner', not {other:?}"
+        ))),
+    }
+}
+
+/// The Python name of an output kind.
+pub(crate) fn output_name(output: OutputKind) -> &'static str {
+    match output {
+        OutputKind::Primal => "primal",
+        OutputKind::Dual => "dual",
+    }
+}
+
+/// `"averaging"` or `"classic"`, and `"uniform"` or `"chaikin"`.
+pub(crate) fn parse_rules(rules: &str, creasing: &str) -> bidegree::Result<(Rules, Creasing)> {
+    let rules = match rules {
+        "averaging" => Rules::Averaging,
+        "classic" => Rules::Classic,
+        other => {
+            return Err(Error::InvalidInput(format!(
+                "rules must be 'averaging' or 'classic', not {other:?}"
+            )))
+        }
+    };
+    let creasing = match creasing {
+        "uniform" => Creasing::Uniform,
+        "chaikin" => Creasing::Chaikin,
+        other => {
+            return Err(Error::InvalidInput(format!(
+                "creasing must be 'uniform' or 'chaikin', not {other:?}"
+            )))
+        }
+    };
+    Ok((rules, creasing))
+}
+
+/// The Python name of a boundary rule.
+pub(crate) fn boundary_name(boundary: Boundary) -> &'static str {
+    match boundary {
+        Boundary::EdgeOnly => "edge-only",
+        Boundary::EdgeAndCorner => "edge-and-corner",
+    }
+}
+
+/// The Python name of a rule set.
+pub(crate) fn rules_name(rules: Rules) -> &'static str {
+    match rules {
+        Rules::Averaging => "averaging",
+        Rules::Classic => "classic",
+    }
+}
+
+/// The Python name of a creasing method.
+pub(crate) fn creasing_name(creasing: Creasing) -> &'static str {
+    match creasing {
+        Creasing::Uniform => "uniform",
+        Creasing::Chaikin => "chaikin",
+    }
+}
+
+/// A degree from Python (`i64`, so that a negative or huge value is reported as the range error
+/// it is; the core checks the range itself).
+pub(crate) fn degree(degree: i64) -> bidegree::Result<u32> {
+    u32::try_from(degree).map_err(|_| Error::DegreeOutOfRange {
+        degree,
+        max: MAX_DEGREE,
+    })
+}
+
+/// A number of levels from Python (as [`degree`]).
+pub(crate) fn levels(levels: i64) -> bidegree::Result<u32> {
+    u32::try_from(levels).map_err(|_| Error::LevelOutOfRange {
+        levels,
+        max: MAX_LEVELS,
+    })
+}
+
+/// A memory budget from Python: `None` is the default budget.
+pub(crate) fn memory_budget(budget: Option<u64>) -> u64 {
+    budget.unwrap_or(DEFAULT_MEMORY_BUDGET)
+}
+
+/// Options from Python arguments.
+pub(crate) fn options(
+    degree: i64,
+    levels: i64,
+    output: &str,
+    boundary: &str,
+    budget: Option<u64>,
+    rules: &str,
+    creasing: &str,
+) -> bidegree::Result<Options> {
+    let (rules, creasing) = parse_rules(rules, creasing)?;
+    Ok(Options {
+        degree: self::degree(degree)?,
+        levels: self::levels(levels)?,
+        output: parse_output(output)?,
+        boundary: parse_boundary(boundary)?,
+        memory_budget: memory_budget(budget),
+        rules,
+        creasing,
+    })
+}

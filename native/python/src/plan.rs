@@ -1,0 +1,402 @@
+//! `bidegree._native.Plan` and the one-call functions `subdivide` and `estimate`: a plan's
+//! evaluations (vertex and face-varying values, limit positions and normals) and its output
+//! topology as numpy arrays.
+
+use std::path::PathBuf;
+
+use bidegree::{Error, Options, Plan, Scalar};
+use numpy::{Element, PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+
+use crate::arrays::{array2, check_output, contiguous, floats, to_i32, Floats};
+use crate::cage::PyCage;
+use crate::errors::{guard, invalid, run, to_py_err};
+use crate::obj::write_mesh;
+use crate::options::{boundary_name, options, output_name, rules_name};
+
+/// Registers the plan class and the one-call functions in the extension module.
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyPlan>()?;
+    m.add_function(wrap_pyfunction!(subdivide, m)?)?;
+    m.add_function(wrap_pyfunction!(estimate, m)?)
+}
+
+/// A subdivision plan: the refined topology for one cage and one set of options, evaluated any
+/// number of times.
+#[pyclass(frozen, module = "bidegree._native", name = "Plan")]
+pub(crate) struct PyPlan {
+    inner: Plan,
+}
+
+impl PyPlan {
+    fn indices<'py>(
+        &self,
+        py: Python<'py>,
+        pick: impl FnOnce(&Plan) -> bidegree::Result<Vec<i32>> + Send,
+    ) -> PyResult<Bound<'py, PyArray1<i32>>> {
+        let plan = &self.inner;
+        let data = run(py, || pick(plan))?;
+        Ok(PyArray1::from_vec(py, data))
+    }
+}
+
+#[pymethods]
+impl PyPlan {
+    /// Builds the plan (topology only; the memory budget is checked first).
+    #[new]
+    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (cage, degree, levels, output, boundary, memory_budget=None, rules="averaging", creasing="uniform"))]
+    fn new(
+        py: Python<'_>,
+        cage: &Bound<'_, PyCage>,
+        degree: i64,
+        levels: i64,
+        output: &str,
+        boundary: &str,
+        memory_budget: Option<u64>,
+        rules: &str,
+        creasing: &str,
+    ) -> PyResult<Self> {
+        let inner = cage.get().run(py, |cage| {
+            Plan::new(
+                cage,
+                &options(
+                    degree,
+                    levels,
+                    output,
+                    boundary,
+                    memory_budget,
+                    rules,
+                    creasing,
+                )?,
+            )
+        })?;
+        Ok(PyPlan { inner })
+    }
+
+    /// Per cage vertex values `(V, C)` -> per output vertex values `(N, C)`, same dtype.
+    fn evaluate<'py>(
+        &self,
+        py: Python<'py>,
+        values: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        match floats(values, "values")? {
+            Floats::F32(a) => Ok(evaluate(py, &self.inner, &a, false)?.into_any()),
+            Floats::F64(a) => Ok(evaluate(py, &self.inner, &a, false)?.into_any()),
+        }
+    }
+
+    /// Limit positions `(N, C)` at the output vertices (the first ones are the cage vertices'
+    /// limits), from per cage vertex values `(V, C)`: every degree of the averaging rules,
+    /// degree 3 of the classic ones.
+    fn limit_positions<'py>(
+        &self,
+        py: Python<'py>,
+        values: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        fn limit<'py, T: Scalar + Element>(
+            py: Python<'py>,
+            plan: &Plan,
+            values: &PyReadonlyArray2<'_, T>,
+        ) -> PyResult<Bound<'py, PyArray2<T>>> {
+            let channels = values.shape()[1];
+            let data = contiguous(values, "values")?;
+            let out = run(py, || {
+                if channels == 0 {
+                    return Err(invalid("values need at least one channel"));
+                }
+                let out = plan.limit_positions(data, channels)?;
+                check_output(&out, channels, data)?;
+                Ok(out)
+            })?;
+            array2(py, out, channels)
+        }
+        match floats(values, "values")? {
+            Floats::F32(a) => Ok(limit(py, &self.inner, &a)?.into_any()),
+            Floats::F64(a) => Ok(limit(py, &self.inner, &a)?.into_any()),
+        }
+    }
+
+    /// Limit positions `(N, 3)` and unit limit normals `(output corners, 3)` of points `(V, 3)`.
+    fn limit_surface<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+        type Pair<'py> = (Bound<'py, PyAny>, Bound<'py, PyAny>);
+        fn surface<'py, T: Scalar + Element>(
+            py: Python<'py>,
+            plan: &Plan,
+            points: &PyReadonlyArray2<'_, T>,
+        ) -> PyResult<Pair<'py>> {
+            if points.shape()[1] != 3 {
+                let shape = points.shape();
+                return Err(to_py_err(
+                    py,
+                    invalid(format!("points must have shape (V, 3), not {shape:?}")),
+                ));
+            }
+            let data = contiguous(points, "points")?;
+            let (positions, normals) = run(py, || {
+                let (positions, normals) = plan.limit_surface(data)?;
+                check_output(&positions, 3, data)?;
+                Ok((positions, normals))
+            })?;
+            Ok((
+                array2(py, positions, 3)?.into_any(),
+                array2(py, normals, 3)?.into_any(),
+            ))
+        }
+        match floats(points, "points")? {
+            Floats::F32(a) => surface(py, &self.inner, &a),
+            Floats::F64(a) => surface(py, &self.inner, &a),
+        }
+    }
+
+    /// Levels the limit evaluation adds to the plan (0 when every output vertex is clean).
+    #[getter]
+    fn limit_extra_levels(&self, py: Python<'_>) -> PyResult<u32> {
+        run(py, || self.inner.limit_extra_levels())
+    }
+
+    /// `"averaging"` or `"classic"`.
+    #[getter]
+    fn rules(&self, py: Python<'_>) -> PyResult<&'static str> {
+        guard(py, || rules_name(self.inner.options().rules))
+    }
+
+    /// Per cage face corner values `(corners, C)` -> per output face corner values, linearly.
+    fn evaluate_face_varying<'py>(
+        &self,
+        py: Python<'py>,
+        values: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        match floats(values, "values")? {
+            Floats::F32(a) => Ok(evaluate(py, &self.inner, &a, true)?.into_any()),
+            Floats::F64(a) => Ok(evaluate(py, &self.inner, &a, true)?.into_any()),
+        }
+    }
+
+    /// Degree of the scheme.
+    #[getter]
+    fn degree(&self, py: Python<'_>) -> PyResult<u32> {
+        guard(py, || self.inner.options().degree)
+    }
+
+    /// Number of levels.
+    #[getter]
+    fn levels(&self, py: Python<'_>) -> PyResult<u32> {
+        guard(py, || self.inner.options().levels)
+    }
+
+    /// `"primal"` or `"dual"`.
+    #[getter]
+    fn output(&self, py: Python<'_>) -> PyResult<&'static str> {
+        guard(py, || output_name(self.inner.options().output))
+    }
+
+    /// `"edge-only"` or `"edge-and-corner"`.
+    #[getter]
+    fn boundary(&self, py: Python<'_>) -> PyResult<&'static str> {
+        guard(py, || boundary_name(self.inner.options().boundary))
+    }
+
+    /// Memory budget the plan was made under, in bytes.
+    #[getter]
+    fn memory_budget(&self, py: Python<'_>) -> PyResult<u64> {
+        guard(py, || self.inner.options().memory_budget)
+    }
+
+    /// Number of cage vertices the plan expects values for.
+    #[getter]
+    fn num_input_vertices(&self, py: Python<'_>) -> PyResult<usize> {
+        guard(py, || self.inner.num_input_vertices())
+    }
+
+    /// Number of output vertices.
+    #[getter]
+    fn num_output_vertices(&self, py: Python<'_>) -> PyResult<usize> {
+        guard(py, || self.inner.num_output_vertices())
+    }
+
+    /// Number of output faces.
+    #[getter]
+    fn num_output_faces(&self, py: Python<'_>) -> PyResult<usize> {
+        guard(py, || self.inner.num_output_faces())
+    }
+
+    /// Cage vertices in no face (dropped from the output), int32.
+    fn isolated_vertices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<i32>>> {
+        self.indices(py, |plan| to_i32(plan.isolated_vertices()))
+    }
+
+    /// Corners of each output face, int32 `(F,)`.
+    fn face_sizes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<i32>>> {
+        self.indices(py, |plan| {
+            plan.output_face_offsets()
+                .windows(2)
+                .map(|w| {
+                    i32::try_from(w[1] - w[0])
+                        .map_err(|_| Error::Internal("face size exceeds int32".into()))
+                })
+                .collect()
+        })
+    }
+
+    /// Output vertex of each output face corner, int32.
+    fn face_indices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<i32>>> {
+        self.indices(py, |plan| to_i32(plan.output_face_vertices()))
+    }
+
+    /// Cage face each output face comes from, int32 `(F,)`.
+    fn face_origin<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<i32>>> {
+        self.indices(py, |plan| to_i32(plan.output_face_origin()))
+    }
+
+    /// Edge (index into `edges`) from each output face corner to the next, int32.
+    fn corner_edges<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<i32>>> {
+        self.indices(py, |plan| to_i32(plan.output_corner_edges()))
+    }
+
+    /// Edges of the output mesh, int32 `(E, 2)`.
+    fn edges<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<i32>>> {
+        let plan = &self.inner;
+        let flat = run(py, || {
+            let edges = plan.output_edges();
+            to_i32(edges.as_flattened())
+        })?;
+        array2(py, flat, 2)
+    }
+
+    /// Writes the output mesh with `points` `(N, 3)` and optional face-varying `uvs`
+    /// `(corners, 2)` and `normals` `(corners, 3)` (same dtype as `points`) as OBJ.
+    #[pyo3(signature = (path, points, uvs=None, normals=None))]
+    fn write_obj(
+        &self,
+        py: Python<'_>,
+        path: PathBuf,
+        points: &Bound<'_, PyAny>,
+        uvs: Option<&Bound<'_, PyAny>>,
+        normals: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        let plan = &self.inner;
+        let (offsets, vertices) = guard(py, || {
+            (plan.output_face_offsets(), plan.output_face_vertices())
+        })?;
+        write_mesh(py, &path, points, offsets, vertices, [uvs, normals])
+    }
+}
+
+fn evaluate<'py, T: Scalar + Element>(
+    py: Python<'py>,
+    plan: &Plan,
+    values: &PyReadonlyArray2<'_, T>,
+    face_varying: bool,
+) -> PyResult<Bound<'py, PyArray2<T>>> {
+    let channels = values.shape()[1];
+    let data = contiguous(values, "values")?;
+    let out = run(py, || {
+        if channels == 0 {
+            return Err(invalid("values need at least one channel"));
+        }
+        let out = if face_varying {
+            plan.evaluate_face_varying(data, channels)?
+        } else {
+            plan.evaluate(data, channels)?
+        };
+        check_output(&out, channels, data)?;
+        Ok(out)
+    })?;
+    array2(py, out, channels)
+}
+
+fn evaluate_fresh<'py, T: Scalar + Element>(
+    py: Python<'py>,
+    cage: &PyCage,
+    points: &PyReadonlyArray2<'_, T>,
+    options: Options,
+    evaluate: bool,
+) -> PyResult<(PyPlan, Option<Bound<'py, PyAny>>)> {
+    let channels = points.shape()[1];
+    let data = contiguous(points, "points")?;
+    let (plan, out) = cage.run(py, |cage| {
+        if channels == 0 {
+            return Err(invalid("points need at least one channel"));
+        }
+        if evaluate {
+            let (plan, out) = bidegree::subdivide(cage, data, channels, &options)?;
+            check_output(&out, channels, data)?;
+            return Ok((plan, Some(out)));
+        }
+        bidegree::validate_geometry(cage, data, channels)?;
+        Ok((Plan::new(cage, &options)?, None))
+    })?;
+    let out = match out {
+        Some(out) => Some(array2(py, out, channels)?.into_any()),
+        None => None,
+    };
+    Ok((PyPlan { inner: plan }, out))
+}
+
+/// Validates the geometry, builds the plan and (with `evaluate`) evaluates the points in one
+/// call; without `evaluate` the points are `None` (a caller that wants limit positions only).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (cage, points, degree, levels, output, boundary, memory_budget=None, rules="averaging", creasing="uniform", evaluate=true))]
+fn subdivide<'py>(
+    py: Python<'py>,
+    cage: &Bound<'py, PyCage>,
+    points: &Bound<'py, PyAny>,
+    degree: i64,
+    levels: i64,
+    output: &str,
+    boundary: &str,
+    memory_budget: Option<u64>,
+    rules: &str,
+    creasing: &str,
+    evaluate: bool,
+) -> PyResult<(PyPlan, Option<Bound<'py, PyAny>>)> {
+    let cage = cage.get();
+    let options = options(
+        degree,
+        levels,
+        output,
+        boundary,
+        memory_budget,
+        rules,
+        creasing,
+    )
+    .map_err(|e| to_py_err(py, e))?;
+    match floats(points, "points")? {
+        Floats::F32(a) => evaluate_fresh(py, cage, &a, options, evaluate),
+        Floats::F64(a) => evaluate_fresh(py, cage, &a, options, evaluate),
+    }
+}
+
+/// Output size and peak memory of a request, without doing it: `(vertices, faces, bytes)`.
+#[pyfunction]
+#[pyo3(signature = (cage, degree, levels, output="primal", boundary="edge-only"))]
+fn estimate(
+    py: Python<'_>,
+    cage: &Bound<'_, PyCage>,
+    degree: i64,
+    levels: i64,
+    output: &str,
+    boundary: &str,
+) -> PyResult<(u64, u64, u64)> {
+    let estimate = cage.get().run(py, |cage| {
+        bidegree::estimate(
+            cage,
+            &options(
+                degree,
+                levels,
+                output,
+                boundary,
+                Some(u64::MAX),
+                "averaging",
+                "uniform",
+            )?,
+        )
+    })?;
+    Ok((estimate.vertices, estimate.faces, estimate.bytes))
+}
