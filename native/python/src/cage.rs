@@ -137,8 +137,6 @@ impl PyCage {
     ) -> PyResult<()> {
         let channels = points.shape()[1];
         let data = contiguous(points, "points")?;
-        self.run(py, |cage| {
-            bidegree::validate_geometry(cage, data, channels)
-        })
+        self.run(py, |cage| bidegree::validate_geometry(cage, data, channels))
     }
 }
