@@ -14,7 +14,8 @@ use std::path::Path;
 
 use super::{Interrupt, ObjMesh};
 use crate::error::{Error, Result};
-use crate::{Boundary, Cage, Creasing, DEFAULT_MEMORY_BUDGET};
+use crate::memory::default_memory_budget;
+use crate::{Boundary, Cage, Creasing};
 
 /// Largest input [`ReadOptions`] accepts by default: 2 GiB.
 pub const DEFAULT_MAX_INPUT_BYTES: u64 = 2 << 30;
@@ -34,7 +35,7 @@ impl Default for ReadOptions {
     fn default() -> Self {
         ReadOptions {
             max_bytes: DEFAULT_MAX_INPUT_BYTES,
-            memory_budget: DEFAULT_MEMORY_BUDGET,
+            memory_budget: default_memory_budget(),
         }
     }
 }
@@ -89,7 +90,7 @@ pub fn read_obj(path: &Path, options: &ReadOptions, interrupt: Interrupt<'_>) ->
 /// Parses OBJ text (see [`read_obj`]); errors are reported as `"<obj>:LINE: message"`. The
 /// memory budget is the default one.
 pub fn parse_obj(text: &str) -> Result<ObjMesh> {
-    let mut parser = Parser::new("<obj>", DEFAULT_MEMORY_BUDGET);
+    let mut parser = Parser::new("<obj>", default_memory_budget());
     let mut lines = Lines::default();
     lines.feed(text.as_bytes(), &mut parser)?;
     lines.finish(&mut parser)?;
