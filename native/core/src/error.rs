@@ -63,9 +63,9 @@ pub enum Error {
     /// allocation the system refused (under an address-space limit, say). `available` is the
     /// memory the process can have, as far as it is known (`u64::MAX` when not).
     #[error(
-        "out of memory: {required} bytes were needed, more than the {available} bytes this \
-         process can have (the machine's memory, its cgroup or address-space limit); lower the \
-         levels or the degree, or subdivide parts of the mesh separately"
+        "out of memory: {required} bytes could not be had (this process can have about \
+         {available} bytes in all: the machine's memory, its cgroup or address-space limit); \
+         lower the levels or the degree, or subdivide parts of the mesh separately"
     )]
     OutOfMemory { required: u64, available: u64 },
     /// Arrays of the wrong length or shape, a bad option value, a sharpness below zero.

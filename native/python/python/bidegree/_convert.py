@@ -42,7 +42,8 @@ def memory_errors() -> Iterator[None]:
     try:
         yield
     except MemoryError as exc:
-        raise MemoryBudgetError(f"out of memory: {exc or 'an array could not be allocated'}") from exc
+        what = str(exc) or "an array could not be allocated"
+        raise MemoryBudgetError(f"out of memory: {what}") from exc
 
 
 def float_array(values: ArrayLike, what: str) -> FloatArray:
