@@ -79,7 +79,7 @@ impl Refinement {
         let compact = |v: u32| compact_of.as_ref().map_or(v, |m| m[v as usize]);
         let num_vertices = n - isolated.len();
         let corner_verts: Vec<u32> = cage.face_vertices().iter().map(|&v| compact(v)).collect();
-        let level0 = Level::from_cage(cage, num_vertices, corner_verts)?;
+        let level0 = Level::from_cage(cage, num_vertices, corner_verts);
         let features = CageFeatures::new(cage, &level0, compact, options.boundary)?;
 
         let mut curves = features.curves();
