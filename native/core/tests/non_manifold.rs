@@ -15,7 +15,12 @@ fn sheet(i: usize, flipped: bool) -> (Vec<[u32; 4]>, Vec<[f64; 3]>) {
     let mut faces = Vec::new();
     for row in 0..2 {
         for col in 0..2 {
-            let mut f = [id(col, row), id(col + 1, row), id(col + 1, row + 1), id(col, row + 1)];
+            let mut f = [
+                id(col, row),
+                id(col + 1, row),
+                id(col + 1, row + 1),
+                id(col, row + 1),
+            ];
             if flipped {
                 f.reverse();
             }
@@ -29,7 +34,11 @@ fn sheet(i: usize, flipped: bool) -> (Vec<[u32; 4]>, Vec<[f64; 3]>) {
         for col in 1..3 {
             let r = col as f64 * (1.0 + 0.1 * i as f64) + 0.05 * row as f64;
             let bump = 0.3 * ((row * col + i) % 3) as f64;
-            points.push([r * c - bump * s, r * s + bump * c, row as f64 + 0.1 * col as f64]);
+            points.push([
+                r * c - bump * s,
+                r * s + bump * c,
+                row as f64 + 0.1 * col as f64,
+            ]);
         }
     }
     (faces, points)
@@ -64,7 +73,9 @@ fn sheet_alone(i: usize) -> (Cage, Vec<f64>) {
     let faces: Vec<[u32; 4]> = faces.iter().map(|f| f.map(local)).collect();
     let mut points: Vec<f64> = LINE.iter().flatten().copied().collect();
     points.extend(own.iter().flatten());
-    let cage = cage(&faces, 9).with_corners(&[(0, 10.0), (2, 10.0)]).unwrap();
+    let cage = cage(&faces, 9)
+        .with_corners(&[(0, 10.0), (2, 10.0)])
+        .unwrap();
     (cage, points)
 }
 
@@ -77,7 +88,11 @@ fn corner_points(plan: &bidegree::Plan, points: &[f64], faces: std::ops::Range<u
     for f in 0..origin.len() {
         if faces.contains(&origin[f]) {
             for &v in &verts[offsets[f] as usize..offsets[f + 1] as usize] {
-                out.extend(points[3 * v as usize..3 * v as usize + 3].iter().map(|x| x.to_bits()));
+                out.extend(
+                    points[3 * v as usize..3 * v as usize + 3]
+                        .iter()
+                        .map(|x| x.to_bits()),
+                );
             }
         }
     }
@@ -138,7 +153,9 @@ fn a_book_is_the_same_on_any_number_of_threads() {
         let one = run(1);
         for threads in [2, 3] {
             assert!(
-                one.iter().zip(run(threads)).all(|(a, b)| a.to_bits() == b.to_bits()),
+                one.iter()
+                    .zip(run(threads))
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
                 "degree {degree}, {threads} threads"
             );
         }
