@@ -88,8 +88,11 @@ def test_face_too_small() -> None:
 
 
 def test_repeated_vertex() -> None:
+    """A face may repeat a vertex (OpenSubdiv's degenerate edge); fewer than three distinct
+    vertices stays an error, naming the face and the vertex."""
+    bidegree.Mesh(CUBE_POINTS, [[0, 1, 2, 1]])
     with pytest.raises(bidegree.RepeatedVertexError) as info:
-        bidegree.Mesh(CUBE_POINTS, [[0, 1, 2, 1]])
+        bidegree.Mesh(CUBE_POINTS, [[0, 1, 1, 0]])
     assert (info.value.face, info.value.vertex) == (0, 1)
 
 
@@ -122,27 +125,47 @@ def test_non_finite_points() -> None:
         bidegree.subdivide(bidegree.Mesh(points.astype(np.float32), CUBE_FACES))
 
 
-def test_degenerate_face() -> None:
-    with pytest.raises(bidegree.DegenerateFaceError):
-        bidegree.subdivide(bidegree.Mesh(np.zeros((4, 3)), [[0, 1, 2, 3]]))
+def test_degenerate_face_is_subdivided() -> None:
+    """Zero area is a property of positions, not of topology: the collapsed quad subdivides
+    (to its one point), as in OpenSubdiv."""
+    result = bidegree.subdivide(bidegree.Mesh(np.zeros((4, 3)), [[0, 1, 2, 3]]))
+    assert np.all(np.asarray(result.points) == 0.0)
+    with pytest.raises(bidegree.NonFiniteError):
+        bidegree.subdivide(bidegree.Mesh(np.full((4, 3), np.nan), [[0, 1, 2, 3]]))
 
 
 def test_non_manifold_edge() -> None:
+    """Three faces on one edge: each keeps its own side; the edge is an infinitely sharp curve
+    they all meet (the edge's children are shared, bitwise)."""
     points = np.random.default_rng(0).normal(size=(5, 3))
     mesh = bidegree.Mesh(points, [[0, 1, 2], [1, 0, 3], [0, 1, 4]])
-    with pytest.raises(bidegree.NonManifoldEdgeError) as info:
-        bidegree.Plan(mesh)
-    assert {info.value.a, info.value.b} == {0, 1}
-    assert info.value.faces == 3
-    with pytest.raises(bidegree.NonManifoldEdgeError):
-        bidegree.subdivide(mesh)
+    result = bidegree.subdivide(mesh, levels=2)
+    assert len(result.face_sizes) == 3 * 3 * 4
+    pts = np.asarray(result.points)
+    # The shared edge stays the straight segment between its (corner) ends.
+    t = (pts - points[0]) @ (points[1] - points[0]) / np.sum((points[1] - points[0]) ** 2)
+    on_line = np.linalg.norm(pts - (points[0] + np.outer(t, points[1] - points[0])), axis=1)
+    assert np.sum(on_line < 1e-12) >= 5
 
 
 def test_inconsistent_orientation() -> None:
+    """Faces running an edge the same way subdivide, each on its own side."""
     points = np.random.default_rng(1).normal(size=(6, 3))
     mesh = bidegree.Mesh(points, [[0, 1, 2, 3], [0, 1, 4, 5]])
-    with pytest.raises(bidegree.InconsistentOrientationError):
-        bidegree.subdivide(mesh)
+    result = bidegree.subdivide(mesh, levels=1)
+    assert len(result.face_sizes) == 8
+
+
+def test_holes_are_left_out() -> None:
+    """Hole faces shape their neighbours but are not drawn, nor the vertices only they use."""
+    whole = bidegree.subdivide(cube(), levels=2)
+    holed = bidegree.subdivide(cube(holes=[0]), levels=2)
+    assert len(holed.face_sizes) == len(whole.face_sizes) - 16
+    assert len(holed.points) == len(whole.points) - 9
+    kept = {tuple(p) for p in np.asarray(holed.points)}
+    assert kept <= {tuple(p) for p in np.asarray(whole.points)}
+    with pytest.raises(bidegree.InvalidInputError):
+        cube(holes=[6])
 
 
 def test_crease_not_an_edge() -> None:
@@ -212,7 +235,7 @@ def test_isolated_vertices_warn_and_are_dropped() -> None:
         lambda: bidegree.Mesh(CUBE_POINTS, [[0.0, 1.5, 2.0]]),
         lambda: bidegree.Mesh(np.array([["a", "b", "c"]]), [[0, 1, 2]]),
         lambda: bidegree.Mesh(CUBE_POINTS, face_sizes=[4, 4], face_indices=[0, 1, 2, 3]),
-        lambda: cube(boundary="none"),
+        lambda: cube(boundary="nothing"),
         lambda: cube(uvs=np.zeros((23, 2))),
         lambda: cube(uvs=np.zeros((24, 3))),
         lambda: cube(creases=([0, 1], [1.0])),

@@ -6,9 +6,8 @@ within 1e-5 of the bounding-box diagonal as point sets (nearest point both ways,
 the faces drawn), UVs per face corner (:func:`opensubdiv_reference.corner_map`).
 
 The cases bidegree cannot do yet are ``xfail(strict=True)`` with the reason it fails today: when
-issue 13 or 14 makes one pass, pytest reports it and the mark must go. The calls use the API the
-issues ask for where it does not exist yet (``Mesh(holes=...)``, ``boundary="none"``,
-``subdivide(uv_mode=...)``); they fail today with a ``TypeError`` or a typed bidegree error.
+one starts passing, pytest reports it and the mark must go. The UV calls use the API issue 14
+asks for where it does not exist yet (``subdivide(uv_mode=...)``).
 
 What the comparison rests on (``docs/research/*.md``; each checked against Debian's libosd):
 - Blender adds two rules of its own before OpenSubdiv sees the mesh (a vertex on a loose edge is
@@ -45,34 +44,10 @@ UV_MODES = ("none", "corners-only", "corners-plus1", "corners-plus2", "boundarie
 
 DIFFERS = AssertionError  # the comparison's own failure
 
-#: How and why the core fails each cage of issue 13 today (the others pass already). The
-#: exception is part of the mark: a case that starts failing differently is reported.
-CORE_TODAY: dict[str, tuple[type[BaseException], str]] = {
-    "non-manifold-edge-3-faces": (bidegree.NonManifoldEdgeError, "refused"),
-    "non-manifold-edge-4-faces": (bidegree.NonManifoldEdgeError, "refused"),
-    "non-manifold-edge-100-faces": (bidegree.NonManifoldEdgeError, "refused"),
-    "duplicate-face": (bidegree.NonManifoldEdgeError, "refused"),
-    "flipped-face": (bidegree.InconsistentOrientationError, "refused"),
-    "repeated-vertex": (bidegree.RepeatedVertexError, "refused"),
-    "zero-area-faces": (bidegree.DegenerateFaceError, "refused"),
-    "text-like": (bidegree.DegenerateFaceError, "refused"),
-    "blender-text": (bidegree.DegenerateFaceError, "refused"),
-    "holes": (TypeError, "no Mesh(holes=...)"),
-    "torus-hole": (TypeError, "no Mesh(holes=...)"),
-    "boundary-none": (bidegree.InvalidInputError, "no boundary='none'"),
-    "boundary-none-creased-side": (bidegree.InvalidInputError, "no boundary='none'"),
-    "bowtie-closed": (DIFFERS, "smooth vertex of 8 faces where OpenSubdiv has a corner: 0.8%"),
-}
-
-#: How and why ``bidegree_blender.subdivide_object`` fails the Blender cages today.
-BLENDER_TODAY = {
-    **CORE_TODAY,
-    "loose-edges": (bidegree.InvalidInputError, "loose edges are refused"),
-    "valence-2-crease-inf": (DIFFERS, "Blender's valence-2 rule not applied: 1.5%"),
-    "valence-2-crease-2.5": (DIFFERS, "Blender's valence-2 rule not applied: 1.4%"),
-    "valence-2-crease-0.625": (DIFFERS, "Blender's valence-2 rule not applied: 0.7%"),
-    "creased-boundary": (DIFFERS, "Blender's valence-2 rule not applied: 5%"),
-}
+#: Cages of issue 13 the core or the Blender path cannot match yet, with the exception and the
+#: reason (a strict xfail: a case that starts passing or failing differently is reported).
+CORE_TODAY: dict[str, tuple[type[BaseException], str]] = {}
+BLENDER_TODAY: dict[str, tuple[type[BaseException], str]] = {}
 #: Blender has neither; their reference is OpenSubdiv's (see the module docstring).
 NOT_IN_BLENDER = {"holes", "torus-hole", "boundary-none", "boundary-none-creased-side"}
 

@@ -62,7 +62,7 @@ def _api_spec(**changes: object) -> dict[str, object]:
     ("changes", "outcome", "label"),
     [
         ({}, "success", "success"),
-        ({"faces": [[0, 1, 2], [0, 1, 3], [0, 1, 4]]}, "typed", "NonManifoldEdgeError"),
+        ({"faces": [[0, 1, 1, 0]]}, "typed", "RepeatedVertexError"),
         ({"call": "panic"}, "other", "InternalError native/python/src/errors.rs"),
         ({"call": "abort"}, "other", "signal SIGABRT"),
     ],

@@ -32,7 +32,7 @@ CUBE_OBJ = (
     "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n"
 )
 #: Three faces on the edge 1-2: not a 2-manifold (bidegree refuses it).
-NON_MANIFOLD_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n"
+NON_FINITE_OBJ = "v nan 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 4 3\n"
 
 
 def grid_obj(n: int = 3) -> str:
@@ -80,12 +80,12 @@ def inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     files = {
         "cube": folder / "cube.obj",
         "grid": folder / "grid.obj",
-        "nonmanifold": folder / "nonmanifold.obj",
+        "nonfinite": folder / "nonfinite.obj",
         "garbage": folder / "garbage.blend",
     }
     files["cube"].write_text(CUBE_OBJ)
     files["grid"].write_text(grid_obj())
-    files["nonmanifold"].write_text(NON_MANIFOLD_OBJ)
+    files["nonfinite"].write_text(NON_FINITE_OBJ)
     files["garbage"].write_bytes(b"BLENDER-v500 this is not a blend file\n" * 4)
     files["scene"] = save_scene(folder / "scene.blend", _two_objects)
     files["monkey"] = save_scene(folder / "monkey.blend", _monkeys(1))

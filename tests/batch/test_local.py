@@ -99,7 +99,7 @@ def test_the_batch_survives_any_single_file(inputs: dict[str, Path], tmp_path: P
     )
     bad_obj = tmp_path / "bad.obj"
     bad_obj.write_bytes(b"\xef\xbb\xbfv 0 0 0\nv 1 0\nf 1 2 9\n\x00\x01\x02binary junk\n")
-    files = [empty, inputs["garbage"], bad_obj, inputs["nonmanifold"], inputs["cube"]]
+    files = [empty, inputs["garbage"], bad_obj, inputs["nonfinite"], inputs["cube"]]
     out = tmp_path / "out"
     proc = run_batch(*files, "--out", out, "--usda", cwd=tmp_path)
     assert proc.returncode == 1, proc.stdout + proc.stderr
@@ -108,7 +108,7 @@ def test_the_batch_survives_any_single_file(inputs: dict[str, Path], tmp_path: P
     for line, path in zip(lines[:4], files[:4], strict=True):
         assert f"{path}: FAILED: " in line
     assert "garbage.blend: FAILED: RuntimeError" in lines[1]
-    assert "nonmanifold.obj: FAILED: NonManifoldEdgeError" in lines[3]
+    assert "nonfinite.obj: FAILED: NonFiniteError" in lines[3]
     assert "cube.obj: ok" in lines[4]
     assert output_files(out) == {"cube.bidegree.blend", "cube.usda"}
     summary = proc.stdout.splitlines()[-5:]

@@ -301,9 +301,43 @@ def _zero_area(scene: Any) -> Any:
     return make_object(scene, "Flat", pts, [(0, 1, 2, 3), (4, 5, 6)])
 
 
-@pytest.mark.parametrize("make", [_loose_edges, _zero_area])
-def test_bad_meshes_leave_the_object_unchanged(scene: Any, make: Any) -> None:
+def _non_manifold(scene: Any) -> Any:
+    pts = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1)]
+    return make_object(scene, "Fan", pts, [(0, 1, 2), (1, 0, 3), (0, 1, 4)])
+
+
+def _flipped(scene: Any) -> Any:
+    pts = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (2, 0, 0), (2, 1, 0)]
+    return make_object(scene, "Flipped", pts, [(0, 1, 2, 3), (1, 2, 5, 4)])
+
+
+def _nan_point(scene: Any) -> Any:
+    pts = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (float("nan"), 1, 0)]
+    return make_object(scene, "NaN", pts, [(0, 1, 2, 3)])
+
+
+@pytest.mark.parametrize("make", [_loose_edges, _zero_area, _non_manifold, _flipped])
+def test_dirty_meshes_subdivide(scene: Any, make: Any) -> None:
+    """What Blender's Subdivision Surface modifier subdivides, the add-on does (issue 13); the
+    loose edges are left out with a warning in the panel."""
     obj = make(scene)
+    cage_faces = len(obj.data.polygons)
+    mod = bidegree_blender.add_modifier(obj)
+    got = evaluated(obj, update())
+    status = modifier.status(obj, mod)
+    assert status.error == ""
+    assert len(got[1]) > cage_faces
+    if make is _loose_edges:
+        assert "loose edge" in status.warning
+    out = bidegree_blender.subdivide_object(obj)
+    try:
+        assert len(out.polygons) > cage_faces
+    finally:
+        bpy.data.meshes.remove(out)
+
+
+def test_bad_meshes_leave_the_object_unchanged(scene: Any) -> None:
+    obj = _nan_point(scene)
     before = snapshot(obj)
     mod = bidegree_blender.add_modifier(obj)
     got = evaluated(obj, update())
@@ -332,8 +366,8 @@ def test_batch_three_files_one_broken(addon: ModuleType, scene: Any, tmp_path: P
         "v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\nv -1 1 1\n"
         "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n"
     )
-    broken = tmp_path / "broken.obj"  # three faces on one edge: non-manifold
-    broken.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n")
+    broken = tmp_path / "broken.obj"  # a face on a vertex that does not exist
+    broken.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 2 1 9\n")
     blend = tmp_path / "scene.blend"
     obj = cube(scene, "BlendCube")
     obj.modifiers.new("Bevel", "BEVEL")

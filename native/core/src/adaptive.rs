@@ -279,6 +279,14 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
     let compact: Vec<P<T>> = base.compact(given).into_owned();
     let level0 = base.levels()[0].clone();
     let features = base.features().clone();
+    // The partial levels keep two slots per edge and no non-manifold tags.
+    if level0.is_non_manifold() || !features.holes.is_empty() {
+        return Err(Error::InvalidInput(
+            "adaptive refinement does not support non-manifold cages or holes yet; use the \
+             uniform refinement (subdivide)"
+                .into(),
+        ));
+    }
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     for p in &compact {
@@ -724,6 +732,7 @@ fn restrict(fine: &Level, keep: &[bool]) -> Sub {
             corner_edges,
             verts: edge_verts,
             corners: edge_corners,
+            more: Vec::new(),
         },
         vert_corner_offsets,
         vert_corners,

@@ -18,6 +18,11 @@ use crate::options::{Boundary, Creasing};
 use crate::parallel::gather_hinted;
 use crate::scheme::catmark::{subdivide_edge_sharpness, vertex_rule, VertexRule};
 use crate::scheme::{corner_weight, curve_weight, decrement, is_curve_vertex, is_sharp};
+
+/// True for the sharpness of an infinitely sharp crease.
+fn is_infinite(s: f32) -> bool {
+    s >= INFINITELY_SHARP
+}
 use crate::topology::{Level, NONE};
 
 /// A curve edge of a level with its sharpness there.
@@ -29,37 +34,37 @@ pub(crate) struct Curve {
     pub sharpness: f32,
 }
 
-/// The curve features of the cage, on the cage level `M_0`: every curve edge (boundaries and
-/// creases) with its sharpness, and the tagged vertices (corners).
+/// The curve features of the cage, on the cage level `M_0`: every curve edge (boundaries,
+/// non-manifold edges and creases) with its sharpness, the tagged vertices (corners) and the
+/// hole faces.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct CageFeatures {
     /// Sharpness of every edge of `M_0` (0 smooth).
     pub edge_sharpness: Vec<f32>,
     /// Tagged vertices of `M_0` and their sharpness, sorted by vertex, positive.
     pub corners: Vec<(u32, f32)>,
+    /// The faces that are holes (the cage's, and with [`Boundary::None`] the faces at the
+    /// boundary), sorted; they are refined and shape their neighbours, but are not drawn.
+    pub holes: Vec<u32>,
 }
 
 impl CageFeatures {
     /// Reads the features of `cage` on its level `level0`, whose vertex `compact(v)` is cage
     /// vertex `v` (`NONE` for an isolated vertex, which has no place in the surface: a corner
-    /// there is left out). Boundary edges are infinitely sharp; with
-    /// [`Boundary::EdgeAndCorner`] every vertex of a single face is a corner. Fails when a
-    /// crease is not an edge of the mesh.
+    /// there is left out). Boundary and non-manifold edges are infinitely sharp (OpenSubdiv's
+    /// `sharpenNonManFeatures`); a non-manifold vertex is an infinitely sharp corner, except
+    /// inside a line of non-manifold edges (exactly two of them, no boundary edge, more faces
+    /// than edges), where it is a curve vertex. With [`Boundary::EdgeAndCorner`] every vertex of
+    /// a single face is a corner; with [`Boundary::None`] the faces at a vertex on a boundary
+    /// edge that the user did not crease infinitely are holes. Fails when a crease is not an
+    /// edge of the mesh.
     pub(crate) fn new(
         cage: &Cage,
         level0: &Level,
         compact: impl Fn(u32) -> u32,
         boundary: Boundary,
     ) -> Result<CageFeatures> {
-        let mut edge_sharpness: Vec<f32> = (0..level0.num_edges())
-            .map(|e| {
-                if level0.is_boundary_edge(e) {
-                    INFINITELY_SHARP
-                } else {
-                    0.0
-                }
-            })
-            .collect();
+        let mut edge_sharpness = vec![0.0f32; level0.num_edges()];
         if !cage.creases().is_empty() {
             let key = |a: u32, b: u32| ((a.min(b) as u64) << 32) | a.max(b) as u64;
             let mut keys: Vec<(u64, u32)> = level0
@@ -68,18 +73,42 @@ impl CageFeatures {
                 .enumerate()
                 .map(|(e, &[a, b])| (key(a, b), e as u32))
                 .collect();
+            // The first edge of a pair (OpenSubdiv's `findEdge`) takes the crease.
             keys.sort_unstable();
             for (i, crease) in cage.creases().iter().enumerate() {
                 let (a, b) = (compact(crease.a), compact(crease.b));
-                let at = keys
-                    .binary_search_by_key(&key(a, b), |k| k.0)
-                    .map_err(|_| Error::CreaseNotAnEdge {
+                let k = key(a, b);
+                let at = keys.partition_point(|x| x.0 < k);
+                if keys.get(at).is_none_or(|x| x.0 != k) {
+                    return Err(Error::CreaseNotAnEdge {
                         crease: i,
                         a: crease.a as usize,
                         b: crease.b as usize,
-                    })?;
+                    });
+                }
                 let e = keys[at].1 as usize;
                 edge_sharpness[e] = edge_sharpness[e].max(crease.sharpness);
+            }
+        }
+        let mut holes: Vec<u32> = cage.holes().to_vec();
+        if boundary == Boundary::None {
+            for v in 0..level0.num_vertices {
+                let open = level0.vertex_edges(v).any(|e| {
+                    level0.is_boundary_edge(e as usize) && !is_infinite(edge_sharpness[e as usize])
+                });
+                if open {
+                    holes.extend(
+                        (level0.corners_of_vertex(v).iter())
+                            .map(|&c| level0.face_of(c as usize) as u32),
+                    );
+                }
+            }
+        }
+        holes.sort_unstable();
+        holes.dedup();
+        for (e, s) in edge_sharpness.iter_mut().enumerate() {
+            if level0.is_boundary_edge(e) || level0.is_non_manifold_edge(e) {
+                *s = INFINITELY_SHARP;
             }
         }
         let mut corners: Vec<(u32, f32)> = cage
@@ -88,6 +117,19 @@ impl CageFeatures {
             .map(|c| (compact(c.vertex), c.sharpness))
             .filter(|c| c.0 != NONE)
             .collect();
+        for &v in &level0.nm_vertices {
+            let v = v as usize;
+            let (mut edges, mut nm, mut open) = (0, 0, 0);
+            for e in level0.vertex_edges(v) {
+                edges += 1;
+                nm += level0.is_non_manifold_edge(e as usize) as usize;
+                open += level0.is_boundary_edge(e as usize) as usize;
+            }
+            let inside_line = nm == 2 && open == 0 && level0.corners_of_vertex(v).len() > edges;
+            if !inside_line {
+                corners.push((v as u32, INFINITELY_SHARP));
+            }
+        }
         if boundary == Boundary::EdgeAndCorner {
             for v in 0..level0.num_vertices {
                 if level0.corners_of_vertex(v).len() == 1 {
@@ -101,6 +143,7 @@ impl CageFeatures {
         Ok(CageFeatures {
             edge_sharpness,
             corners,
+            holes,
         })
     }
 

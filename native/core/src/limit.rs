@@ -411,6 +411,11 @@ fn check(refinement: &Refinement, normals: bool) -> Result<LimitMethod> {
                 .into(),
         ));
     }
+    if !refinement.features().holes.is_empty() {
+        return Err(Error::InvalidInput(
+            "limit positions and normals of a cage with holes are not supported yet".into(),
+        ));
+    }
     let rule = refinement.scheme().limit(normals)?;
     if rule == LimitMethod::CatmullClark && refinement.curve_networks().is_empty() {
         return Err(Error::InvalidInput(

@@ -1,5 +1,7 @@
-//! The input cage: polygon topology, edge creases and corner vertices, and the checks on it
-//! that need no refinement (index ranges, face sizes, repeated vertices, geometry).
+//! The input cage: polygon topology, edge creases, corner vertices and hole faces, and the
+//! checks on it that need no refinement (index ranges, face sizes, faces of fewer than three
+//! distinct vertices, finite values). Any polygon soup is a cage: non-manifold, inconsistently
+//! oriented, degenerate or zero-area faces are subdivided as OpenSubdiv does.
 
 use crate::error::{Error, Result};
 use crate::scalar::Scalar;
@@ -30,8 +32,9 @@ pub struct Corner {
     pub sharpness: f32,
 }
 
-/// The topology of an input cage: polygons of any size >= 3, creases and corners.
-/// Points are not part of the cage, so one cage serves any number of poses.
+/// The topology of an input cage: polygons of at least three distinct vertices (a face may
+/// repeat a vertex), creases, corners and holes. Points are not part of the cage, so one cage
+/// serves any number of poses.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Cage {
     num_vertices: usize,
@@ -39,6 +42,7 @@ pub struct Cage {
     face_vertices: Vec<u32>,
     creases: Vec<Crease>,
     corners: Vec<Corner>,
+    holes: Vec<u32>,
 }
 
 fn check_index(what: impl Fn() -> String, index: i64, num_vertices: usize) -> Result<u32> {
@@ -63,7 +67,9 @@ fn check_sharpness(what: &str, i: usize, s: f32) -> Result<()> {
 
 impl Cage {
     /// Builds a cage from face sizes and the flat list of their vertex indices, checking that
-    /// every face has at least three distinct vertices and every index is in range.
+    /// every face has at least three distinct vertices and every index is in range. A face may
+    /// use a vertex more than once (OpenSubdiv keeps every occurrence: a repeated neighbour is
+    /// a degenerate edge); fewer than three distinct vertices is [`Error::RepeatedVertex`].
     pub fn from_indices(
         num_vertices: usize,
         face_sizes: &[i64],
@@ -107,16 +113,22 @@ impl Cage {
         let mut seen_in = vec![u32::MAX; num_vertices];
         for face in 0..face_sizes.len() {
             let range = face_offsets[face] as usize..face_offsets[face + 1] as usize;
+            let (mut distinct, mut repeated) = (0, None);
             for &index in &face_vertices[range] {
                 let v = check_index(|| format!("face {face}"), index, num_vertices)?;
                 if seen_in[v as usize] == face as u32 {
-                    return Err(Error::RepeatedVertex {
-                        face,
-                        vertex: v as usize,
-                    });
+                    repeated.get_or_insert(v);
+                } else {
+                    distinct += 1;
                 }
                 seen_in[v as usize] = face as u32;
                 verts.push(v);
+            }
+            if let (true, Some(v)) = (distinct < 3, repeated) {
+                return Err(Error::RepeatedVertex {
+                    face,
+                    vertex: v as usize,
+                });
             }
         }
         Ok(Cage {
@@ -125,6 +137,7 @@ impl Cage {
             face_vertices: verts,
             creases: Vec::new(),
             corners: Vec::new(),
+            holes: Vec::new(),
         })
     }
 
@@ -163,6 +176,28 @@ impl Cage {
         Ok(self)
     }
 
+    /// Tags faces as holes (OpenSubdiv's `holeIndices`, OBJ `t hole`): they are refined and
+    /// shape their neighbours, but are left out of the output.
+    pub fn with_holes(mut self, holes: &[i64]) -> Result<Cage> {
+        let faces = self.num_faces();
+        for (i, &f) in holes.iter().enumerate() {
+            if f < 0 || f as u64 >= faces as u64 {
+                return Err(Error::InvalidInput(format!(
+                    "hole {i} is face {f}, but the mesh has {faces} faces"
+                )));
+            }
+            self.holes.push(f as u32);
+        }
+        self.holes.sort_unstable();
+        self.holes.dedup();
+        Ok(self)
+    }
+
+    /// The hole faces, sorted.
+    pub fn holes(&self) -> &[u32] {
+        &self.holes
+    }
+
     /// Number of vertices (including any that no face uses).
     pub fn num_vertices(&self) -> usize {
         self.num_vertices
@@ -194,54 +229,10 @@ impl Cage {
     }
 }
 
-/// Checks the points of a cage: the right length, finite values, and no face of zero area
-/// (measured by the norm of its vector area against the squared size of the cage; only the
-/// first three channels are taken as positions).
+/// Checks the points of a cage: the right length and finite values. Zero-area and collinear
+/// faces are fine (degeneracy is a property of positions; no rule divides by an area).
 pub fn validate_geometry<T: Scalar>(cage: &Cage, points: &[T], channels: usize) -> Result<()> {
-    check_values(points, channels, cage.num_vertices())?;
-    if channels < 3 {
-        return Ok(());
-    }
-    let p = |v: u32| -> [f64; 3] {
-        let i = v as usize * channels;
-        [
-            points[i].to_f64(),
-            points[i + 1].to_f64(),
-            points[i + 2].to_f64(),
-        ]
-    };
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for &v in cage.face_vertices() {
-        let q = p(v);
-        for k in 0..3 {
-            lo[k] = lo[k].min(q[k]);
-            hi[k] = hi[k].max(q[k]);
-        }
-    }
-    let diag2: f64 = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum();
-    // Relative to f32 resolution of the cage size: a face this small vanishes in single precision.
-    let tolerance = diag2 * 1e-14;
-    let offsets = cage.face_offsets();
-    let verts = cage.face_vertices();
-    for face in 0..cage.num_faces() {
-        let fv = &verts[offsets[face] as usize..offsets[face + 1] as usize];
-        let o = p(fv[0]);
-        let mut area = [0.0f64; 3];
-        for w in fv[1..].windows(2) {
-            let (a, b) = (p(w[0]), p(w[1]));
-            let u = [a[0] - o[0], a[1] - o[1], a[2] - o[2]];
-            let v = [b[0] - o[0], b[1] - o[1], b[2] - o[2]];
-            area[0] += u[1] * v[2] - u[2] * v[1];
-            area[1] += u[2] * v[0] - u[0] * v[2];
-            area[2] += u[0] * v[1] - u[1] * v[0];
-        }
-        let norm = (area[0] * area[0] + area[1] * area[1] + area[2] * area[2]).sqrt() * 0.5;
-        if norm.is_nan() || norm <= tolerance {
-            return Err(Error::DegenerateFace { face });
-        }
-    }
-    Ok(())
+    check_values(points, channels, cage.num_vertices())
 }
 
 /// Checks that `values` holds `channels` finite values for each of `count` items.

@@ -32,6 +32,9 @@ pub enum Boundary {
     EdgeOnly,
     /// As `EdgeOnly`, and boundary vertices with a single face are corners.
     EdgeAndCorner,
+    /// No boundary interpolation (OpenSubdiv's `VTX_BOUNDARY_NONE`): as `EdgeOnly`, with every
+    /// face at a vertex on a boundary edge not creased infinitely a hole.
+    None,
 }
 
 /// Which rules refine the levels.

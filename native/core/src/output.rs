@@ -1,6 +1,8 @@
 //! Output meshes: the drawing mesh (`M_L` itself) or the true dual mesh of `M_L` (one face per
 //! vertex, its corners the points of the faces around it, closed along boundaries by the 1-D
 //! points of the boundary curve), with edges, corner edges and the cage face of every face.
+//! Faces whose cage face is a hole are left out of the drawing mesh, and so are the vertices
+//! only they use.
 
 use std::sync::OnceLock;
 
@@ -11,7 +13,7 @@ use crate::parallel::gather_hinted;
 use crate::refinement::Refinement;
 use crate::scalar::{Scalar, Value};
 use crate::step::Final;
-use crate::topology::{EdgeProblem, Level};
+use crate::topology::{Level, NONE};
 
 /// The dual mesh of the last level, as a polygon level plus where its data comes from.
 #[derive(Debug, Default)]
@@ -34,16 +36,28 @@ pub(crate) struct OutputMesh {
     face_offsets: OnceLock<Vec<u32>>,
     /// Cage face of each face of the drawing mesh, built on first use.
     face_origin: OnceLock<Vec<u32>>,
-    /// The dual mesh, when asked for.
+    /// The dual mesh, when asked for, or the drawing mesh without its holes (a polygon level
+    /// like the dual's; `corner_source` then maps its corners to those of `M_L`).
     dual: Option<DualMesh>,
+    /// With holes: the vertex of `M_L` of each output vertex.
+    vertex_source: Vec<u32>,
 }
 
 impl OutputMesh {
     /// Builds the output topology of a refinement (the drawing mesh's own tables wait for their
     /// first use: evaluation does not need them).
     pub(crate) fn build(refinement: &Refinement) -> Result<OutputMesh> {
-        if refinement.options().output == OutputKind::Dual && refinement.levels_as_built().len() > 1
-        {
+        let dual = refinement.options().output == OutputKind::Dual;
+        if !refinement.features().holes.is_empty() {
+            if dual {
+                return Err(Error::InvalidInput(
+                    "the dual output of a cage with holes is not supported; use the primal output"
+                        .into(),
+                ));
+            }
+            return without_holes(refinement);
+        }
+        if dual && refinement.levels_as_built().len() > 1 {
             let origin = face_origin(refinement)?;
             let dual = dual_mesh(refinement, &origin)?;
             return Ok(OutputMesh {
@@ -147,7 +161,10 @@ impl OutputMesh {
         result: Final<T, N>,
     ) -> Result<Vec<Value<T, N>>> {
         match result {
-            Final::Primal(points) => Ok(points),
+            Final::Primal(points) if self.vertex_source.is_empty() => Ok(points),
+            Final::Primal(points) => {
+                memory::collect(self.vertex_source.iter().map(|&v| points[v as usize]))
+            }
             Final::Dual {
                 mut faces,
                 curve_edges,
@@ -183,6 +200,54 @@ impl OutputMesh {
             }
         }
     }
+}
+
+/// The drawing mesh without the faces whose cage face is a hole, and without the vertices only
+/// they use (numbered in the order of `M_L`).
+fn without_holes(refinement: &Refinement) -> Result<OutputMesh> {
+    let holes = &refinement.features().holes;
+    let origin = face_origin(refinement)?;
+    let last = refinement.last_level();
+    let mut kept: Vec<u32> = memory::with_capacity(last.num_faces())?;
+    kept.extend(
+        (0..last.num_faces() as u32).filter(|&f| holes.binary_search(&origin[f as usize]).is_err()),
+    );
+    let mut used = memory::filled(last.num_vertices, NONE)?;
+    for &f in &kept {
+        for c in last.face_corners(f as usize) {
+            used[last.corner_verts[c] as usize] = 0;
+        }
+    }
+    let mut vertex_source = memory::with_capacity(last.num_vertices)?;
+    for (v, slot) in used.iter_mut().enumerate() {
+        if *slot == 0 {
+            *slot = vertex_source.len() as u32;
+            vertex_source.push(v as u32);
+        }
+    }
+    let mut offsets = memory::with_capacity(kept.len() + 1)?;
+    offsets.push(0u32);
+    let mut verts = memory::with_capacity(last.num_corners())?;
+    let mut sources = memory::with_capacity(last.num_corners())?;
+    for &f in &kept {
+        for c in last.face_corners(f as usize) {
+            verts.push(used[last.corner_verts[c] as usize]);
+            sources.push(c as u32);
+        }
+        offsets.push(verts.len() as u32);
+    }
+    let face_origin = memory::collect(kept.iter().map(|&f| origin[f as usize]))?;
+    let level = Level::from_polygons(vertex_source.len(), offsets, verts)?;
+    Ok(OutputMesh {
+        dual: Some(DualMesh {
+            level,
+            corner_source: sources,
+            face_origin,
+            ..DualMesh::default()
+        }),
+        vertex_source,
+        ..OutputMesh::default()
+    })
 }
 
 /// Face f of M_L is corner f of M_{L-1}, inside face f/4 of M_{L-1} (for L-1 >= 1), down to a
@@ -277,13 +342,7 @@ fn dual_mesh(refinement: &Refinement, face_origin: &[u32]) -> Result<DualMesh> {
             "the dual output needs every vertex on at least 3 faces or a boundary; vertex {v} of the last level is not (the cage has a vertex of valence 2)"
         )));
     }
-    let level =
-        Level::from_polygons(num_points, offsets, verts).map_err(|problem| match problem {
-            EdgeProblem::Failed(error) => error,
-            problem => Error::InvalidInput(format!(
-                "the dual of this mesh is not a 2-manifold ({problem:?}); use the primal output"
-            )),
-        })?;
+    let level = Level::from_polygons(num_points, offsets, verts)?;
     Ok(DualMesh {
         level,
         boundary_points,

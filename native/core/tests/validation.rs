@@ -23,6 +23,9 @@ fn topology_errors_name_the_offender() {
         err(Cage::from_indices(4, &[3, 2], &[0, 1, 2, 2, 3])),
         Error::FaceTooSmall { face: 1, size: 2 }
     );
+    // A face may repeat a vertex (a degenerate edge, as OpenSubdiv), not with fewer than three
+    // distinct vertices.
+    assert!(Cage::from_indices(4, &[3, 4], &[0, 1, 2, 2, 3, 1, 2]).is_ok());
     assert_eq!(
         err(Cage::from_indices(4, &[3, 3], &[0, 1, 2, 2, 3, 2])),
         Error::RepeatedVertex { face: 1, vertex: 2 }
@@ -35,18 +38,16 @@ fn topology_errors_name_the_offender() {
     assert_eq!(big_cage.num_faces(), 1);
     let mut repeated = big.clone();
     repeated[n as usize - 1] = 7;
-    assert_eq!(
-        err(Cage::from_indices(
-            n as usize,
-            &[3, n],
-            &[7, 8, 9]
-                .iter()
-                .copied()
-                .chain(repeated)
-                .collect::<Vec<_>>()
-        )),
-        Error::RepeatedVertex { face: 1, vertex: 7 }
-    );
+    assert!(Cage::from_indices(
+        n as usize,
+        &[3, n],
+        &[7, 8, 9]
+            .iter()
+            .copied()
+            .chain(repeated)
+            .collect::<Vec<_>>()
+    )
+    .is_ok());
     assert!(matches!(
         err(Cage::from_indices(3, &[3], &[0, 1, 3])),
         Error::IndexOutOfRange { index: 3, .. }
@@ -60,27 +61,11 @@ fn topology_errors_name_the_offender() {
         Error::InvalidInput(_)
     ));
 
-    // Three triangles on edge (0, 1).
+    // Three triangles on edge (0, 1), and two traversing it the same way: cages (issue 13).
     let fan = cage(5, &[vec![0, 1, 2], vec![1, 0, 3], vec![0, 1, 4]]);
-    let e = err(Plan::new(&fan, &Options::default()));
-    assert!(
-        matches!(e, Error::NonManifoldEdge { faces: 3, .. }),
-        "{e:?}"
-    );
-    // Two triangles traversing (0, 1) the same way.
+    assert!(Plan::new(&fan, &Options::default()).is_ok());
     let flipped = cage(4, &[vec![0, 1, 2], vec![0, 1, 3]]);
-    let e = err(Plan::new(&flipped, &Options::default()));
-    assert!(
-        matches!(
-            e,
-            Error::InconsistentOrientation {
-                face_a: 0,
-                face_b: 1,
-                ..
-            }
-        ),
-        "{e:?}"
-    );
+    assert!(Plan::new(&flipped, &Options::default()).is_ok());
     // A crease on a vertex pair that is no edge.
     let (g, _) = grid(2, 2);
     let e = err(Plan::new(
@@ -176,10 +161,8 @@ fn geometry_errors() {
         flat[3 * v + 1] = flat[3 * 4 + 1];
     }
     flat[3 * 5] = flat[3 * 4];
-    assert_eq!(
-        err(subdivide(&g, &flat, 3, &Options::default())),
-        Error::DegenerateFace { face: 3 }
-    );
+    // Zero area is subdivided (a property of positions, not of topology).
+    assert!(subdivide(&g, &flat, 3, &Options::default()).is_ok());
     // A plan evaluates any finite pose, but still refuses NaN.
     let plan = Plan::new(&g, &Options::default()).unwrap();
     assert!(plan.evaluate(&flat, 3).is_ok());

@@ -51,10 +51,11 @@ fn restate(source: &Option<Arc<ObjSource>>, failure: Failure, cage: Option<&Cage
 impl PyCage {
     /// Builds and validates a cage. `crease_edges` holds 2 vertex indices per crease,
     /// `crease_sharpness` one value per crease; `corner_*` one entry per corner; `source`, the
-    /// lines of the file the arrays were read from (`read_obj`'s `"source"`), in the same order.
+    /// lines of the file the arrays were read from (`read_obj`'s `"source"`), in the same order;
+    /// `holes`, the faces tagged as holes.
     #[new]
     #[allow(clippy::too_many_arguments)]
-    #[pyo3(signature = (num_vertices, face_sizes, face_indices, crease_edges, crease_sharpness, corner_vertices, corner_sharpness, source=None))]
+    #[pyo3(signature = (num_vertices, face_sizes, face_indices, crease_edges, crease_sharpness, corner_vertices, corner_sharpness, source=None, holes=None))]
     fn new(
         py: Python<'_>,
         num_vertices: usize,
@@ -65,7 +66,12 @@ impl PyCage {
         corner_vertices: PyReadonlyArray1<'_, i64>,
         corner_sharpness: PyReadonlyArray1<'_, f32>,
         source: Option<&Bound<'_, PyObjSource>>,
+        holes: Option<PyReadonlyArray1<'_, i64>>,
     ) -> PyResult<Self> {
+        let holes = match &holes {
+            Some(h) => contiguous(h, "holes")?,
+            None => &[],
+        };
         let source = source.map(|s| s.get().source());
         let sizes = contiguous(&face_sizes, "face_sizes")?;
         let indices = contiguous(&face_indices, "face_indices")?;
@@ -100,7 +106,8 @@ impl PyCage {
                 .collect();
             Cage::from_indices(num_vertices, sizes, indices)?
                 .with_creases(&creases)?
-                .with_corners(&corners)
+                .with_corners(&corners)?
+                .with_holes(holes)
         });
         match built {
             Ok(inner) => Ok(PyCage { inner, source }),

@@ -53,7 +53,7 @@ impl PyObjSource {
 /// `memory_budget` bytes for the mesh, default 4 GiB) into a dict of numpy arrays: `points`
 /// (V,3) float64, `face_sizes` and `face_indices` int64, `uvs` (T,2) float64, `face_uvs` int64
 /// or None, `crease_edges` (K,2) int64, `crease_sharpness` float32, `corner_vertices` int64,
-/// `corner_sharpness` float32, `boundary` (`"edge-only"`, `"edge-and-corner"` or None when the
+/// `corner_sharpness` float32, `holes` int64, `boundary` (`"edge-only"`, `"edge-and-corner"`, `"none"` or None when the
 /// file has no tag), `creasing` (`"uniform"`, `"chaikin"` or None), `warnings` (one line per
 /// kind of statement or tag skipped) and `source` (an `ObjSource`).
 #[pyfunction]
@@ -85,6 +85,7 @@ fn read_obj<'py>(
     dict.set_item("crease_sharpness", PyArray1::from_vec(py, sharpness))?;
     let (vertices, sharpness): (Vec<i64>, Vec<f32>) = mesh.corners.into_iter().unzip();
     dict.set_item("corner_vertices", PyArray1::from_vec(py, vertices))?;
+    dict.set_item("holes", PyArray1::from_vec(py, mesh.holes))?;
     dict.set_item("corner_sharpness", PyArray1::from_vec(py, sharpness))?;
     dict.set_item("boundary", mesh.boundary.map(boundary_name))?;
     dict.set_item("creasing", mesh.creasing.map(creasing_name))?;

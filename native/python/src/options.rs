@@ -15,13 +15,14 @@ pub(crate) fn parse_output(output: &str) -> bidegree::Result<OutputKind> {
     }
 }
 
-/// `"edge-only"` or `"edge-and-corner"`.
+/// `"edge-only"`, `"edge-and-corner"` or `"none"`.
 pub(crate) fn parse_boundary(boundary: &str) -> bidegree::Result<Boundary> {
     match boundary {
         "edge-only" => Ok(Boundary::EdgeOnly),
         "edge-and-corner" => Ok(Boundary::EdgeAndCorner),
+        "none" => Ok(Boundary::None),
         other => Err(invalid(format!(
-            "boundary must be 'edge-only' or 'edge-and-corner', not {other:?}"
+            "boundary must be 'edge-only', 'edge-and-corner' or 'none', not {other:?}"
         ))),
     }
 }
@@ -62,6 +63,7 @@ pub(crate) fn boundary_name(boundary: Boundary) -> &'static str {
     match boundary {
         Boundary::EdgeOnly => "edge-only",
         Boundary::EdgeAndCorner => "edge-and-corner",
+        Boundary::None => "none",
     }
 }
 

@@ -51,6 +51,8 @@ pub struct ObjMesh {
     pub creases: Vec<(i64, i64, f32)>,
     /// Corner vertices `(vertex, sharpness)` from `t corner` tags.
     pub corners: Vec<(i64, f32)>,
+    /// Faces (0-based) tagged by `t hole` tags.
+    pub holes: Vec<i64>,
     /// Boundary rule from a `t interpolateboundary` tag, if the file has one.
     pub boundary: Option<Boundary>,
     /// Creasing method from a `t creasemethod` tag (`normal` is uniform), if the file has one.

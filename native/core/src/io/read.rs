@@ -619,19 +619,31 @@ impl<'a> Parser<'a> {
                     ));
                 }
                 self.mesh.boundary = Some(match ints[0] {
+                    0 => Boundary::None,
                     1 => Boundary::EdgeAndCorner,
                     2 => Boundary::EdgeOnly,
-                    0 => {
-                        return Err("interpolateboundary 0 (boundary faces as holes) is not \
-                                    supported; use 1 (edge-and-corner) or 2 (edge-only)"
-                            .to_string())
-                    }
                     m => {
                         return Err(format!(
-                        "unknown interpolateboundary mode {m} (1 = edge-and-corner, 2 = edge-only)"
+                        "unknown interpolateboundary mode {m} (0 = none, 1 = edge-and-corner, 2 = edge-only)"
                     ))
                     }
                 });
+            }
+            "hole" => {
+                // OpenSubdiv's shape files: `t hole N/0/0 f...` with 0-based face indices
+                // (checked against the faces by the cage).
+                if num_ints == 0 || num_floats != 0 || num_strings != 0 {
+                    return Err(format!(
+                        "tag 'hole' needs at least one face index and nothing else, got \
+                         {num_ints}/{num_floats}/{num_strings}"
+                    ));
+                }
+                if let Some(f) = ints.iter().find(|&&f| f < 0) {
+                    return Err(format!(
+                        "tag hole face index {f} is negative (tags use 0-based indices)"
+                    ));
+                }
+                self.mesh.holes.extend(&ints);
             }
             "creasemethod" => {
                 if num_ints != 0 || num_floats != 0 || strings.len() != 1 {
@@ -652,7 +664,7 @@ impl<'a> Parser<'a> {
                     }
                 });
             }
-            // Other OpenSubdiv tags (hole, smoothtriangles, facevaryinginterpolateboundary,
+            // Other OpenSubdiv tags (smoothtriangles, facevaryinginterpolateboundary,
             // ...) change OpenSubdiv's surface in ways this scheme does not follow.
             other => {
                 self.ignore(

@@ -211,8 +211,8 @@ fn errors_name_the_line() {
             "<obj>:2: tag 'corner' needs 1 sharpness",
         ),
         (
-            "t interpolateboundary 1/0/0 0\n",
-            "<obj>:1: interpolateboundary 0",
+            "t hole 1/0/0 -1\n",
+            "<obj>:1: tag hole face index -1 is negative",
         ),
         (
             "t interpolateboundary 1/0/0 7\n",
@@ -543,18 +543,18 @@ fn unknown_statements_and_tags_warn_once_per_kind() {
          frobnicate 2\n\
          t hole 1/0/0 0\n\
          t smoothtriangles 0/0/1 smooth\n\
-         t hole 1/0/0 1\n\
+         t smoothtriangles 0/0/1 smooth\n\
          surf 0 1 0 1 1 2 3\n\
          vn 0 0 1\n\
          g group\n",
     )
     .unwrap();
+    assert_eq!(mesh.holes, vec![0]);
     assert_eq!(
         mesh.warnings,
         vec![
             "<obj>:4: unknown statement 'frobnicate' was ignored (2 times)",
-            "<obj>:7: tag 'hole' is not supported and was ignored (2 times)",
-            "<obj>:8: tag 'smoothtriangles' is not supported and was ignored",
+            "<obj>:8: tag 'smoothtriangles' is not supported and was ignored (2 times)",
             "<obj>:10: free-form geometry ('surf') is not supported and was ignored",
         ]
     );
@@ -604,7 +604,9 @@ fn cage_error(text: &str) -> Error {
 #[test]
 fn mesh_errors_are_restated_in_the_files_terms() {
     let quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\n";
-    let repeated = cage_error(&format!("{quad}f 1 2 3\nf 1 3 4 3\n"));
+    // A face repeating a vertex is a cage (OpenSubdiv's degenerate edge), unless it has fewer
+    // than three distinct vertices.
+    let repeated = cage_error(&format!("{quad}f 1 2 3\nf 1 3 3 1\n"));
     assert_eq!(
         repeated.to_string(),
         "<obj>:7: the face uses vertex 3 more than once"
@@ -615,18 +617,6 @@ fn mesh_errors_are_restated_in_the_files_terms() {
     ));
     assert!(matches!(repeated, Error::InFile { line: Some(7), .. }));
 
-    let flipped = cage_error(&format!("{quad}f 1 2 3\n\nf 4 3 1\n"));
-    assert!(
-        flipped
-            .to_string()
-            .starts_with("<obj>:8: this face and the face at line 6 have opposite orientations"),
-        "{flipped}"
-    );
-    assert!(matches!(
-        flipped.kind(),
-        Error::InconsistentOrientation { .. }
-    ));
-
     let crease = cage_error(&format!("{quad}f 1 2 3\nt crease 2/1/0 0 3 1\n"));
     assert_eq!(
         crease.to_string(),
@@ -635,17 +625,17 @@ fn mesh_errors_are_restated_in_the_files_terms() {
 }
 
 #[test]
-fn non_manifold_edges_name_the_lines_of_their_faces() {
-    let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n";
+fn non_manifold_and_flipped_faces_are_cages() {
+    // Three faces on one edge, a flipped face, a face repeating a vertex: all subdivide.
+    let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n\
+                f 4 3 5 5\nt hole 1/0/0 2\nt interpolateboundary 1/0/0 0\n";
     let mesh = parse_obj(text).unwrap();
-    let cage = crate::Cage::from_indices(5, &mesh.face_sizes, &mesh.face_vertices).unwrap();
-    let error = crate::Plan::new(&cage, &crate::Options::default()).unwrap_err();
-    let restated = mesh.source.restate(error, Some(&cage));
-    assert_eq!(
-        restated.to_string(),
-        "<obj>:6: the edge between vertices 1 and 2 is shared by 3 faces (lines 6, 7, 8); the \
-         mesh must be a 2-manifold"
-    );
+    assert_eq!(mesh.boundary, Some(Boundary::None));
+    let cage = crate::Cage::from_indices(5, &mesh.face_sizes, &mesh.face_vertices)
+        .and_then(|cage| cage.with_holes(&mesh.holes))
+        .unwrap();
+    assert_eq!(cage.holes(), &[2]);
+    assert!(crate::Plan::new(&cage, &crate::Options::default()).is_ok());
     // Errors about no element of the file pass through.
     let budget = Error::MemoryBudget {
         required: 1,

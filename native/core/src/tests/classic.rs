@@ -278,7 +278,7 @@ fn crease_and_corner_masks() {
         ));
         let corner = id(0, 0);
         let want = match boundary {
-            Boundary::EdgeOnly => comb(&[
+            Boundary::EdgeOnly | Boundary::None => comb(&[
                 (0.75, p[corner]),
                 (0.125, p[id(0, 1)]),
                 (0.125, p[id(1, 0)]),

@@ -22,13 +22,13 @@ from ._errors import (
 )
 
 Output = Literal["primal", "dual"]
-Boundary = Literal["edge-only", "edge-and-corner"]
+Boundary = Literal["edge-only", "edge-and-corner", "none"]
 Rules = Literal["averaging", "classic"]
 Creasing = Literal["uniform", "chaikin"]
 FloatArray = NDArray[np.float32] | NDArray[np.float64]
 
 OUTPUTS = ("primal", "dual")
-BOUNDARIES = ("edge-only", "edge-and-corner")
+BOUNDARIES = ("edge-only", "edge-and-corner", "none")
 RULES = ("averaging", "classic")
 CREASING = ("uniform", "chaikin")
 _INT64_MIN, _INT64_MAX = -(2**63), 2**63 - 1

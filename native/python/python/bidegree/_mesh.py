@@ -24,11 +24,13 @@ DEFAULT_MAX_INPUT_BYTES: int = _native.DEFAULT_MAX_INPUT_BYTES
 
 class Mesh:
     """A subdivision cage: points, polygonal faces, and optional creases, corners, face-varying
-    UVs, boundary rule and creasing method. Construction checks shapes, face sizes, indices,
-    repeated vertices and finite UVs;
-    the rest of the topology (manifold edges, consistent orientation, creases that are edges) is
-    checked when a :class:`Plan` is built, the geometry (finite points, no zero-area face) by
-    :func:`subdivide`.
+    UVs, holes, boundary rule and creasing method. Construction checks shapes, face sizes,
+    indices, faces of fewer than 3 distinct vertices and finite UVs; that creases are edges is
+    checked when a :class:`Plan` is built, finite points by :func:`subdivide`. Any polygon soup
+    is a cage, as in OpenSubdiv: non-manifold edges (any number of faces), faces whose
+    orientations disagree, non-manifold (bowtie) vertices, faces repeating a vertex and
+    zero-area faces are subdivided; non-manifold edges and vertices become infinitely sharp
+    curves and corners, every face keeping its own side.
 
     Args:
         points: (V, 3) coordinates, float32 or float64 (other numbers become float64).
@@ -40,8 +42,11 @@ class Mesh:
             sharpness values (or one for all); ``>= 10`` or ``inf`` is infinitely sharp.
         corners: ``(vertices, sharpness)``: (K,) vertices and (K,) sharpness values (or one).
         uvs: (corners, 2) face-varying texture coordinates, one per face corner.
-        boundary: ``"edge-only"`` (boundary edges are sharp) or ``"edge-and-corner"`` (also
-            boundary vertices of a single face are corners).
+        holes: (H,) faces that are holes: refined (they shape their neighbours) but left out
+            of the output, as OpenSubdiv's ``holeIndices``.
+        boundary: ``"edge-only"`` (boundary edges are sharp), ``"edge-and-corner"`` (also
+            boundary vertices of a single face are corners) or ``"none"`` (OpenSubdiv's
+            ``VTX_BOUNDARY_NONE``: the faces at a boundary not creased infinitely are holes).
         creasing: ``"uniform"`` or ``"chaikin"``: how semi-sharp creases decrease from level to
             level with the classic rules (OpenSubdiv's creasing method, the ``t creasemethod``
             tag of its files); a :class:`Plan` uses it unless told otherwise.
@@ -64,6 +69,7 @@ class Mesh:
         creases: tuple[ArrayLike, ArrayLike] | None = None,
         corners: tuple[ArrayLike, ArrayLike] | None = None,
         uvs: ArrayLike | None = None,
+        holes: ArrayLike | None = None,
         boundary: Boundary = "edge-only",
         creasing: Creasing = "uniform",
     ) -> None:
@@ -115,7 +121,20 @@ class Mesh:
                 raise InvalidInputError(
                     f"uvs must have shape (corners, 2) (face-varying), not {uv_array.shape}"
                 )
-        self._finish(pts, sizes, indices, crease_pair, corner_pair, uv_array, boundary, creasing)
+        hole_array = None
+        if holes is not None:
+            hole_array = convert.owned(convert.int_array(holes, "holes"), holes).reshape(-1)
+        self._finish(
+            pts,
+            sizes,
+            indices,
+            crease_pair,
+            corner_pair,
+            uv_array,
+            boundary,
+            creasing,
+            holes=hole_array,
+        )
 
     def _finish(
         self,
@@ -128,6 +147,7 @@ class Mesh:
         boundary: Boundary,
         creasing: Creasing,
         source: Any = None,
+        holes: NDArray[np.int64] | None = None,
     ) -> None:
         """Checks and builds the cage from converted arrays that are the mesh's own (the
         constructor's copies, or what :meth:`from_obj` read, with the file's ``source``
@@ -161,7 +181,9 @@ class Mesh:
             corner_pair[0] if corner_pair else empty_i,
             corner_pair[1] if corner_pair else empty_f,
             source,
+            holes,
         )
+        self._holes = convert.readonly(holes if holes is not None else empty_i)
         self._points = convert.readonly(pts)
         self._face_sizes = convert.readonly(sizes)
         self._face_indices = convert.readonly(indices)
@@ -211,7 +233,8 @@ class Mesh:
     ) -> Mesh:
         """Reads an OBJ file: ``v``, ``vt`` (as face-varying uvs when every face corner has
         one), ``f`` (any index form, negative indices), and OpenSubdiv's ``t crease``,
-        ``t corner``, ``t interpolateboundary`` and ``t creasemethod`` tags. The file is
+        ``t corner``, ``t hole``, ``t interpolateboundary`` (0 is ``"none"``) and
+        ``t creasemethod`` tags. The file is
         streamed; LF, CRLF and CR line ends and a UTF-8 byte order mark are accepted.
 
         Errors found later in the mesh (by this constructor, :class:`Plan` or
@@ -265,6 +288,7 @@ class Mesh:
             boundary if boundary is not None else (data["boundary"] or "edge-only"),
             creasing if creasing is not None else (data["creasing"] or "uniform"),
             data["source"],
+            holes=data["holes"] if len(data["holes"]) else None,
         )
         return mesh
 
@@ -304,8 +328,13 @@ class Mesh:
         return self._uvs
 
     @property
+    def holes(self) -> NDArray[np.int64]:
+        """(H,) the faces tagged as holes (without those boundary ``"none"`` adds)."""
+        return self._holes
+
+    @property
     def boundary(self) -> Boundary:
-        """``"edge-only"`` or ``"edge-and-corner"``."""
+        """``"edge-only"``, ``"edge-and-corner"`` or ``"none"``."""
         return self._boundary
 
     @property

@@ -34,6 +34,7 @@ class Cage:
         corner_vertices: NDArray[np.int64],
         corner_sharpness: NDArray[np.float32],
         source: ObjSource | None = None,
+        holes: NDArray[np.int64] | None = None,
     ) -> None: ...
     @property
     def num_vertices(self) -> int: ...

@@ -142,7 +142,7 @@ def _add_subdivide(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--boundary",
-        choices=("edge-only", "edge-and-corner"),
+        choices=("edge-only", "edge-and-corner", "none"),
         default=None,
         help="boundary rule (default: the OBJ's 't interpolateboundary' tag, else edge-only)",
     )

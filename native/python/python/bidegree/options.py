@@ -30,7 +30,7 @@ __all__ = ["Options"]
 
 _CHOICES = {
     "output": ("primal", "dual"),
-    "boundary": ("edge-only", "edge-and-corner"),
+    "boundary": ("edge-only", "edge-and-corner", "none"),
     "rules": ("averaging", "classic"),
     "creasing": ("uniform", "chaikin"),
 }

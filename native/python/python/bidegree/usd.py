@@ -29,8 +29,9 @@ Conventions:
 - Crease and corner sharpness use the OpenSubdiv convention, shared with bidegree: a sharpness of
   10 or more is infinitely sharp.  Infinite values (``inf``) are written as 10.0, finite values as
   given.  Each crease is one ``creaseLengths`` entry of length 2.
-- Boundary mode ``edge-only`` is written as ``interpolateBoundary = edgeOnly`` and
-  ``edge-and-corner`` as ``edgeAndCorner``.
+- Boundary mode ``edge-only`` is written as ``interpolateBoundary = edgeOnly``,
+  ``edge-and-corner`` as ``edgeAndCorner`` and ``none`` as ``none``; the cage's hole faces
+  (``Mesh.holes``) as ``holeIndices``.
 
 Writing is atomic: the stage is built in memory, exported to a temporary file in the target
 directory (same extension, so the same file format) and moved over the target with
@@ -63,6 +64,7 @@ __all__ = [
 BOUNDARY_TO_USD: dict[str, str] = {
     "edge-only": "edgeOnly",
     "edge-and-corner": "edgeAndCorner",
+    "none": "none",
 }
 
 #: File extensions :func:`export` accepts.
@@ -433,6 +435,9 @@ def _build_stage(
     cmesh.CreateFaceVertexIndicesAttr(_ints(pxr, cage_topo.face_indices))
     # The Catmull-Clark limit surface lies in the convex hull of the control points.
     cmesh.CreateExtentAttr(_extent(pxr, cage_topo.points))
+    holes = np.asarray(getattr(cage, "holes", ()), dtype=np.int64)
+    if holes.size:
+        cmesh.CreateHoleIndicesAttr(_ints(pxr, holes))
     if creases is not None:
         edges, sharp = creases
         cmesh.CreateCreaseIndicesAttr(_ints(pxr, edges.reshape(-1)))

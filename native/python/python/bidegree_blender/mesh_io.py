@@ -14,6 +14,7 @@ becomes the sharpness ``10 * c**2`` (``c == 1`` is infinitely sharp).
 from __future__ import annotations
 
 import hashlib
+import warnings
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -26,7 +27,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 #: Sharpness of a crease value of 1.0 (Blender's ``BKE_subdiv_crease_to_sharpness``).
 CREASE_SCALE = 10.0
 
-_BOUNDARIES = ("edge-only", "edge-and-corner")
+_BOUNDARIES = ("edge-only", "edge-and-corner", "none")
 
 
 def crease_to_sharpness(crease: np.ndarray) -> np.ndarray:
@@ -223,26 +224,54 @@ def write_vertex_groups(obj: bpy.types.Object, groups: dict[str, np.ndarray]) ->
             group.add(nonzero[order[bounds[k] : bounds[k + 1]]].tolist(), float(value), "REPLACE")
 
 
+class LooseEdgesWarning(UserWarning):
+    """The mesh has loose edges (in no face): they are left out of the surface, as Blender's
+    Subdivision Surface modifier leaves them out of OpenSubdiv's input."""
+
+
 def check_cage(cage: CageArrays) -> None:
     """Checks bidegree's core cannot do because it never sees Blender's edge list.
 
     Raises:
-        bidegree.InvalidInputError: the mesh has loose edges (edges used by no face),
-            which a subdivision surface cannot represent.
         bidegree.EmptyMeshError: the mesh has no faces.
     """
     if cage.num_faces == 0:
         raise bidegree.EmptyMeshError("the mesh has no faces to subdivide")
-    if len(cage.edges):
-        used = np.bincount(cage.corner_edges, minlength=len(cage.edges)) > 0
-        loose = np.flatnonzero(~used)
-        if len(loose):
-            a, b = cage.edges[loose[0]]
-            raise bidegree.InvalidInputError(
-                f"the mesh has {len(loose)} loose edge(s) (edges in no face), e.g. edge "
-                f"{int(loose[0])} between vertices {int(a)} and {int(b)}; delete them "
-                "(Mesh > Clean Up > Delete Loose)"
-            )
+
+
+def loose_edges(cage: CageArrays) -> np.ndarray:
+    """``(K,)`` the edges that no face uses."""
+    used = np.bincount(cage.corner_edges, minlength=len(cage.edges)) > 0
+    return np.flatnonzero(~used)
+
+
+def vertex_sharpness(cage: CageArrays, edge_sharpness: np.ndarray) -> np.ndarray:
+    """``(V,)`` the sharpness Blender gives each vertex before OpenSubdiv sees the mesh
+    (``subdiv_converter_mesh.cc``, ``topology_refiner_factory.cc``): its own crease; plus, at a
+    vertex with exactly two face edges, the smaller of their sharpness (capped at 10); and
+    infinitely sharp at a vertex of a loose edge that is also on a face.
+
+    Args:
+        cage: The arrays read by :func:`read_mesh`.
+        edge_sharpness: ``(E,)`` the user's sharpness of every edge (0 smooth).
+    """
+    nv = len(cage.points)
+    sharpness = np.zeros(nv, dtype=np.float32)
+    if cage.vert_creases is not None:
+        sharpness = crease_to_sharpness(cage.vert_creases).astype(np.float32)
+    used = np.bincount(cage.corner_edges, minlength=len(cage.edges)) > 0
+    face_edges = cage.edges[used].astype(np.int64)
+    ends = face_edges.reshape(-1)
+    count = np.bincount(ends, minlength=nv)
+    smallest = np.full(nv, np.inf, dtype=np.float32)
+    np.minimum.at(smallest, ends, np.repeat(edge_sharpness[used], 2))
+    two = (count == 2) & (smallest > 0)
+    sharpness[two] = np.minimum(sharpness[two] + smallest[two], 10.0)
+    on_face = np.zeros(nv, dtype=bool)
+    on_face[cage.corner_verts] = True
+    loose = cage.edges[~used].reshape(-1)
+    sharpness[loose[on_face[loose]]] = 10.0
+    return sharpness
 
 
 def to_bidegree_mesh(
@@ -252,30 +281,44 @@ def to_bidegree_mesh(
     use_creases: bool = True,
     uv_map: str | None = None,
 ) -> bidegree.Mesh:
-    """Build the :class:`bidegree.Mesh` cage from :class:`CageArrays`.
+    """Build the :class:`bidegree.Mesh` cage from :class:`CageArrays`, the way Blender's
+    modifier hands a mesh to OpenSubdiv: loose edges are left out (with a
+    :class:`LooseEdgesWarning` counting them) and Blender's two vertex rules are applied (see
+    :func:`vertex_sharpness`).
 
     Args:
         cage: The arrays read by :func:`read_mesh`.
-        boundary: ``"edge-only"`` or ``"edge-and-corner"``.
+        boundary: ``"edge-only"``, ``"edge-and-corner"`` or ``"none"``.
         use_creases: Pass edge/vertex creases (sharpness ``10 * c**2``).
         uv_map: Name of the UV map to attach as the mesh's ``uvs`` (or ``None``).
+
+    Warns:
+        LooseEdgesWarning: the mesh has loose edges.
     """
     if boundary not in _BOUNDARIES:
         raise bidegree.InvalidInputError(f"boundary must be one of {_BOUNDARIES}, got {boundary!r}")
     check_cage(cage)
-    creases = None
-    corners = None
+    loose = loose_edges(cage)
+    if len(loose):
+        warnings.warn(
+            f"{len(loose)} loose edge(s) (in no face) left out of the surface",
+            LooseEdgesWarning,
+            stacklevel=2,
+        )
+    edge_sharpness = np.zeros(len(cage.edges), dtype=np.float32)
     if use_creases and cage.edge_creases is not None:
-        sel = np.flatnonzero(cage.edge_creases > 0.0)
+        edge_sharpness = crease_to_sharpness(cage.edge_creases).astype(np.float32)
+    creases = None
+    sel = np.flatnonzero(edge_sharpness > 0.0)
+    sel = sel[np.isin(sel, loose, invert=True)]
+    if len(sel):
+        creases = (cage.edges[sel].astype(np.int64), edge_sharpness[sel])
+    corners = None
+    if use_creases:
+        sharpness = vertex_sharpness(cage, edge_sharpness)
+        sel = np.flatnonzero(sharpness > 0.0)
         if len(sel):
-            creases = (
-                cage.edges[sel].astype(np.int64),
-                crease_to_sharpness(cage.edge_creases[sel]),
-            )
-    if use_creases and cage.vert_creases is not None:
-        sel = np.flatnonzero(cage.vert_creases > 0.0)
-        if len(sel):
-            corners = (sel.astype(np.int64), crease_to_sharpness(cage.vert_creases[sel]))
+            corners = (sel.astype(np.int64), sharpness[sel])
     uvs = cage.uv_maps.get(uv_map) if uv_map is not None else None
     return bidegree.Mesh(
         cage.points,

@@ -84,58 +84,23 @@ def evaluated_cage(
 
 
 class GeometryCheck:
-    """Rejects non-finite positions and zero-area faces before they reach the core.
-
-    The fan triangulation of the faces is precomputed once per topology, so a check of new
-    positions (every frame of an animation) is a handful of vectorised numpy operations.
+    """Rejects non-finite positions before they reach the core (zero-area faces are fine: they
+    are subdivided, as Blender's modifier does). Cheap enough for every frame of an animation.
     """
 
     def __init__(self, face_sizes: np.ndarray, corner_verts: np.ndarray) -> None:
-        sizes = np.asarray(face_sizes, dtype=np.int64)
-        starts = np.zeros(len(sizes), dtype=np.int64)
-        if len(sizes):
-            np.cumsum(sizes[:-1], out=starts[1:])
-        ntri = np.maximum(sizes - 2, 0)
-        self.num_faces = len(sizes)
-        self.face_of_tri = np.repeat(np.arange(len(sizes)), ntri)
-        local = np.arange(int(ntri.sum())) - np.repeat(np.cumsum(ntri) - ntri, ntri)
-        first = starts[self.face_of_tri]
-        self.v0 = corner_verts[first]
-        self.v1 = corner_verts[first + local + 1]
-        self.v2 = corner_verts[first + local + 2]
+        self.num_faces = len(face_sizes)
 
     def __call__(self, points: np.ndarray) -> None:
         """Raise on bad ``points``.
 
         Raises:
             bidegree.NonFiniteError: a position is NaN or infinite.
-            bidegree.DegenerateFaceError: a face has (numerically) zero area.
         """
         finite = np.isfinite(points).all(axis=1)
         if not finite.all():
             bad = int(np.flatnonzero(~finite)[0])
             raise bidegree.NonFiniteError(f"vertex {bad} has a non-finite position")
-        if self.num_faces == 0:
-            return
-        # Relative to the mesh's extent, so that the squares stay finite at any scale (float64
-        # only where the extent itself overflows float32).
-        pts = np.asarray(points)
-        extent = pts.max(axis=0) - pts.min(axis=0) if len(pts) else np.zeros(3)
-        if not np.isfinite(extent).all():
-            pts = pts.astype(np.float64)
-            extent = pts.max(axis=0) - pts.min(axis=0)
-        scale = float(extent.max())
-        pts = pts / (scale if scale > 0 else 1.0)
-        p0 = pts[self.v0]
-        cross = np.cross(pts[self.v1] - p0, pts[self.v2] - p0)
-        tri_area = np.sqrt(np.einsum("ij,ij->i", cross, cross))
-        area = np.bincount(self.face_of_tri, weights=tri_area, minlength=self.num_faces)
-        degenerate = np.flatnonzero(area <= 1e-12)
-        if len(degenerate):
-            raise bidegree.DegenerateFaceError(
-                f"face {int(degenerate[0])} has zero area ({len(degenerate)} degenerate "
-                "face(s)); merge or dissolve them (Mesh > Clean Up > Degenerate Dissolve)"
-            )
 
 
 def check_geometry(cage: mesh_io.CageArrays) -> None:
@@ -160,8 +125,7 @@ def _with_warnings(make: Callable[[], Any]) -> tuple[Any, list[str]]:
 
 def build_plan(cage: mesh_io.CageArrays, options: Options) -> tuple[bidegree.Plan, list[str]]:
     """The :class:`bidegree.Plan` of ``cage`` and the warnings building it gave."""
-    bmesh = cage_mesh(cage, options)
-    return _with_warnings(lambda: options.plan(bmesh))
+    return _with_warnings(lambda: options.plan(cage_mesh(cage, options)))
 
 
 @dataclass
