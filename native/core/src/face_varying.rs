@@ -14,7 +14,7 @@
 
 use std::sync::{Arc, Mutex};
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::evaluate;
 use crate::limit::{self, LimitCache};
 use crate::mesh::{Cage, INFINITELY_SHARP};
@@ -406,6 +406,13 @@ pub(crate) fn evaluate<T: Scalar>(
         // Bilinear per face: the refined values are on its limit already.
         return Ok(evaluate::evaluate_face_varying(
             refinement, output, values, channels,
+        ));
+    }
+    if limit && refinement.options().output != OutputKind::Primal {
+        return Err(Error::InvalidInput(
+            "limit face-varying values are given at the drawing mesh's corners: use the primal \
+             output"
+                .into(),
         ));
     }
     in_pool(|| {
