@@ -5,9 +5,8 @@ to 3, uniform refinement) and by bidegree (``rules="classic"``, degree 3); posit
 within 1e-5 of the bounding-box diagonal as point sets (nearest point both ways, the vertices of
 the faces drawn), UVs per face corner (:func:`opensubdiv_reference.corner_map`).
 
-The cases bidegree cannot do yet are ``xfail(strict=True)`` with the reason it fails today: when
-one starts passing, pytest reports it and the mark must go. The UV calls use the API issue 14
-asks for where it does not exist yet (``subdivide(uv_mode=...)``).
+Every case passes: the strict xfail marks that stood for issues 13 (non-manifold input, holes,
+boundary ``none``) and 14 (smooth UVs, ``subdivide(uv_mode=...)``) are gone.
 
 What the comparison rests on (``docs/research/*.md``; each checked against Debian's libosd):
 - Blender adds two rules of its own before OpenSubdiv sees the mesh (a vertex on a loose edge is
@@ -22,7 +21,6 @@ What the comparison rests on (``docs/research/*.md``; each checked against Debia
 
 from __future__ import annotations
 
-import inspect
 import itertools
 import warnings
 from typing import Any
@@ -216,12 +214,7 @@ def _uv_reference(name: str, levels: int) -> tuple[Any, np.ndarray]:
 
 
 def _bidegree_uvs(name: str, levels: int, mode: str) -> np.ndarray:
-    """bidegree's UVs in ``mode`` (``uv_mode=`` of issue 14; today only linear, i.e. ``all``)."""
-    if "uv_mode" not in inspect.signature(bidegree.subdivide).parameters:
-        if mode != "all":
-            pytest.fail(f"bidegree.subdivide has no uv_mode; its UVs are linear, not {mode!r}")
-        ours, _ = _uv_reference(name, levels)
-        return np.asarray(ours.uvs)
+    """bidegree's UVs in ``mode``."""
     mesh = _mesh(UV_CAGES[name], uvs=True)
     result = _subdivide(mesh, levels=levels, uv_mode=mode)
     return np.asarray(result.uvs)
@@ -252,26 +245,14 @@ def _check_uvs(name: str, mode: str, ours: Any) -> None:
 
 @pytest.mark.parametrize("name", sorted(UV_CAGES))
 def test_linear_uvs_match_opensubdiv_all(name: str) -> None:
-    """Today's UVs are linear: OpenSubdiv's ``FVAR_LINEAR_ALL`` (Blender's *None*)."""
+    """``uv_mode="all"`` is linear: OpenSubdiv's ``FVAR_LINEAR_ALL`` (Blender's *None*)."""
     _check_uvs(name, "all", lambda levels: _bidegree_uvs(name, levels, "all"))
 
 
-@pytest.mark.parametrize(
-    ("name", "mode"),
-    [
-        pytest.param(
-            n,
-            m,
-            marks=pytest.mark.xfail(
-                strict=True, raises=pytest.fail.Exception, reason="no uv_mode: UVs are linear"
-            ),
-        )
-        for n in sorted(UV_CAGES)
-        for m in UV_MODES
-        if m != "all"
-    ],
-)
+@pytest.mark.parametrize("mode", [m for m in UV_MODES if m != "all"])
+@pytest.mark.parametrize("name", sorted(UV_CAGES))
 def test_uvs_match_opensubdiv(name: str, mode: str) -> None:
+    """``subdivide(uv_mode=...)`` (classic degree 3) gives Blender's UVs in every smooth mode."""
     _check_uvs(name, mode, lambda levels: _bidegree_uvs(name, levels, mode))
 
 

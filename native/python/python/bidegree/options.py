@@ -33,6 +33,7 @@ _CHOICES = {
     "boundary": ("edge-only", "edge-and-corner", "none"),
     "rules": ("averaging", "classic"),
     "creasing": ("uniform", "chaikin"),
+    "uv_mode": ("none", "corners-only", "corners-plus1", "corners-plus2", "boundaries", "all"),
 }
 
 
@@ -73,6 +74,10 @@ class Options:
         adaptive: adaptive triangles up to ``levels`` (``tolerance``) instead of uniform levels.
         tolerance: adaptive flatness tolerance relative to the cage's bounding-box diagonal.
         memory_budget: bytes a request may need (``None``: the core's default).
+        uv_mode: how face-varying values (UVs) are subdivided: OpenSubdiv's six modes
+            (``"none"``, ``"corners-only"``, ``"corners-plus1"``, ``"corners-plus2"``,
+            ``"boundaries"``: Blender's default *Keep Boundaries*, ``"all"``: linear), see
+            :meth:`bidegree.Plan.evaluate_face_varying`.
     """
 
     degree: int = 4
@@ -87,6 +92,7 @@ class Options:
     adaptive: bool = False
     tolerance: float = 1e-3
     memory_budget: int | None = None
+    uv_mode: str = "boundaries"
 
     def __post_init__(self) -> None:
         set_field = object.__setattr__  # frozen: normalise once, here
@@ -177,9 +183,20 @@ class Options:
             return plan.limit_positions(points), None
         return plan.evaluate(points), None
 
+    def evaluate_face_varying(self, plan: bidegree.Plan, values: Any) -> Any:
+        """Face-varying ``values`` (one array per corner, or a mapping of them) through ``plan``
+        in ``uv_mode``, on the limit surface with ``limit``."""
+        return plan.evaluate_face_varying(values, self.uv_mode, limit=self.limit)  # type: ignore[arg-type]
+
     def subdivide(self, mesh: bidegree.Mesh) -> bidegree.Result:
         """:func:`bidegree.subdivide` of ``mesh`` (uniform levels) with these options."""
-        return bidegree.subdivide(mesh, **self._request(), limit=self.limit, normals=self.normals)
+        return bidegree.subdivide(
+            mesh,
+            **self._request(),
+            limit=self.limit,
+            normals=self.normals,
+            uv_mode=self.uv_mode,  # type: ignore[arg-type]
+        )
 
     def subdivide_adaptive(self, mesh: bidegree.Mesh) -> bidegree.AdaptiveResult:
         """:func:`bidegree.subdivide_adaptive` of ``mesh`` up to ``levels``.

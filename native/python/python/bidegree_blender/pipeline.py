@@ -161,7 +161,7 @@ def _plan_uv_maps(plan: bidegree.Plan, cage: mesh_io.CageArrays) -> dict[str, np
         return {}
     names = list(cage.uv_maps)
     stacked = np.concatenate([cage.uv_maps[n] for n in names], axis=1)
-    out = np.asarray(plan.evaluate_face_varying(stacked))
+    out = np.asarray(plan.evaluate_face_varying(stacked, "all"))
     return {n: out[:, 2 * i : 2 * i + 2] for i, n in enumerate(names)}
 
 
