@@ -572,9 +572,9 @@ impl Level {
         // The extra slots and the non-manifold edges, only on a level that has some.
         let (mut more, mut nm_edges) = (Vec::new(), Vec::new());
         if unusual.into_inner() {
-            for a in 0..self.num_vertices {
+            for (a, &first) in offsets[..self.num_vertices].iter().enumerate() {
                 self.owned_halves(a, |halves| {
-                    let mut e = offsets[a];
+                    let mut e = first;
                     for group in halves.chunk_by(|x, y| x.0 == y.0) {
                         self.edges_of_pair(a as u32, group, |slots, nm| {
                             more.extend(slots.iter().skip(2).map(|&c| (e, c)));
