@@ -567,7 +567,7 @@ fn refine_part<T: Scalar>(
     seeds: &[u64],
 ) -> Result<Part<T>> {
     let c = &coarse.level;
-    let fine = c.refine();
+    let fine = c.refine()?;
     let [nv, ne, nf, ncorners] = coarse.counts;
     let (cnv, cne) = (c.num_vertices, c.num_edges());
     let corner_uid = |k: usize| -> u64 {

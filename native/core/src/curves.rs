@@ -15,7 +15,7 @@
 use crate::error::{Error, Result};
 use crate::mesh::{Cage, INFINITELY_SHARP};
 use crate::options::{Boundary, Creasing};
-use crate::parallel::gather;
+use crate::parallel::gather_hinted;
 use crate::scheme::catmark::{subdivide_edge_sharpness, vertex_rule, VertexRule};
 use crate::scheme::{corner_weight, curve_weight, decrement, is_curve_vertex, is_sharp};
 use crate::topology::{Level, NONE};
@@ -404,7 +404,7 @@ const STACK_VALENCE: usize = 32;
 
 impl LevelSharpness {
     /// The sharpness and rules of `M_0` from the cage's features.
-    pub(crate) fn cage(level0: &Level, features: &CageFeatures) -> LevelSharpness {
+    pub(crate) fn cage(level0: &Level, features: &CageFeatures) -> Result<LevelSharpness> {
         let mut first = LevelSharpness::default();
         if features.edge_sharpness.iter().any(|&s| is_sharp(s)) {
             first.edges = features.edge_sharpness.clone();
@@ -415,18 +415,18 @@ impl LevelSharpness {
                 first.vertices[v as usize] = s;
             }
         }
-        first.classify(level0);
-        first
+        first.classify(level0)?;
+        Ok(first)
     }
 
     /// Sharpness and rules of `fine` from those of `coarse` (this): halves of sharp edges
     /// decrease (uniform or Chaikin, per end), interior edges are smooth, old vertices decrease,
     /// new vertices are smooth.
-    pub(crate) fn refine(&self, coarse: &Level, fine: &Level, creasing: Creasing) -> Self {
+    pub(crate) fn refine(&self, coarse: &Level, fine: &Level, creasing: Creasing) -> Result<Self> {
         let mut next = LevelSharpness::default();
         let ne = coarse.num_edges();
         if !self.edges.is_empty() {
-            next.edges = gather(fine.num_edges(), |child| {
+            next.edges = gather_hinted(fine.num_edges(), |child| {
                 if child >= 2 * ne {
                     return 0.0;
                 }
@@ -444,20 +444,20 @@ impl LevelSharpness {
                         })
                     }
                 }
-            });
+            })?;
             if next.edges.iter().all(|&s| s <= 0.0) {
                 next.edges = Vec::new();
             }
         }
         if !self.vertices.is_empty() {
             let nv = coarse.num_vertices;
-            next.vertices = gather(fine.num_vertices, |w| {
+            next.vertices = gather_hinted(fine.num_vertices, |w| {
                 if w < nv {
                     decrement(self.vertices[w])
                 } else {
                     0.0
                 }
-            });
+            })?;
             if next.vertices.iter().all(|&s| s <= 0.0) {
                 next.vertices = Vec::new();
             }
@@ -465,10 +465,10 @@ impl LevelSharpness {
         if !(next.edges.is_empty() && next.vertices.is_empty()) {
             // The rules need the edges at each vertex (a plan's last level has no edge or
             // vertex -> corner tables yet).
-            fine.complete_from(coarse);
+            fine.complete_from(coarse)?;
         }
-        next.classify(fine);
-        next
+        next.classify(fine)?;
+        Ok(next)
     }
 
     /// True when no edge or vertex of the level is sharp.
@@ -514,20 +514,21 @@ impl LevelSharpness {
     }
 
     /// Rules from the sharpness tables.
-    fn classify(&mut self, level: &Level) {
+    fn classify(&mut self, level: &Level) -> Result<()> {
         if self.edges.is_empty() && self.vertices.is_empty() {
             self.rules = Vec::new();
-            return;
+            return Ok(());
         }
         let this = &*self;
-        let rules = gather(level.num_vertices, |v| {
+        let rules = gather_hinted(level.num_vertices, |v| {
             let sharp = level
                 .vertex_edges(v)
                 .filter(|&e| is_sharp(this.edge(e as usize)))
                 .count();
             vertex_rule(this.vertex(v), sharp)
-        });
+        })?;
         self.rules = rules;
+        Ok(())
     }
 
     /// Calls `f` with the sharpness of the edges at `v` (in [`Level::vertex_edges`] order) at

@@ -9,9 +9,9 @@ pub enum Error {
     /// The mesh has no faces (or no vertices).
     #[error("empty mesh: {0}")]
     EmptyMesh(String),
-    /// A face has fewer than three vertices.
-    #[error("face {face} has {size} vertices; faces need at least 3")]
-    FaceTooSmall { face: usize, size: usize },
+    /// A face has fewer than three vertices (`size` as given, which may be negative).
+    #[error("face {face} has size {size}; faces need at least 3 vertices")]
+    FaceTooSmall { face: usize, size: i64 },
     /// A face uses the same vertex twice.
     #[error("face {face} uses vertex {vertex} more than once")]
     RepeatedVertex { face: usize, vertex: usize },
@@ -45,9 +45,10 @@ pub enum Error {
     /// The degree is outside 1..=MAX_DEGREE.
     #[error("degree {degree} is out of range 1..={max}")]
     DegreeOutOfRange { degree: i64, max: u32 },
-    /// The number of levels is outside 0..=MAX_LEVELS.
-    #[error("levels {levels} is out of range 0..={max}")]
-    LevelOutOfRange { levels: i64, max: u32 },
+    /// The number of levels is outside `min..=MAX_LEVELS` (`min` is 0 for uniform
+    /// subdivision, 1 for adaptive, which refines at least one level).
+    #[error("levels {levels} is out of range {min}..={max}")]
+    LevelOutOfRange { levels: i64, min: u32, max: u32 },
     /// The estimated memory of the request exceeds the budget.
     #[error(
         "the result would need about {required} bytes ({faces} faces), over the memory budget of {budget} bytes"
@@ -57,6 +58,16 @@ pub enum Error {
         budget: u64,
         faces: u64,
     },
+    /// More memory than this process can have: a request estimated over the machine's memory
+    /// (physical memory, or a cgroup limit when lower) although within its budget, or an
+    /// allocation the system refused (under an address-space limit, say). `available` is the
+    /// memory the process can have, as far as it is known (`u64::MAX` when not).
+    #[error(
+        "out of memory: {required} bytes could not be had (this process can have about \
+         {available} bytes in all: the machine's memory, its cgroup or address-space limit); \
+         lower the levels or the degree, or subdivide parts of the mesh separately"
+    )]
+    OutOfMemory { required: u64, available: u64 },
     /// Arrays of the wrong length or shape, a bad option value, a sharpness below zero.
     #[error("invalid input: {0}")]
     InvalidInput(String),

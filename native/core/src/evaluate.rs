@@ -3,6 +3,8 @@
 //! face-varying values (UVs) by linear interpolation. [`crate::Plan::evaluate`] and the limits
 //! come through here.
 
+use crate::error::Result;
+use crate::memory;
 use crate::output::OutputMesh;
 use crate::parallel::{fill_rows, in_pool};
 use crate::refinement::Refinement;
@@ -21,20 +23,26 @@ pub(crate) fn run<T: Scalar, const N: usize>(
     let steps = refinement.curve_networks().len();
     let mut data = LevelData::new(cage);
     if let Some(scratch) = scratch.filter(|_| steps > 0) {
-        let last = refinement.last_level();
-        let capacity = if refinement.scheme().uses_sharpness() {
-            last.num_vertices
-        } else {
-            let curve = refinement.curve_networks()[steps - 1].edges().len();
-            last.num_vertices.max(last.num_faces() + curve)
-        };
-        data = data.with_scratch(scratch, capacity);
+        data = data.with_scratch(scratch, scratch_capacity(refinement));
     }
     for j in 0..steps {
         data.step(&refinement.step(j));
     }
     let last = steps.checked_sub(1).map(|j| refinement.step(j));
     data.finish(last.as_ref(), want_dual)
+}
+
+/// Values a run's buffers hold at most: the largest level's data (and the last step's 1-D
+/// points that the dual output appends).
+fn scratch_capacity(refinement: &Refinement) -> usize {
+    let steps = refinement.curve_networks().len();
+    let last = refinement.last_level();
+    if steps == 0 || refinement.scheme().uses_sharpness() {
+        last.num_vertices
+    } else {
+        let curve = refinement.curve_networks()[steps - 1].edges().len();
+        last.num_vertices.max(last.num_faces() + curve)
+    }
 }
 
 /// Per-vertex values of the cage (`channels` interleaved values per cage vertex, in the cage's
@@ -45,7 +53,7 @@ pub(crate) fn evaluate<T: Scalar>(
     output: &OutputMesh,
     values: &[T],
     channels: usize,
-) -> Vec<T> {
+) -> Result<Vec<T>> {
     let n = |group: &[T], width: usize| match width {
         1 => evaluate_n::<T, 1>(refinement, scratch, output, group),
         2 => evaluate_n::<T, 2>(refinement, scratch, output, group),
@@ -66,11 +74,14 @@ fn evaluate_n<T: Scalar, const N: usize>(
     scratch: &Scratch,
     output: &OutputMesh,
     values: &[T],
-) -> Vec<T> {
+) -> Result<Vec<T>> {
     let (points, _) = values.as_chunks::<N>();
     let compact = refinement.compact(points);
+    if !refinement.curve_networks().is_empty() {
+        scratch.provision::<Value<T, N>>(scratch_capacity(refinement), 2)?;
+    }
     let result = run(refinement, Some(scratch), &compact, refinement.wants_dual());
-    output.finish(result).into_flattened()
+    Ok(output.finish(result)?.into_flattened())
 }
 
 /// Runs `per_four` (interleaved values of 4 channels in, the same out) on the channels of
@@ -78,34 +89,33 @@ fn evaluate_n<T: Scalar, const N: usize>(
 pub(crate) fn in_groups_of_four<T: Scalar>(
     values: &[T],
     channels: usize,
-    per_four: impl Fn(Vec<T>) -> Vec<T>,
-) -> Vec<T> {
+    per_four: impl Fn(Vec<T>) -> Result<Vec<T>>,
+) -> Result<Vec<T>> {
     let items = values.len() / channels;
     let mut out: Vec<T> = Vec::new();
     for first in (0..channels).step_by(4) {
         let width = (channels - first).min(4);
-        let group: Vec<T> = (0..items)
-            .flat_map(|i| {
-                (0..4).map(move |k| {
-                    if k < width {
-                        values[i * channels + first + k]
-                    } else {
-                        T::default()
-                    }
-                })
+        let mut group: Vec<T> = memory::with_capacity(4 * items)?;
+        group.extend((0..items).flat_map(|i| {
+            (0..4).map(move |k| {
+                if k < width {
+                    values[i * channels + first + k]
+                } else {
+                    T::default()
+                }
             })
-            .collect();
-        let result = per_four(group);
+        }));
+        let result = per_four(group)?;
         let count = result.len() / 4;
         if out.is_empty() {
-            out = vec![T::default(); count * channels];
+            out = memory::filled(count * channels, T::default())?;
         }
         for i in 0..count {
             out[i * channels + first..i * channels + first + width]
                 .copy_from_slice(&result[4 * i..4 * i + width]);
         }
     }
-    out
+    Ok(out)
 }
 
 /// Face-varying values (one per corner of the cage, e.g. UVs; checked) with linear (bilinear
@@ -115,13 +125,13 @@ pub(crate) fn evaluate_face_varying<T: Scalar>(
     output: &OutputMesh,
     values: &[T],
     channels: usize,
-) -> Vec<T> {
+) -> Result<Vec<T>> {
     let levels = refinement.levels_as_built();
     let half = T::from_f64(0.5);
-    let current = in_pool(|| {
-        let mut current: Vec<T> = values.to_vec();
+    let current = in_pool(|| -> Result<Vec<T>> {
+        let mut current: Vec<T> = memory::collect(values.iter().copied())?;
         for level in &levels[..levels.len() - 1] {
-            let mut centres = vec![T::default(); level.num_faces() * channels];
+            let mut centres = memory::filled(level.num_faces() * channels, T::default())?;
             fill_rows(&mut centres, channels, |f, centre| {
                 let corners = level.face_corners(f);
                 let w = reciprocal::<T>(corners.len());
@@ -134,7 +144,7 @@ pub(crate) fn evaluate_face_varying<T: Scalar>(
             });
             // Corner c of this level becomes the quad c, midpoint(c, next), centre,
             // midpoint(prev, c) of the next one.
-            let mut next = vec![T::default(); 4 * level.num_corners() * channels];
+            let mut next = memory::filled(4 * level.num_corners() * channels, T::default())?;
             fill_rows(&mut next, 4 * channels, |c, quad| {
                 let at = |c: usize, k: usize| current[c * channels + k];
                 let (n, p) = (level.next(c), level.prev(c));
@@ -151,8 +161,8 @@ pub(crate) fn evaluate_face_varying<T: Scalar>(
             });
             current = next;
         }
-        current
-    });
+        Ok(current)
+    })?;
     output.face_varying(current, channels)
 }
 

@@ -7,8 +7,9 @@
 //! C1 continuity at irregular points for degrees up to 9; higher degrees are allowed but unproven.
 //!
 //! Layers (each module imports only those below it; see `docs/ARCHITECTURE.md`):
-//! - ground floor: `error`, `scalar` (the [`Scalar`] trait), `parallel` (fixed-chunk gathers),
-//!   `mesh` (the input [`Cage`] and its checks), `topology` (refined [`Level`]s), `options`;
+//! - ground floor: `error`, [`memory`] (fallible allocation, the machine's memory), `scalar`
+//!   (the [`Scalar`] trait), `parallel` (fixed-chunk gathers), `mesh` (the input [`Cage`] and
+//!   its checks), `topology` (refined [`Level`]s), `options`;
 //! - rules: `scheme` (the rule sets: averaging of any degree, classic Catmull-Clark,
 //!   Doo-Sabin and bilinear, OpenSubdiv's `Sdc` role) and `curves` (boundaries, creases and
 //!   corners on the levels: [`CurveNetwork`]s and classic sharpness);
@@ -36,6 +37,7 @@ mod error;
 mod evaluate;
 pub mod io;
 mod limit;
+pub mod memory;
 mod mesh;
 mod options;
 mod output;

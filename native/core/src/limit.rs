@@ -456,17 +456,7 @@ pub(crate) fn positions<T: Scalar>(
     if channels <= 4 {
         return per_group(values, channels);
     }
-    let error = Mutex::new(None);
-    let out = in_groups_of_four(values, channels, |group| {
-        per_group(&group, 4).unwrap_or_else(|e| {
-            *error.lock().unwrap_or_else(|e| e.into_inner()) = Some(e);
-            Vec::new()
-        })
-    });
-    match error.into_inner().unwrap_or_else(|e| e.into_inner()) {
-        Some(e) => Err(e),
-        None => Ok(out),
-    }
+    in_groups_of_four(values, channels, |group| per_group(&group, 4))
 }
 
 /// Limit positions (3 channels) and unit limit normals of the surface of `points` (3 per cage

@@ -85,10 +85,7 @@ impl Cage {
         let mut total: u64 = 0;
         for (face, &size) in face_sizes.iter().enumerate() {
             if size < 3 {
-                return Err(Error::FaceTooSmall {
-                    face,
-                    size: size.max(0) as usize,
-                });
+                return Err(Error::FaceTooSmall { face, size });
             }
             total += size as u64;
             if total > face_vertices.len() as u64 {

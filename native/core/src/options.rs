@@ -8,7 +8,8 @@ use crate::mesh::Cage;
 pub const MAX_DEGREE: u32 = 31;
 /// Highest number of levels accepted before the memory estimate is even made.
 pub const MAX_LEVELS: u32 = 16;
-/// Default memory budget of a request: 4 GiB.
+/// Default memory budget of a request: 4 GiB, or less on a machine with less memory
+/// ([`crate::memory::default_memory_budget`] is the budget `Options::default()` takes).
 pub const DEFAULT_MEMORY_BUDGET: u64 = 4 << 30;
 
 /// What is drawn at the last level.
@@ -68,7 +69,8 @@ pub struct Options {
     pub output: OutputKind,
     /// Boundary interpolation.
     pub boundary: Boundary,
-    /// Largest memory, in bytes, a request may need (estimated before any work).
+    /// Largest memory, in bytes, a request may need (estimated before any work; a request over
+    /// the machine's memory is refused whatever the budget, see [`crate::memory`]).
     pub memory_budget: u64,
     /// Averaging or classic rules.
     pub rules: Rules,
@@ -83,7 +85,7 @@ impl Default for Options {
             levels: 2,
             output: OutputKind::Primal,
             boundary: Boundary::EdgeOnly,
-            memory_budget: DEFAULT_MEMORY_BUDGET,
+            memory_budget: crate::memory::default_memory_budget(),
             rules: Rules::Averaging,
             creasing: Creasing::Uniform,
         }
@@ -117,6 +119,7 @@ pub(crate) fn check_levels(levels: u32, min: u32) -> Result<()> {
     if !(min..=MAX_LEVELS).contains(&levels) {
         return Err(Error::LevelOutOfRange {
             levels: levels as i64,
+            min,
             max: MAX_LEVELS,
         });
     }

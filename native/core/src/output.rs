@@ -5,12 +5,13 @@
 use std::sync::OnceLock;
 
 use crate::error::{Error, Result};
+use crate::memory;
 use crate::options::OutputKind;
 use crate::parallel::gather_hinted;
 use crate::refinement::Refinement;
 use crate::scalar::{Scalar, Value};
 use crate::step::Final;
-use crate::topology::Level;
+use crate::topology::{EdgeProblem, Level};
 
 /// The dual mesh of the last level, as a polygon level plus where its data comes from.
 #[derive(Debug, Default)]
@@ -43,7 +44,7 @@ impl OutputMesh {
     pub(crate) fn build(refinement: &Refinement) -> Result<OutputMesh> {
         if refinement.options().output == OutputKind::Dual && refinement.levels_as_built().len() > 1
         {
-            let origin = face_origin(refinement);
+            let origin = face_origin(refinement)?;
             let dual = dual_mesh(refinement, &origin)?;
             return Ok(OutputMesh {
                 face_origin: OnceLock::from(origin),
@@ -79,18 +80,41 @@ impl OutputMesh {
         }
     }
 
+    /// Builds the tables that wait for their first use (face offsets, cage faces, the last
+    /// level's edges), so that a refused allocation is an error here rather than a panic in an
+    /// accessor.
+    pub(crate) fn complete(&self, refinement: &Refinement) -> Result<()> {
+        if self.dual.is_none() {
+            if self.face_offsets.get().is_none() {
+                let last = refinement.last_level();
+                let offsets = if last.is_quads() {
+                    gather_hinted(last.num_faces() + 1, |f| 4 * f as u32)?
+                } else {
+                    memory::collect(last.face_offsets.iter().copied())?
+                };
+                let _ = self.face_offsets.set(offsets);
+            }
+            if self.face_origin.get().is_none() {
+                let _ = self.face_origin.set(face_origin(refinement)?);
+            }
+        }
+        refinement.complete_levels()
+    }
+
+    /// A table of [`OutputMesh::complete`], built on first use.
+    fn completed<'a>(&self, table: &'a OnceLock<Vec<u32>>, refinement: &Refinement) -> &'a [u32] {
+        if table.get().is_none() {
+            self.complete(refinement)
+                .unwrap_or_else(|e| panic!("output tables: {e}"));
+        }
+        table.get().expect("completed")
+    }
+
     /// Offsets of each output face's vertices in [`OutputMesh::face_vertices`] (faces + 1).
     pub(crate) fn face_offsets<'a>(&'a self, refinement: &'a Refinement) -> &'a [u32] {
         match &self.dual {
             Some(d) => &d.level.face_offsets,
-            None => self.face_offsets.get_or_init(|| {
-                let last = refinement.last_level();
-                if last.is_quads() {
-                    gather_hinted(last.num_faces() + 1, |f| 4 * f as u32)
-                } else {
-                    last.face_offsets.clone()
-                }
-            }),
+            None => self.completed(&self.face_offsets, refinement),
         }
     }
 
@@ -103,7 +127,7 @@ impl OutputMesh {
     pub(crate) fn face_origin<'a>(&'a self, refinement: &'a Refinement) -> &'a [u32] {
         match &self.dual {
             Some(d) => &d.face_origin,
-            None => self.face_origin.get_or_init(|| face_origin(refinement)),
+            None => self.completed(&self.face_origin, refinement),
         }
     }
 
@@ -121,49 +145,54 @@ impl OutputMesh {
     pub(crate) fn finish<T: Scalar, const N: usize>(
         &self,
         result: Final<T, N>,
-    ) -> Vec<Value<T, N>> {
+    ) -> Result<Vec<Value<T, N>>> {
         match result {
-            Final::Primal(points) => points,
+            Final::Primal(points) => Ok(points),
             Final::Dual {
                 mut faces,
                 curve_edges,
             } => {
                 let dual = self.dual.as_ref().expect("dual output has a dual mesh");
+                memory::reserve(&mut faces, dual.boundary_points.len())?;
                 faces.extend(
                     dual.boundary_points
                         .iter()
                         .map(|&i| curve_edges[i as usize]),
                 );
-                faces
+                Ok(faces)
             }
         }
     }
 
     /// Turns face-varying values at the corners of `M_L` into values at the output corners.
-    pub(crate) fn face_varying<T: Scalar>(&self, values: Vec<T>, channels: usize) -> Vec<T> {
+    pub(crate) fn face_varying<T: Scalar>(
+        &self,
+        values: Vec<T>,
+        channels: usize,
+    ) -> Result<Vec<T>> {
         match &self.dual {
-            None => values,
-            Some(d) => d
-                .corner_source
-                .iter()
-                .flat_map(|&c| {
+            None => Ok(values),
+            Some(d) => {
+                let mut out = memory::with_capacity(d.corner_source.len() * channels)?;
+                out.extend(d.corner_source.iter().flat_map(|&c| {
                     values[c as usize * channels..(c as usize + 1) * channels]
                         .iter()
                         .copied()
-                })
-                .collect(),
+                }));
+                Ok(out)
+            }
         }
     }
 }
 
 /// Face f of M_L is corner f of M_{L-1}, inside face f/4 of M_{L-1} (for L-1 >= 1), down to a
 /// corner of the cage.
-fn face_origin(refinement: &Refinement) -> Vec<u32> {
+fn face_origin(refinement: &Refinement) -> Result<Vec<u32>> {
     let levels = refinement.levels_as_built();
     let last = refinement.last_level();
     let depth = levels.len() - 1;
     if depth == 0 {
-        (0..last.num_faces() as u32).collect()
+        memory::collect(0..last.num_faces() as u32)
     } else {
         let shift = 2 * (depth - 1);
         let cage = &levels[0];
@@ -177,21 +206,25 @@ fn dual_mesh(refinement: &Refinement, face_origin: &[u32]) -> Result<DualMesh> {
     let last = refinement.levels().last().expect("a refined level");
     let curves = refinement.curve_networks().last().expect("a step");
     let num_faces = last.num_faces() as u32;
-    let boundary_points: Vec<u32> = (0..curves.edges().len() as u32)
-        .filter(|&i| last.is_boundary_edge(curves.edges()[i as usize].edge as usize))
-        .collect();
+    let mut boundary_points: Vec<u32> = memory::with_capacity(curves.edges().len())?;
+    boundary_points.extend(
+        (0..curves.edges().len() as u32)
+            .filter(|&i| last.is_boundary_edge(curves.edges()[i as usize].edge as usize)),
+    );
     let point_of_edge = |e: u32| -> u32 {
         let at = boundary_points
             .binary_search_by_key(&e, |&i| curves.edges()[i as usize].edge)
             .expect("boundary edges are curve edges of the last step");
         num_faces + at as u32
     };
-    let mut offsets = vec![0u32];
-    let mut verts = Vec::with_capacity(last.num_corners() + 2 * boundary_points.len());
-    let mut sources = Vec::with_capacity(verts.capacity());
-    let mut origin = Vec::with_capacity(last.num_vertices);
-    let mut visited = vec![false; last.num_corners()];
-    let mut centre = Vec::with_capacity(last.num_vertices);
+    // A vertex has one dual face per fan: at most its corners, and one per vertex mostly.
+    let mut offsets = memory::with_capacity(last.num_vertices + 1)?;
+    offsets.push(0u32);
+    let mut verts = memory::with_capacity(last.num_corners() + 2 * boundary_points.len())?;
+    let mut sources = memory::with_capacity(verts.capacity())?;
+    let mut origin = memory::with_capacity(last.num_vertices)?;
+    let mut visited = memory::zeroed::<bool>(last.num_corners())?;
+    let mut centre = memory::with_capacity(last.num_vertices)?;
     for v in 0..last.num_vertices {
         let corners = last.corners_of_vertex(v);
         // Fans that start at a boundary come first; closed fans start anywhere.
@@ -244,11 +277,13 @@ fn dual_mesh(refinement: &Refinement, face_origin: &[u32]) -> Result<DualMesh> {
             "the dual output needs every vertex on at least 3 faces or a boundary; vertex {v} of the last level is not (the cage has a vertex of valence 2)"
         )));
     }
-    let level = Level::from_polygons(num_points, offsets, verts).map_err(|problem| {
-        Error::InvalidInput(format!(
-            "the dual of this mesh is not a 2-manifold ({problem:?}); use the primal output"
-        ))
-    })?;
+    let level =
+        Level::from_polygons(num_points, offsets, verts).map_err(|problem| match problem {
+            EdgeProblem::Failed(error) => error,
+            problem => Error::InvalidInput(format!(
+                "the dual of this mesh is not a 2-manifold ({problem:?}); use the primal output"
+            )),
+        })?;
     Ok(DualMesh {
         level,
         boundary_points,

@@ -1,19 +1,23 @@
 //! Parallel gathers in fixed chunks: every pass of the crate writes each output item from one
 //! task, over chunks whose bounds do not depend on the number of threads, so results are bitwise
 //! the same whatever the thread count. Also the allocation hints that make a large buffer's first
-//! touch cheap, and [`in_pool`]. Ground floor: imports nothing of the crate.
+//! touch cheap (fallible, through [`crate::memory`]), and [`in_pool`]. Ground floor: imports
+//! only `error` and `memory`.
 
 use std::mem::MaybeUninit;
 
 use rayon::prelude::*;
+
+use crate::error::Result;
+use crate::memory;
 
 /// Items per parallel task in the gathers (large enough to amortise scheduling).
 pub(crate) const CHUNK: usize = 1 << 12;
 
 /// CSR offsets (length `n + 1`) of items with `count(item)` entries each: counts and the
 /// prefix sum run in fixed chunks in parallel (integer sums, so the order does not matter).
-pub(crate) fn prefix_offsets(n: usize, count: impl Fn(usize) -> u32 + Sync) -> Vec<u32> {
-    let mut offsets = zeroed_hinted::<u32>(n + 1);
+pub(crate) fn prefix_offsets(n: usize, count: impl Fn(usize) -> u32 + Sync) -> Result<Vec<u32>> {
+    let mut offsets = zeroed_hinted::<u32>(n + 1)?;
     offsets[1..]
         .par_chunks_mut(CHUNK)
         .enumerate()
@@ -42,39 +46,53 @@ pub(crate) fn prefix_offsets(n: usize, count: impl Fn(usize) -> u32 + Sync) -> V
                 }
             }
         });
-    offsets
+    Ok(offsets)
 }
 
 /// Allocations from this size on are worth the transparent-huge-page hint.
 const HUGE_HINT_BYTES: usize = 4 << 20;
 
-/// An empty vector with room for `n` items; a large one is advised to use transparent huge
-/// pages, which makes its first touch (the page faults) several times cheaper on Linux.
-pub(crate) fn with_capacity_hinted<T>(n: usize) -> Vec<T> {
-    let v = Vec::with_capacity(n);
+/// An empty vector with room for `n` items, or [`Error::OutOfMemory`]; a large one is advised
+/// to use transparent huge pages, which makes its first touch (the page faults) several times
+/// cheaper on Linux.
+pub(crate) fn with_capacity_hinted<T>(n: usize) -> Result<Vec<T>> {
+    let v = memory::with_capacity(n)?;
     advise_huge_pages(v.as_ptr() as usize, v.capacity() * std::mem::size_of::<T>());
-    v
+    Ok(v)
 }
 
 /// `out[i] = f(i)` for `i < n`, in parallel chunks, into a hinted allocation.
-pub(crate) fn gather_hinted<V: Send>(n: usize, f: impl Fn(usize) -> V + Sync + Send) -> Vec<V> {
-    let mut v = with_capacity_hinted(n);
+pub(crate) fn gather_hinted<V: Send>(
+    n: usize,
+    f: impl Fn(usize) -> V + Sync + Send,
+) -> Result<Vec<V>> {
+    let mut v = with_capacity_hinted(n)?;
     (0..n)
         .into_par_iter()
         .with_min_len(CHUNK)
         .map(f)
         .collect_into_vec(&mut v);
-    v
+    Ok(v)
 }
 
 /// `n` zeros (or defaults) in a hinted allocation, written in parallel.
-pub(crate) fn zeroed_hinted<T: Default + Copy + Send + Sync>(n: usize) -> Vec<T> {
-    let mut v = with_capacity_hinted(n);
+pub(crate) fn zeroed_hinted<T: Default + Copy + Send + Sync>(n: usize) -> Result<Vec<T>> {
+    let mut v = with_capacity_hinted(n)?;
     (0..n)
         .into_par_iter()
         .with_min_len(4 * CHUNK)
         .map(|_| T::default())
         .collect_into_vec(&mut v);
+    Ok(v)
+}
+
+/// [`with_capacity_hinted`] for the gathers that fill a buffer they are given
+/// ([`gather_into`], [`gather_sections`]): evaluation provisions those buffers fallibly
+/// beforehand (`Scratch::provision`), so this allocates only for small data (curve networks,
+/// limit stencils) and aborts, as `Vec::with_capacity` does, if even that fails.
+pub(crate) fn hinted_or_abort<T>(n: usize) -> Vec<T> {
+    let v = Vec::with_capacity(n);
+    advise_huge_pages(v.as_ptr() as usize, v.capacity() * std::mem::size_of::<T>());
     v
 }
 
@@ -155,7 +173,7 @@ pub(crate) fn gather_into<V: Send, F: Fn(usize) -> V + Sync + Send>(
     f: F,
 ) {
     if out.capacity() < n {
-        *out = with_capacity_hinted(n);
+        *out = hinted_or_abort(n);
     }
     (0..n)
         .into_par_iter()
@@ -175,7 +193,7 @@ pub(crate) fn gather_sections<V: Send>(
 ) {
     let n = sizes.iter().sum();
     if out.capacity() < n {
-        *out = with_capacity_hinted(n);
+        *out = hinted_or_abort(n);
     }
     let section = |len: usize| (0..len).into_par_iter().with_min_len(CHUNK);
     section(sizes[0])

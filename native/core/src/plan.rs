@@ -108,17 +108,24 @@ impl Plan {
         self.output.corner_edges(&self.refinement)
     }
 
+    /// Builds the output mesh's tables that wait for their first use (face offsets, cage faces,
+    /// the last level's edges). The accessors below build them too, but panic if memory runs
+    /// out there; call this first to get [`crate::Error::OutOfMemory`] instead.
+    pub fn complete_output(&self) -> Result<()> {
+        in_pool(|| self.output.complete(&self.refinement))
+    }
+
     /// Evaluates per-vertex values of the cage (`channels` interleaved values per cage vertex,
     /// in the user's numbering) and returns the values at the output vertices, interleaved.
     pub fn evaluate<T: Scalar>(&self, values: &[T], channels: usize) -> Result<Vec<T>> {
         check_values(values, channels, self.num_input_vertices())?;
-        Ok(evaluate::evaluate(
+        evaluate::evaluate(
             &self.refinement,
             &self.scratch,
             &self.output,
             values,
             channels,
-        ))
+        )
     }
 
     /// Evaluates face-varying values (one per corner of the cage, e.g. UVs) with linear
@@ -130,12 +137,7 @@ impl Plan {
     ) -> Result<Vec<T>> {
         let corners = self.refinement.levels_as_built()[0].num_corners();
         check_values(values, channels, corners)?;
-        Ok(evaluate::evaluate_face_varying(
-            &self.refinement,
-            &self.output,
-            values,
-            channels,
-        ))
+        evaluate::evaluate_face_varying(&self.refinement, &self.output, values, channels)
     }
 
     /// Frees the working buffers that evaluations keep in the plan for the next ones (up to two

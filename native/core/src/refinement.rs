@@ -10,6 +10,7 @@ use std::borrow::Cow;
 
 use crate::curves::{CageFeatures, CurveNetwork, LevelSharpness};
 use crate::error::{Error, Result};
+use crate::memory;
 use crate::mesh::Cage;
 use crate::options::{estimate, Options, OutputKind};
 use crate::parallel::in_pool;
@@ -44,13 +45,7 @@ impl Refinement {
 
     fn build(cage: &Cage, options: &Options) -> Result<Refinement> {
         let est = estimate(cage, options)?;
-        if est.bytes > options.memory_budget {
-            return Err(Error::MemoryBudget {
-                required: est.bytes,
-                budget: options.memory_budget,
-                faces: est.faces,
-            });
-        }
+        memory::check_request(est.bytes, est.faces, options.memory_budget)?;
         if 4 * est.faces >= u32::MAX as u64 || est.vertices >= u32::MAX as u64 {
             return Err(Error::InvalidInput(format!(
                 "{} output faces is more than 32-bit indices can address",
@@ -61,7 +56,7 @@ impl Refinement {
 
         // Drop isolated vertices: they have no faces, so no place in the refined mesh.
         let n = cage.num_vertices();
-        let mut used = vec![false; n];
+        let mut used = memory::zeroed::<bool>(n)?;
         for &v in cage.face_vertices() {
             used[v as usize] = true;
         }
@@ -70,7 +65,7 @@ impl Refinement {
             (None, None)
         } else {
             let map: Vec<u32> = (0..n as u32).filter(|&v| used[v as usize]).collect();
-            let mut compact = vec![NONE; n];
+            let mut compact = memory::filled(n, NONE)?;
             for (i, &v) in map.iter().enumerate() {
                 compact[v as usize] = i as u32;
             }
@@ -78,7 +73,7 @@ impl Refinement {
         };
         let compact = |v: u32| compact_of.as_ref().map_or(v, |m| m[v as usize]);
         let num_vertices = n - isolated.len();
-        let corner_verts: Vec<u32> = cage.face_vertices().iter().map(|&v| compact(v)).collect();
+        let corner_verts = memory::collect(cage.face_vertices().iter().map(|&v| compact(v)))?;
         let level0 = Level::from_cage(cage, num_vertices, corner_verts)?;
         let features = CageFeatures::new(cage, &level0, compact, options.boundary)?;
 
@@ -93,14 +88,14 @@ impl Refinement {
             // unless the dual output is built from them.
             let coarse = &levels[j as usize];
             let fine = if j + 1 == options.levels && options.output == OutputKind::Primal {
-                let fine = coarse.refine_faces();
+                let fine = coarse.refine_faces()?;
                 if !scheme.uses_sharpness() {
                     // The averaging passes read it at every level.
-                    fine.index_vertex_corners_from(coarse);
+                    fine.index_vertex_corners_from(coarse)?;
                 }
                 fine
             } else {
-                coarse.refine()
+                coarse.refine()?
             };
             let network = CurveNetwork::build(
                 coarse,
@@ -117,9 +112,9 @@ impl Refinement {
         }
 
         let sharpness = if let Scheme::CatmullClark { creasing } = scheme {
-            let mut tables = vec![LevelSharpness::cage(&levels[0], &features)];
+            let mut tables = vec![LevelSharpness::cage(&levels[0], &features)?];
             for j in 1..levels.len() {
-                let next = tables[j - 1].refine(&levels[j - 1], &levels[j], creasing);
+                let next = tables[j - 1].refine(&levels[j - 1], &levels[j], creasing)?;
                 tables.push(next);
             }
             tables
@@ -181,10 +176,18 @@ impl Refinement {
     /// The refined levels `M_0..M_L`, every table built (the last level's edge and vertex ->
     /// corner tables are added on the first call).
     pub(crate) fn levels(&self) -> &[Level] {
-        if let [.., parent, last] = self.levels.as_slice() {
-            last.complete_from(parent);
-        }
+        self.complete_levels()
+            .unwrap_or_else(|e| panic!("the last level's tables: {e}"));
         &self.levels
+    }
+
+    /// Completes the last level's tables ([`Refinement::levels`] does it on first use, and
+    /// panics if an allocation is refused there).
+    pub(crate) fn complete_levels(&self) -> Result<()> {
+        match self.levels.as_slice() {
+            [.., parent, last] => last.complete_from(parent),
+            _ => Ok(()),
+        }
     }
 
     /// The levels as built: the last one may still lack its edge tables (and, for the classic

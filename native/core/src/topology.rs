@@ -14,6 +14,7 @@ use std::sync::OnceLock;
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
+use crate::memory;
 use crate::mesh::Cage;
 use crate::parallel::{
     fill_csr, gather_hinted, prefix_offsets, with_capacity_hinted, zeroed_hinted, CHUNK,
@@ -146,24 +147,29 @@ impl Level {
     /// Completes a level built by `parent.refine_faces()`: its edge tables (numbered exactly as
     /// [`Level::refine`] numbers them) and its vertex -> corner table (as
     /// [`Level::index_vertex_corners_from`]); nothing that is there is built again.
-    pub(crate) fn complete_from(&self, parent: &Level) {
-        self.add_edges_from(parent);
-        self.index_vertex_corners_from(parent);
+    pub(crate) fn complete_from(&self, parent: &Level) -> Result<()> {
+        self.add_edges_from(parent)?;
+        self.index_vertex_corners_from(parent)
     }
 
     /// The edge tables of [`Level::complete_from`] alone.
-    fn add_edges_from(&self, parent: &Level) {
-        self.edges.get_or_init(|| parent.child_edges());
+    fn add_edges_from(&self, parent: &Level) -> Result<()> {
+        if self.edges.get().is_none() {
+            // Two threads completing at once build the same tables; one is kept.
+            let _ = self.edges.set(parent.child_edges()?);
+        }
+        Ok(())
     }
 
     /// Builds, in parallel from the parent, the vertex -> corner table that
     /// [`Level::corners_of_vertex`] would build on first use on a level made by
     /// `parent.refine_faces()` (the same table; nothing if it is there).
-    pub(crate) fn index_vertex_corners_from(&self, parent: &Level) {
-        if self.vert_corner_offsets.is_empty() {
-            self.lazy_vertex_corners
-                .get_or_init(|| parent.child_vertex_corners(self.num_vertices, true));
+    pub(crate) fn index_vertex_corners_from(&self, parent: &Level) -> Result<()> {
+        if self.vert_corner_offsets.is_empty() && self.lazy_vertex_corners.get().is_none() {
+            let table = parent.child_vertex_corners(self.num_vertices, true)?;
+            let _ = self.lazy_vertex_corners.set(table);
         }
+        Ok(())
     }
 
     /// A quad level from its tables (the adaptive partial levels).
@@ -240,9 +246,11 @@ impl Level {
     #[inline]
     pub fn corners_of_vertex(&self, v: usize) -> &[u32] {
         let (offsets, corners) = if self.vert_corner_offsets.is_empty() {
-            let (o, c) = self
-                .lazy_vertex_corners
-                .get_or_init(|| vertex_corners(self.num_vertices, &self.corner_verts));
+            // Only levels built without the table get here (plans index theirs when built).
+            let (o, c) = self.lazy_vertex_corners.get_or_init(|| {
+                vertex_corners(self.num_vertices, &self.corner_verts)
+                    .unwrap_or_else(|e| panic!("vertex -> corner table: {e}"))
+            });
             (o, c)
         } else {
             (&self.vert_corner_offsets, &self.vert_corners)
@@ -330,11 +338,11 @@ impl Level {
         face_offsets: Vec<u32>,
         corner_verts: Vec<u32>,
     ) -> std::result::Result<Level, EdgeProblem> {
-        let mut corner_faces = zeroed_hinted::<u32>(corner_verts.len());
+        let mut corner_faces = zeroed_hinted::<u32>(corner_verts.len())?;
         fill_csr(&face_offsets, &mut corner_faces, |f, out| {
             out.fill(f as u32)
         });
-        let (vert_corner_offsets, vert_corners) = vertex_corners(num_vertices, &corner_verts);
+        let (vert_corner_offsets, vert_corners) = vertex_corners(num_vertices, &corner_verts)?;
         let mut level = Level {
             num_vertices,
             face_offsets,
@@ -410,7 +418,7 @@ impl Level {
                 }
                 count
             })
-        });
+        })?;
         if bad.into_inner() {
             let first = (0..self.num_vertices)
                 .into_par_iter()
@@ -423,9 +431,10 @@ impl Level {
             return Err(first);
         }
         let num_edges = offsets[self.num_vertices] as usize;
-        let mut corners = zeroed_hinted::<[u32; 2]>(num_edges);
+        let mut corners = zeroed_hinted::<[u32; 2]>(num_edges)?;
         // Every corner is the half of exactly one edge, so each slot is stored once.
-        let corner_edges: Vec<AtomicU32> = gather_hinted(self.num_corners(), |_| AtomicU32::new(0));
+        let corner_edges: Vec<AtomicU32> =
+            gather_hinted(self.num_corners(), |_| AtomicU32::new(0))?;
         fill_csr(&offsets, &mut corners, |a, out| {
             self.owned_halves(a, |halves| {
                 let first = offsets[a];
@@ -444,12 +453,9 @@ impl Level {
         let verts = gather_hinted(num_edges, |e| {
             let c = corners[e][0] as usize;
             [self.corner_verts[c], self.corner_verts[self.next(c)]]
-        });
+        })?;
         Ok(Edges {
-            corner_edges: corner_edges
-                .into_iter()
-                .map(AtomicU32::into_inner)
-                .collect(),
+            corner_edges: memory::collect(corner_edges.into_iter().map(AtomicU32::into_inner))?,
             verts,
             corners,
         })
@@ -462,7 +468,7 @@ impl Level {
         num_vertices: usize,
         corner_verts: Vec<u32>,
     ) -> Result<Level> {
-        let offsets = cage.face_offsets().to_vec();
+        let offsets = memory::collect(cage.face_offsets().iter().copied())?;
         let verts = cage.face_vertices();
         let face_of = |c: usize| offsets.partition_point(|&o| o as usize <= c) - 1;
         let next = |c: usize| {
@@ -473,8 +479,10 @@ impl Level {
                 c + 1
             }
         };
-        Level::from_polygons(num_vertices, offsets.clone(), corner_verts).map_err(|problem| {
+        let level_offsets = memory::collect(offsets.iter().copied())?;
+        Level::from_polygons(num_vertices, level_offsets, corner_verts).map_err(|problem| {
             match problem {
+                EdgeProblem::Failed(error) => error,
                 EdgeProblem::NonManifold { corner, faces } => Error::NonManifoldEdge {
                     a: verts[corner] as usize,
                     b: verts[next(corner)] as usize,
@@ -496,22 +504,22 @@ impl Level {
     ///
     /// Child edges: `2e` and `2e + 1` are the halves of edge `e` (containing its first and second
     /// vertex), `2E + c` joins the edge point of `c`'s outgoing edge to the face point.
-    pub(crate) fn refine(&self) -> Level {
-        let child = self.refine_faces();
-        child.add_edges_from(self);
-        let (offsets, vert_corners) = self.child_vertex_corners(child.num_vertices, false);
-        Level {
+    pub(crate) fn refine(&self) -> Result<Level> {
+        let child = self.refine_faces()?;
+        child.add_edges_from(self)?;
+        let (offsets, vert_corners) = self.child_vertex_corners(child.num_vertices, false)?;
+        Ok(Level {
             vert_corner_offsets: offsets,
             vert_corners,
             ..child
-        }
+        })
     }
 
     /// As [`Level::refine`], the faces only: the edge tables wait for
     /// [`Level::complete_from`], the vertex -> corner table for [`Level::corners_of_vertex`]
     /// (in increasing order of corner). This is the last level of a plan, which evaluation
     /// reads only through its faces and vertex count.
-    pub(crate) fn refine_faces(&self) -> Level {
+    pub(crate) fn refine_faces(&self) -> Result<Level> {
         let nv = self.num_vertices as u32;
         let ne = self.num_edges() as u32;
         let corner_edges = self.corner_edges();
@@ -522,17 +530,17 @@ impl Level {
                 nv + ne + self.face_of(c) as u32,
                 nv + corner_edges[self.prev(c)],
             ]
-        });
-        Level {
+        })?;
+        Ok(Level {
             num_vertices: self.num_vertices + self.num_edges() + self.num_faces(),
             corner_verts: corner_verts.into_flattened(),
             num_edges: 2 * self.num_edges() + self.num_corners(),
             ..Level::default()
-        }
+        })
     }
 
     /// The edge tables of this level's child (see [`Level::refine`] for their numbering).
-    fn child_edges(&self) -> Edges {
+    fn child_edges(&self) -> Result<Edges> {
         let nv = self.num_vertices as u32;
         let ne = self.num_edges() as u32;
         let nc = self.num_corners();
@@ -550,12 +558,12 @@ impl Level {
                 2 * ne + p as u32,
                 self.child_half(corner_edges[p], v),
             ]
-        });
+        })?;
 
         // Edges: the two halves of every old edge, then one interior edge per old corner.
         let total_edges = 2 * ne as usize + nc;
-        let mut verts: Vec<[u32; 2]> = with_capacity_hinted(total_edges);
-        let mut corners: Vec<[u32; 2]> = with_capacity_hinted(total_edges);
+        let mut verts: Vec<[u32; 2]> = with_capacity_hinted(total_edges)?;
+        let mut corners: Vec<[u32; 2]> = with_capacity_hinted(total_edges)?;
         (0..total_edges)
             .into_par_iter()
             .with_min_len(CHUNK)
@@ -587,18 +595,22 @@ impl Level {
                 }
             })
             .unzip_into_vecs(&mut verts, &mut corners);
-        Edges {
+        Ok(Edges {
             corner_edges: quad_edges.into_flattened(),
             verts,
             corners,
-        }
+        })
     }
 
     /// Vertex -> corners of the child level: an old vertex keeps one corner per old corner, an
     /// edge point has two per incident face, a face point one per corner of its face; in
     /// increasing order of corner when `increasing` (the order of [`Level::corners_of_vertex`]'s
     /// table built on first use).
-    fn child_vertex_corners(&self, new_vertices: usize, increasing: bool) -> (Vec<u32>, Vec<u32>) {
+    fn child_vertex_corners(
+        &self,
+        new_vertices: usize,
+        increasing: bool,
+    ) -> Result<(Vec<u32>, Vec<u32>)> {
         let (nv, ne) = (self.num_vertices, self.num_edges());
         let offsets = prefix_offsets(new_vertices, |w| {
             if w < nv {
@@ -612,8 +624,8 @@ impl Level {
             } else {
                 self.face_corners(w - nv - ne).len() as u32
             }
-        });
-        let mut vert_corners = zeroed_hinted::<u32>(4 * self.num_corners());
+        })?;
+        let mut vert_corners = zeroed_hinted::<u32>(4 * self.num_corners())?;
         fill_csr(&offsets, &mut vert_corners, |w, out| {
             if w < nv {
                 for (o, &c) in out.iter_mut().zip(self.corners_of_vertex(w)) {
@@ -637,35 +649,43 @@ impl Level {
                 out.sort_unstable();
             }
         });
-        (offsets, vert_corners)
+        Ok((offsets, vert_corners))
     }
 }
 
 /// Vertex -> corners by counting sort (corners in increasing order).
-fn vertex_corners(num_vertices: usize, corner_verts: &[u32]) -> (Vec<u32>, Vec<u32>) {
-    let mut offsets = vec![0u32; num_vertices + 1];
+fn vertex_corners(num_vertices: usize, corner_verts: &[u32]) -> Result<(Vec<u32>, Vec<u32>)> {
+    let mut offsets = memory::zeroed::<u32>(num_vertices + 1)?;
     for &v in corner_verts {
         offsets[v as usize + 1] += 1;
     }
     for v in 0..num_vertices {
         offsets[v + 1] += offsets[v];
     }
-    let mut fill = offsets.clone();
-    let mut vert_corners = vec![0u32; corner_verts.len()];
+    let mut fill = memory::collect(offsets.iter().copied())?;
+    let mut vert_corners = memory::zeroed::<u32>(corner_verts.len())?;
     for (c, &v) in corner_verts.iter().enumerate() {
         vert_corners[fill[v as usize] as usize] = c as u32;
         fill[v as usize] += 1;
     }
-    (offsets, vert_corners)
+    Ok((offsets, vert_corners))
 }
 
 /// Why a set of polygons is not an oriented 2-manifold along its edges.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub(crate) enum EdgeProblem {
     /// The edge leaving `corner` has `faces` faces.
     NonManifold { corner: usize, faces: usize },
     /// The two corners traverse their shared edge in the same direction.
     Orientation { corners: [usize; 2] },
+    /// The tables could not be built (an allocation was refused).
+    Failed(Error),
+}
+
+impl From<Error> for EdgeProblem {
+    fn from(error: Error) -> Self {
+        EdgeProblem::Failed(error)
+    }
 }
 
 #[cfg(test)]
@@ -789,13 +809,13 @@ mod tests {
                 (Ok(level), Ok(edges)) => {
                     prop_assert!(same_edges(level.edges(), &edges));
                     // A faces-only child completed later equals the full refinement.
-                    let (full, faces_only) = (level.refine(), level.refine_faces());
+                    let (full, faces_only) = (level.refine().unwrap(), level.refine_faces().unwrap());
                     prop_assert!(!faces_only.has_edges());
-                    faces_only.complete_from(&level);
+                    faces_only.complete_from(&level).unwrap();
                     // The vertex -> corner table built from the parent equals the counting sort.
-                    let indexed = level.refine_faces();
-                    indexed.index_vertex_corners_from(&level);
-                    let sorted = vertex_corners(full.num_vertices, &full.corner_verts);
+                    let indexed = level.refine_faces().unwrap();
+                    indexed.index_vertex_corners_from(&level).unwrap();
+                    let sorted = vertex_corners(full.num_vertices, &full.corner_verts).unwrap();
                     for v in 0..full.num_vertices {
                         let expected = &sorted.1[sorted.0[v] as usize..sorted.0[v + 1] as usize];
                         prop_assert_eq!(indexed.corners_of_vertex(v), expected);
@@ -804,7 +824,7 @@ mod tests {
                     prop_assert_eq!(&faces_only.corner_verts, &full.corner_verts);
                     prop_assert_eq!(faces_only.num_edges(), full.num_edges());
                     prop_assert!(same_edges(faces_only.edges(), full.edges()));
-                    let grand = full.refine();
+                    let grand = full.refine().unwrap();
                     prop_assert_eq!(grand.num_edges(), grand.edge_verts().len());
                 }
                 (Err(found), Err(problem)) => prop_assert_eq!(found, problem),

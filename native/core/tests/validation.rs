@@ -224,3 +224,52 @@ fn dual_output_refuses_valence_two_vertices() {
     ));
     assert!(matches!(e, Error::InvalidInput(_)), "{e:?}");
 }
+
+/// Issue 18 item 9: a negative face size is said as given, and a level range names its lower
+/// bound (adaptive subdivision refines at least one level).
+#[test]
+fn sizes_and_levels_are_said_as_given() {
+    let e = err(Cage::from_indices(4, &[-4], &[0, 1, 2, 3]));
+    assert_eq!(e, Error::FaceTooSmall { face: 0, size: -4 });
+    assert_eq!(
+        e.to_string(),
+        "face 0 has size -4; faces need at least 3 vertices"
+    );
+    let e = err(Plan::new(
+        &torus(4, 4),
+        &Options {
+            levels: 17,
+            ..Options::default()
+        },
+    ));
+    assert_eq!(e.to_string(), "levels 17 is out of range 0..=16");
+    let adaptive = bidegree::AdaptiveOptions {
+        max_level: 0,
+        ..bidegree::AdaptiveOptions::default()
+    };
+    let (g, points) = grid(3, 3);
+    let e = err(bidegree::subdivide_adaptive(&g, &points, &adaptive));
+    assert_eq!(e.to_string(), "levels 0 is out of range 1..=16");
+}
+
+/// Issue 18 item 4: a budget raised above the machine's memory does not let a request in that
+/// the machine cannot hold; it is refused from the estimate, before any work.
+#[test]
+fn a_budget_above_the_machine_is_refused_before_any_work() {
+    let Some(machine) = bidegree::memory::machine_memory() else {
+        return; // not known on this system: the budget alone holds
+    };
+    let options = Options {
+        levels: 14,
+        memory_budget: u64::MAX,
+        ..Options::default()
+    };
+    match err(Plan::new(&torus(8, 8), &options)) {
+        Error::OutOfMemory {
+            required,
+            available,
+        } => assert!(available == machine && required > machine),
+        e => panic!("{e:?}"),
+    }
+    assert!(Options::default().memory_budget <= machine);
+}

@@ -98,7 +98,8 @@ fn adaptive<'py, T: Scalar + Element>(
     out.set_item("face_origin", PyArray1::from_vec(py, face_origin))?;
     out.set_item("triangle_level", PyArray1::from_vec(py, triangle_level))?;
     out.set_item("vertex_level", PyArray1::from_vec(py, vertex_level))?;
-    let ids: Vec<i64> = mesh.vertex_id.iter().map(|&u| u as i64).collect();
+    let ids = bidegree::memory::collect(mesh.vertex_id.iter().map(|&u| u as i64))
+        .map_err(|e| to_py_err(py, e))?;
     out.set_item("vertex_id", PyArray1::from_vec(py, ids))?;
     let leaves: Vec<i64> = mesh.leaves_per_level.iter().map(|&n| n as i64).collect();
     out.set_item("leaves_per_level", PyArray1::from_vec(py, leaves))?;

@@ -64,10 +64,13 @@ pub(crate) fn array2<'py, T: Element>(
 
 /// `u32` indices as `int32` (what numpy and Blender index with).
 pub(crate) fn to_i32(values: &[u32]) -> bidegree::Result<Vec<i32>> {
-    values
-        .iter()
-        .map(|&v| i32::try_from(v).map_err(|_| Error::Internal(format!("index {v} exceeds int32"))))
-        .collect()
+    let mut out = bidegree::memory::with_capacity(values.len())?;
+    for &v in values {
+        out.push(
+            i32::try_from(v).map_err(|_| Error::Internal(format!("index {v} exceeds int32")))?,
+        );
+    }
+    Ok(out)
 }
 
 /// Refuses core output with a NaN or infinite value that finite input did not cause: the

@@ -30,7 +30,7 @@ fn error_class(error: &Error) -> (&'static str, Vec<(&'static str, i64)>) {
         Error::EmptyMesh(_) => ("EmptyMeshError", vec![]),
         Error::FaceTooSmall { face, size } => (
             "FaceTooSmallError",
-            vec![("face", n(*face)), ("size", n(*size))],
+            vec![("face", n(*face)), ("size", *size)],
         ),
         Error::RepeatedVertex { face, vertex } => (
             "RepeatedVertexError",
@@ -72,9 +72,13 @@ fn error_class(error: &Error) -> (&'static str, Vec<(&'static str, i64)>) {
             "DegreeOutOfRangeError",
             vec![("degree", *degree), ("max", i64::from(*max))],
         ),
-        Error::LevelOutOfRange { levels, max } => (
+        Error::LevelOutOfRange { levels, min, max } => (
             "LevelOutOfRangeError",
-            vec![("levels", *levels), ("max", i64::from(*max))],
+            vec![
+                ("levels", *levels),
+                ("min", i64::from(*min)),
+                ("max", i64::from(*max)),
+            ],
         ),
         Error::MemoryBudget {
             required,
@@ -86,6 +90,17 @@ fn error_class(error: &Error) -> (&'static str, Vec<(&'static str, i64)>) {
                 ("required", i64::try_from(*required).unwrap_or(i64::MAX)),
                 ("budget", i64::try_from(*budget).unwrap_or(i64::MAX)),
                 ("faces", i64::try_from(*faces).unwrap_or(i64::MAX)),
+            ],
+        ),
+        // The same class as a refused estimate: `budget` is the memory the process can have.
+        Error::OutOfMemory {
+            required,
+            available,
+        } => (
+            "MemoryBudgetError",
+            vec![
+                ("required", i64::try_from(*required).unwrap_or(i64::MAX)),
+                ("budget", i64::try_from(*available).unwrap_or(i64::MAX)),
             ],
         ),
         Error::InvalidInput(_) => ("InvalidInputError", vec![]),

@@ -20,7 +20,8 @@ mod obj;
 mod options;
 mod plan;
 
-use bidegree::{DEFAULT_MEMORY_BUDGET, INFINITELY_SHARP, MAX_DEGREE, MAX_LEVELS};
+use bidegree::memory::{default_memory_budget, machine_memory};
+use bidegree::{INFINITELY_SHARP, MAX_DEGREE, MAX_LEVELS};
 use pyo3::prelude::*;
 
 /// The extension module `bidegree._native`.
@@ -29,7 +30,8 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("MAX_DEGREE", MAX_DEGREE)?;
     m.add("MAX_LEVELS", MAX_LEVELS)?;
-    m.add("DEFAULT_MEMORY_BUDGET", DEFAULT_MEMORY_BUDGET)?;
+    m.add("DEFAULT_MEMORY_BUDGET", default_memory_budget())?;
+    m.add("MACHINE_MEMORY", machine_memory())?;
     m.add("INFINITELY_SHARP", INFINITELY_SHARP)?;
     errors::register(m)?;
     cage::register(m)?;

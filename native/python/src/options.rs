@@ -1,9 +1,6 @@
 //! Option strings and numbers from Python into the core's option types, and back.
 
-use bidegree::{
-    Boundary, Creasing, Error, Options, OutputKind, Rules, DEFAULT_MEMORY_BUDGET, MAX_DEGREE,
-    MAX_LEVELS,
-};
+use bidegree::{Boundary, Creasing, Error, Options, OutputKind, Rules, MAX_DEGREE, MAX_LEVELS};
 
 use crate::errors::invalid;
 
@@ -97,13 +94,15 @@ pub(crate) fn degree(degree: i64) -> bidegree::Result<u32> {
 pub(crate) fn levels(levels: i64) -> bidegree::Result<u32> {
     u32::try_from(levels).map_err(|_| Error::LevelOutOfRange {
         levels,
+        min: 0,
         max: MAX_LEVELS,
     })
 }
 
-/// A memory budget from Python: `None` is the default budget.
+/// A memory budget from Python: `None` is the default budget (4 GiB, or the machine's memory
+/// when less).
 pub(crate) fn memory_budget(budget: Option<u64>) -> u64 {
-    budget.unwrap_or(DEFAULT_MEMORY_BUDGET)
+    budget.unwrap_or_else(bidegree::memory::default_memory_budget)
 }
 
 /// Options from Python arguments.

@@ -35,7 +35,10 @@ impl PyPlan {
         pick: impl FnOnce(&Plan) -> bidegree::Result<Vec<i32>> + Send,
     ) -> PyResult<Bound<'py, PyArray1<i32>>> {
         let plan = &self.inner;
-        let data = run(py, || pick(plan))?;
+        let data = run(py, || {
+            plan.complete_output()?;
+            pick(plan)
+        })?;
         Ok(PyArray1::from_vec(py, data))
     }
 }
@@ -233,13 +236,15 @@ impl PyPlan {
     /// Corners of each output face, int32 `(F,)`.
     fn face_sizes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<i32>>> {
         self.indices(py, |plan| {
-            plan.output_face_offsets()
-                .windows(2)
-                .map(|w| {
+            let offsets = plan.output_face_offsets();
+            let mut sizes = bidegree::memory::with_capacity(offsets.len().saturating_sub(1))?;
+            for w in offsets.windows(2) {
+                sizes.push(
                     i32::try_from(w[1] - w[0])
-                        .map_err(|_| Error::Internal("face size exceeds int32".into()))
-                })
-                .collect()
+                        .map_err(|_| Error::Internal("face size exceeds int32".into()))?,
+                );
+            }
+            Ok(sizes)
         })
     }
 
@@ -262,6 +267,7 @@ impl PyPlan {
     fn edges<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<i32>>> {
         let plan = &self.inner;
         let flat = run(py, || {
+            plan.complete_output()?;
             let edges = plan.output_edges();
             to_i32(edges.as_flattened())
         })?;
@@ -280,8 +286,9 @@ impl PyPlan {
         normals: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         let plan = &self.inner;
-        let (offsets, vertices) = guard(py, || {
-            (plan.output_face_offsets(), plan.output_face_vertices())
+        let (offsets, vertices) = run(py, || {
+            plan.complete_output()?;
+            Ok((plan.output_face_offsets(), plan.output_face_vertices()))
         })?;
         write_mesh(py, &path, points, offsets, vertices, [uvs, normals])
     }

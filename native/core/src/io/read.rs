@@ -14,7 +14,8 @@ use std::path::Path;
 
 use super::{Interrupt, ObjMesh};
 use crate::error::{Error, Result};
-use crate::{Boundary, Cage, Creasing, DEFAULT_MEMORY_BUDGET};
+use crate::memory::{self, default_memory_budget};
+use crate::{Boundary, Cage, Creasing};
 
 /// Largest input [`ReadOptions`] accepts by default: 2 GiB.
 pub const DEFAULT_MAX_INPUT_BYTES: u64 = 2 << 30;
@@ -34,7 +35,7 @@ impl Default for ReadOptions {
     fn default() -> Self {
         ReadOptions {
             max_bytes: DEFAULT_MAX_INPUT_BYTES,
-            memory_budget: DEFAULT_MEMORY_BUDGET,
+            memory_budget: default_memory_budget(),
         }
     }
 }
@@ -78,6 +79,7 @@ pub fn read_obj(path: &Path, options: &ReadOptions, interrupt: Interrupt<'_>) ->
         if total > options.max_bytes {
             return Err(too_large(format!("more than {}", options.max_bytes)));
         }
+        parser.make_room(n)?;
         lines.feed(&chunk[..n], &mut parser)?;
         parser.check_memory(lines.line)?;
         interrupt()?;
@@ -89,8 +91,9 @@ pub fn read_obj(path: &Path, options: &ReadOptions, interrupt: Interrupt<'_>) ->
 /// Parses OBJ text (see [`read_obj`]); errors are reported as `"<obj>:LINE: message"`. The
 /// memory budget is the default one.
 pub fn parse_obj(text: &str) -> Result<ObjMesh> {
-    let mut parser = Parser::new("<obj>", DEFAULT_MEMORY_BUDGET);
+    let mut parser = Parser::new("<obj>", default_memory_budget());
     let mut lines = Lines::default();
+    parser.make_room(text.len())?;
     lines.feed(text.as_bytes(), &mut parser)?;
     lines.finish(&mut parser)?;
     parser.finish()
@@ -137,11 +140,13 @@ impl Lines {
                 self.line(&bytes[..end], parser)?;
             } else {
                 let mut whole = std::mem::take(&mut self.partial);
+                memory::reserve(&mut whole, end)?;
                 whole.extend_from_slice(&bytes[..end]);
                 self.line(&whole, parser)?;
             }
             bytes = &bytes[next..];
         }
+        memory::reserve(&mut self.partial, bytes.len())?;
         self.partial.extend_from_slice(bytes);
         Ok(())
     }
@@ -285,6 +290,28 @@ impl<'a> Parser<'a> {
             + size(m.creases.capacity(), 24 + 8)
             + size(m.corners.capacity(), 16 + 8)
             + size(self.pending.capacity(), std::mem::size_of::<Pending>())
+    }
+
+    /// Room in the mesh's large vectors for all that `bytes` of input can add (each point,
+    /// index or face takes at least two bytes of text), so that their pushes do not reallocate
+    /// past one chunk's worth: the vectors in use grow here, fallibly, by doubling (an empty
+    /// one grows in its first chunk, by at most that chunk's size).
+    fn make_room(&mut self, bytes: usize) -> Result<()> {
+        fn room<T>(v: &mut Vec<T>, most: usize) -> Result<()> {
+            if !v.is_empty() && v.capacity() - v.len() < most {
+                memory::reserve(v, most.max(v.len()))?;
+            }
+            Ok(())
+        }
+        let most = bytes / 2 + 1;
+        let m = &mut self.mesh;
+        room(&mut m.points, most)?;
+        room(&mut m.uvs, most)?;
+        room(&mut m.face_vertices, most)?;
+        room(&mut m.face_sizes, most)?;
+        room(&mut m.source.face_lines, most)?;
+        room(&mut self.face_uvs, most)?;
+        Ok(())
     }
 
     fn check_memory(&self, line: usize) -> Result<()> {

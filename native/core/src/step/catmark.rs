@@ -14,7 +14,7 @@ use std::mem::MaybeUninit;
 use super::{CurveData, LevelData, Step};
 use crate::curves::LevelSharpness;
 use crate::options::Creasing;
-use crate::parallel::{fill, with_capacity_hinted};
+use crate::parallel::{fill, hinted_or_abort};
 use crate::scalar::{add, lerp, mad, scale, zero, Scalar, Value};
 use crate::scheme::catmark::{
     blended_edge_weights, fractional_weight, smooth_vertex_weights, VertexRule, CREASE_EDGE_WEIGHT,
@@ -52,7 +52,7 @@ pub(crate) fn step_into<T: Scalar, const N: usize>(
     let n = fine.num_vertices;
     out.clear();
     if out.capacity() < n {
-        *out = with_capacity_hinted(n);
+        *out = hinted_or_abort(n);
     }
     let (head, faces) = out.spare_capacity_mut()[..n].split_at_mut(nv + ne);
     let quads = coarse.is_quads();

@@ -30,7 +30,8 @@ use std::sync::Mutex;
 use rayon::prelude::*;
 
 use crate::curves::{CurveNetwork, CurveVertex, LevelSharpness};
-use crate::parallel::{gather_into, gather_sections, with_capacity_hinted, CHUNK};
+use crate::error::Result;
+use crate::parallel::{gather_into, gather_sections, hinted_or_abort, with_capacity_hinted, CHUNK};
 use crate::scalar::{add, reciprocal, scale, zero, Scalar, Value};
 use crate::scheme::Scheme;
 use crate::topology::{Level, NONE};
@@ -94,8 +95,31 @@ impl Scratch {
                 v.clear();
                 *v
             }
-            None => with_capacity_hinted(capacity),
+            None => hinted_or_abort(capacity),
         }
+    }
+
+    /// Makes sure `count` (at most [`SCRATCH_BUFFERS`]) buffers of `V` with room for
+    /// `capacity` values are kept, allocating the missing ones fallibly: a run of steps takes
+    /// at most two new buffers, so after this none of its allocations of the level's size can
+    /// fail.
+    pub(crate) fn provision<V: Send + 'static>(&self, capacity: usize, count: usize) -> Result<()> {
+        let mut pool = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        let fits = |b: &Box<dyn Any + Send>| {
+            b.downcast_ref::<Vec<V>>()
+                .is_some_and(|v| v.capacity() >= capacity)
+        };
+        let mut have = pool.iter().filter(|b| fits(b)).count();
+        while have < count.min(SCRATCH_BUFFERS) {
+            if pool.len() >= SCRATCH_BUFFERS {
+                // The oldest buffer that does not fit goes.
+                let other = pool.iter().position(|b| !fits(b)).unwrap_or(0);
+                pool.remove(other);
+            }
+            pool.push(Box::new(with_capacity_hinted::<V>(capacity)?));
+            have += 1;
+        }
+        Ok(())
     }
 
     /// Frees every kept buffer.

@@ -62,6 +62,7 @@ class AdaptiveResult:
         """Number of quadtree leaves (quads before triangulation)."""
         return int(self.leaves_per_level.sum())
 
+    @convert.memory_errors()
     def write_obj(self, path: str | os.PathLike[str]) -> None:
         """Writes the triangles as OBJ (``v``, ``f``).
 
@@ -82,6 +83,7 @@ class AdaptiveResult:
         )
 
 
+@convert.memory_errors()
 def subdivide_adaptive(
     mesh: Mesh,
     degree: int = 4,

@@ -5,14 +5,21 @@ per-element Python work except for inputs that are Python lists), with the API's
 
 from __future__ import annotations
 
+import contextlib
 import operator
 import warnings
+from collections.abc import Iterator
 from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._errors import IndexOutOfRangeError, InvalidInputError, IsolatedVerticesWarning
+from ._errors import (
+    IndexOutOfRangeError,
+    InvalidInputError,
+    IsolatedVerticesWarning,
+    MemoryBudgetError,
+)
 
 Output = Literal["primal", "dual"]
 Boundary = Literal["edge-only", "edge-and-corner"]
@@ -25,6 +32,18 @@ BOUNDARIES = ("edge-only", "edge-and-corner")
 RULES = ("averaging", "classic")
 CREASING = ("uniform", "chaikin")
 _INT64_MIN, _INT64_MAX = -(2**63), 2**63 - 1
+
+
+@contextlib.contextmanager
+def memory_errors() -> Iterator[None]:
+    """numpy's (or Python's) ``MemoryError`` inside an API call, an array that could not be
+    allocated, raised as ``MemoryBudgetError`` like the core's own refusals. Used as a decorator
+    on the public entry points."""
+    try:
+        yield
+    except MemoryError as exc:
+        what = str(exc) or "an array could not be allocated"
+        raise MemoryBudgetError(f"out of memory: {what}") from exc
 
 
 def float_array(values: ArrayLike, what: str) -> FloatArray:

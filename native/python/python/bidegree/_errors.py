@@ -90,7 +90,9 @@ class LevelOutOfRangeError(BidegreeError, ValueError):
 
 class MemoryBudgetError(BidegreeError):
     """The request would need more memory than its budget (attributes ``required``, ``budget``,
-    ``faces``); nothing was allocated."""
+    ``faces``), or more than this process can have (the machine's memory, a cgroup or
+    address-space limit: ``required`` and ``budget``, the memory available, when the core knows
+    it), or an allocation was refused while working; nothing is kept of the request."""
 
 
 class InvalidInputError(BidegreeError, ValueError):

@@ -53,6 +53,7 @@ class Mesh:
         NonFiniteError: a UV is NaN or infinite.
     """
 
+    @convert.memory_errors()
     def __init__(
         self,
         points: ArrayLike,
@@ -198,6 +199,7 @@ class Mesh:
         return sizes, indices.reshape(-1)
 
     @classmethod
+    @convert.memory_errors()
     def from_obj(
         cls,
         path: str | os.PathLike[str],
@@ -266,6 +268,7 @@ class Mesh:
         )
         return mesh
 
+    @convert.memory_errors()
     def write_obj(self, path: str | os.PathLike[str]) -> None:
         """Writes the cage's points, faces and uvs as OBJ (creases and corners are not kept)."""
         write_obj_arrays(path, self._points, self._face_sizes, self._face_indices, self._uvs)

@@ -25,6 +25,7 @@ class _Output:
     _native_plan: Any
     _arrays: dict[str, NDArray[np.int32]]
 
+    @convert.memory_errors()
     def _array(self, name: str) -> NDArray[np.int32]:
         """The native plan's array ``name``, fetched on first use and kept (read-only)."""
         array = self._arrays.get(name)
@@ -105,6 +106,7 @@ class Plan(_Output):
 
     _mesh: Mesh
 
+    @convert.memory_errors()
     def __init__(
         self,
         mesh: Mesh,
@@ -141,6 +143,7 @@ class Plan(_Output):
         self._native_plan = native
         self._arrays = {}
 
+    @convert.memory_errors()
     def evaluate(self, points: ArrayLike) -> FloatArray:
         """Subdivides per-vertex values: (V, C) -> (N, C) for any C >= 1 (positions, colours,
         weights, ...); a (V,) array is one channel and gives (N,). float32 stays float32, float64
@@ -152,6 +155,7 @@ class Plan(_Output):
         out = self._native_plan.evaluate(values)
         return out.reshape(-1) if flat else out
 
+    @convert.memory_errors()
     def limit_positions(self, points: ArrayLike | None = None) -> FloatArray:
         """Exact limit positions at the output vertices: (V, C) -> (N, C) for any per-vertex
         attribute; the first V' rows (V' cage vertices in faces) are the limits of the cage
@@ -175,6 +179,7 @@ class Plan(_Output):
         out = self._native_plan.limit_positions(values)
         return out.reshape(-1) if flat else out
 
+    @convert.memory_errors()
     def limit_surface(self, points: ArrayLike | None = None) -> tuple[FloatArray, FloatArray]:
         """Limit positions (N, 3) and unit limit normals (output corners, 3), in the order of
         :attr:`face_indices` (face-varying, like Blender's custom split normals and USD's
@@ -194,6 +199,7 @@ class Plan(_Output):
         vertex has a clean neighbourhood (0 on regular meshes); built on first use."""
         return int(self._native_plan.limit_extra_levels)
 
+    @convert.memory_errors()
     def evaluate_face_varying(self, values: ArrayLike) -> FloatArray:
         """Interpolates per-face-corner values (e.g. UVs) linearly: (corners, C) -> (output
         corners, C), in the order of :attr:`face_indices`."""
@@ -288,6 +294,7 @@ class Result(_Output):
         """Number of output faces."""
         return int(self._native_plan.num_output_faces)
 
+    @convert.memory_errors()
     def write_obj(self, path: str | os.PathLike[str]) -> None:
         """Writes the result as OBJ (``v``, ``vt`` when there are uvs, ``vn`` per face corner
         when there are normals, ``f``), fast.
@@ -313,6 +320,7 @@ class Result(_Output):
         )
 
 
+@convert.memory_errors()
 def subdivide(
     mesh: Mesh,
     degree: int = 4,
@@ -384,6 +392,7 @@ def _result(
     return Result(plan, refined if refined is not None else native.evaluate(values))
 
 
+@convert.memory_errors()
 def estimate(mesh: Mesh, degree: int, levels: int, output: Output = "primal") -> dict[str, int]:
     """Output size and peak memory of a request, without doing it (and without a budget):
     ``{"vertices": ..., "faces": ..., "bytes": ...}``."""
