@@ -81,8 +81,9 @@ use std::hash::{BuildHasherDefault, Hasher};
 
 use crate::curves::{CageFeatures, Curve, CurveNetwork};
 use crate::error::{Error, Result};
+use crate::memory;
 use crate::mesh::{validate_geometry, Cage};
-use crate::options::{check_degree, check_levels, Boundary, Options, DEFAULT_MEMORY_BUDGET};
+use crate::options::{check_degree, check_levels, Boundary, Options};
 use crate::refinement::Refinement;
 use crate::scalar::Scalar;
 use crate::scheme::Scheme;
@@ -124,7 +125,8 @@ pub struct AdaptiveOptions {
     pub tolerance: f64,
     /// Boundary interpolation.
     pub boundary: Boundary,
-    /// Largest memory, in bytes, the partial levels may need (estimated before each level).
+    /// Largest memory, in bytes, the partial levels, the bookkeeping and the output may need
+    /// (estimated before each level's work; default [`memory::default_memory_budget`]).
     pub memory_budget: u64,
     /// Also measure the error of every leaf (one more level is evaluated around each leaf);
     /// the largest is reported as [`AdaptiveMesh::max_error`].
@@ -138,7 +140,7 @@ impl Default for AdaptiveOptions {
             max_level: 4,
             tolerance: 1e-3,
             boundary: Boundary::EdgeOnly,
-            memory_budget: DEFAULT_MEMORY_BUDGET,
+            memory_budget: memory::default_memory_budget(),
             measure_leaves: false,
         }
     }
@@ -233,21 +235,14 @@ struct Context<T> {
 }
 
 impl<T> Context<T> {
-    /// The budget error for an estimate of `required` bytes and `faces` faces.
-    fn over(&self, required: f64, faces: f64) -> Error {
-        Error::MemoryBudget {
-            required: required.min(u64::MAX as f64) as u64,
-            budget: self.budget,
-            faces: faces.min(u64::MAX as f64) as u64,
-        }
-    }
-
-    /// Refuses, before the work, what is estimated at more than the budget.
+    /// Refuses, before the work, what is estimated at more than the budget or the machine's
+    /// memory ([`memory::check_request`]).
     fn check(&self, required: f64, faces: f64) -> Result<()> {
-        if required > self.budget as f64 {
-            return Err(self.over(required, faces));
-        }
-        Ok(())
+        memory::check_request(
+            required.min(u64::MAX as f64) as u64,
+            faces.min(u64::MAX as f64) as u64,
+            self.budget,
+        )
     }
 }
 
@@ -346,21 +341,21 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
             retained(&parts) + BYTES_PER_NODE * held as f64 + 4.0 * BYTES_PER_FACE * count as f64,
             4.0 * count as f64,
         )?;
-        let nodes = nodes_at(&ctx, &refined, roots, j)?;
+        let nodes = nodes_at(&refined, roots, j)?;
         if options.tolerance == 0.0 {
-            try_insert(&ctx, &mut refined[j], &nodes)?;
+            try_insert(&mut refined[j], &nodes)?;
             continue;
         }
         let mut seeds: Vec<Vec<u64>> = (0..=j)
-            .map(|t| nodes_at(&ctx, &refined, roots, t))
+            .map(|t| nodes_at(&refined, roots, t))
             .collect::<Result<_>>()?;
-        seeds.push(children(&ctx, &nodes)?);
+        seeds.push(children(&nodes)?);
         extend_pass(&ctx, &mut parts, &seeds, held)?;
         let errors = measure(&ctx, &parts, j, &nodes)?;
         let mut lowest = j;
         for (&node, &error) in nodes.iter().zip(&errors) {
             if error > options.tolerance {
-                lowest = lowest.min(restrict_refine(&ctx, &parts, &mut refined, j, node)?);
+                lowest = lowest.min(restrict_refine(&parts, &mut refined, j, node)?);
             }
         }
         if lowest < j {
@@ -369,7 +364,7 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
     }
 
     let mut seeds: Vec<Vec<u64>> = (0..=max_level)
-        .map(|t| nodes_at(&ctx, &refined, roots, t))
+        .map(|t| nodes_at(&refined, roots, t))
         .collect::<Result<_>>()?;
     let leaves: Vec<Vec<u64>> = (0..=max_level)
         .map(|t| {
@@ -391,7 +386,7 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
         let mut measured = seeds.clone();
         measured.push(Vec::new());
         for t in 1..=max_level {
-            let mut more = children(&ctx, &leaves[t])?;
+            let mut more = children(&leaves[t])?;
             more.extend_from_slice(&measured[t + 1]);
             more.sort_unstable();
             more.dedup();
@@ -421,32 +416,32 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
 
 /// The nodes at level `t` (sorted uniform ids): every face of `M_1` at level 1, the children of
 /// the refined nodes of level `t - 1` above.
-fn nodes_at<T>(ctx: &Context<T>, refined: &[IdSet], roots: u64, t: usize) -> Result<Vec<u64>> {
+fn nodes_at(refined: &[IdSet], roots: u64, t: usize) -> Result<Vec<u64>> {
     match t {
         0 => Ok(Vec::new()),
         1 => {
-            let mut nodes = try_vec(ctx, roots)?;
+            let mut nodes = try_vec(roots)?;
             nodes.extend(0..roots);
             Ok(nodes)
         }
         _ => {
             let mut parents: Vec<u64> = match refined.get(t - 1) {
                 Some(r) => {
-                    let mut parents = try_vec(ctx, r.len() as u64)?;
+                    let mut parents = try_vec(r.len() as u64)?;
                     parents.extend(r.iter().copied());
                     parents
                 }
                 None => Vec::new(),
             };
             parents.sort_unstable();
-            children(ctx, &parents)
+            children(&parents)
         }
     }
 }
 
 /// The children of sorted quad-level faces, sorted.
-fn children<T>(ctx: &Context<T>, faces: &[u64]) -> Result<Vec<u64>> {
-    let mut out = try_vec(ctx, 4 * faces.len() as u64)?;
+fn children(faces: &[u64]) -> Result<Vec<u64>> {
+    let mut out = try_vec(4 * faces.len() as u64)?;
     out.extend(faces.iter().flat_map(|&f| (0..4).map(move |k| 4 * f + k)));
     Ok(out)
 }
@@ -472,22 +467,23 @@ fn retained<T>(parts: &[Part<T>]) -> f64 {
         .sum()
 }
 
-/// An empty vector with room for `len` uniform ids, or the budget error when the allocation
-/// fails (an address-space limit, or memory the machine does not have).
-fn try_vec<T>(ctx: &Context<T>, len: u64) -> Result<Vec<u64>> {
-    let mut out = Vec::new();
-    out.try_reserve_exact(len as usize)
-        .map_err(|_| ctx.over(8.0 * len as f64, len as f64))?;
-    Ok(out)
+/// An empty vector with room for `len` uniform ids ([`memory::with_capacity`]).
+fn try_vec(len: u64) -> Result<Vec<u64>> {
+    memory::with_capacity(usize::try_from(len).unwrap_or(usize::MAX))
 }
 
-/// Adds `nodes` to the set `refined`, reserving first (the budget error when that fails).
-fn try_insert<T>(ctx: &Context<T>, refined: &mut IdSet, nodes: &[u64]) -> Result<()> {
-    refined
-        .try_reserve(nodes.len())
-        .map_err(|_| ctx.over(BYTES_PER_NODE * nodes.len() as f64, nodes.len() as f64))?;
+/// Adds `nodes` to the set `refined`, reserving first (an allocation failure is
+/// [`Error::OutOfMemory`], as from [`memory`]).
+fn try_insert(refined: &mut IdSet, nodes: &[u64]) -> Result<()> {
+    reserve_set(refined, nodes.len())?;
     refined.extend(nodes.iter().copied());
     Ok(())
+}
+
+/// Room for `more` ids in `set`, or [`Error::OutOfMemory`].
+fn reserve_set(set: &mut IdSet, more: usize) -> Result<()> {
+    set.try_reserve(more)
+        .map_err(|_| memory::refused_bytes((BYTES_PER_NODE * (set.len() + more) as f64) as u64))
 }
 
 /// Evaluates the partial levels `P_0..P_T` (T = `seeds.len() - 1`) from scratch: `P_0` is the
@@ -880,7 +876,6 @@ fn measure<T: Scalar>(
 /// of a face sharing a vertex with a refined node, down to the roots. Returns the lowest level
 /// at which a node was refined.
 fn restrict_refine<T>(
-    ctx: &Context<T>,
     parts: &[Part<T>],
     refined: &mut [IdSet],
     t: usize,
@@ -889,9 +884,7 @@ fn restrict_refine<T>(
     let mut lowest = t;
     let mut stack = vec![(t, node)];
     while let Some((s, x)) = stack.pop() {
-        refined[s]
-            .try_reserve(1)
-            .map_err(|_| ctx.over(BYTES_PER_NODE * refined[s].len() as f64, 0.0))?;
+        reserve_set(&mut refined[s], 1)?;
         if !refined[s].insert(x) {
             continue;
         }
