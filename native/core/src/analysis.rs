@@ -1354,3 +1354,34 @@ pub fn basis_function(
     let extent = (neighbourhood_size(degree) + 2) as f64;
     refine(degree, valence, &[impulse], steps, extent)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The limit masks' Fourier blocks from the centre's and one sector's columns equal those
+    /// of the whole matrix up to rounding (the sums run over rotated copies of the same
+    /// entries: a different order, so not bit for bit; the limits move by ~1e-15 relative).
+    #[test]
+    fn sector_columns_give_the_whole_matrix_blocks() {
+        for degree in 2..=9u32 {
+            for valence in [3, 5, 7] {
+                let whole = subdivision_matrix(degree, valence).unwrap();
+                let sector = SectorColumns::new(degree, valence).unwrap();
+                assert_eq!(sector.labels, whole.labels);
+                let (k, p) = (valence, whole.sector_size());
+                for (m, block) in whole.fourier_blocks().iter().take(2).enumerate() {
+                    let b = fourier_block(k, p, whole.is_primal(), m, |r, c| sector.entry(r, c));
+                    let defect = (&b - &block.matrix)
+                        .iter()
+                        .map(|z| z.norm())
+                        .fold(0.0, f64::max);
+                    assert!(
+                        defect < 1e-13,
+                        "degree {degree} valence {valence} mode {m}: {defect}"
+                    );
+                }
+            }
+        }
+    }
+}
