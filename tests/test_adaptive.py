@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import resource
 import subprocess
 import sys
 from collections import Counter
@@ -186,3 +187,35 @@ def test_cli_adaptive_writes_triangles(tmp_path: Path) -> None:
         timeout=120,
     )
     assert bad.returncode == 2 and "OBJ only" in bad.stderr
+
+
+@pytest.mark.parametrize(
+    ("tolerance", "budget"),
+    [("0", None), ("1e-14", "256M")],
+    ids=["uniform-refused-up-front", "tiny-tolerance-stops-at-a-level"],
+)
+def test_cli_adaptive_stays_under_the_budget(tmp_path: Path, tolerance: str, budget: str) -> None:
+    """Issue 18 item 2: under an address-space limit of 1.5 GiB, ``--adaptive --max-level 16``
+    is a memory error (exit 2), not an abort or a runaway: tolerance 0 under the default budget
+    is refused before any work, a tiny tolerance under 256 MB at the first level whose estimate
+    passes the budget."""
+    cage = tmp_path / "cube.obj"
+    bumped_cube().write_obj(cage)
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (3 << 29, 3 << 29))
+
+    args = ["--adaptive", "--tolerance", tolerance, "--max-level", "16"]
+    done = subprocess.run(
+        [sys.executable, "-m", "bidegree.cli", "subdivide", str(cage), "-o", str(tmp_path / "o.obj")]
+        + args
+        + (["--memory-budget", budget] if budget else []),
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=120,
+        preexec_fn=limit,
+    )
+    assert done.returncode == 2, (done.returncode, done.stderr)
+    assert "memory budget" in done.stderr, done.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cube.obj"]

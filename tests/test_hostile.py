@@ -553,11 +553,6 @@ report(lambda: bidegree.Mesh(np.zeros((4, 3)), faces))
     assert message.startswith("out of memory: Unable to allocate"), message
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="issue 18 item 2 (adaptive memory budget, engineer limits): adaptive subdivision "
-    "allocates infallibly and aborts under an address-space limit",
-)
 def test_adaptive_request_above_the_address_space_limit_is_a_memory_budget_error() -> None:
     # The issue's reproducer: tolerance 0 refines everywhere to level 16 (refused, or stopped
     # cleanly, within the default budget); the process may map 2 GiB.

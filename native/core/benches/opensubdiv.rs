@@ -20,7 +20,14 @@
 //! crate's `estimate`, which assumes f64 evaluation buffers, says 12.4 GiB for the 250k cage at
 //! level 4 where the measured peak RSS of this bench was 7.9 GiB; OpenSubdiv's was 9.9 GiB),
 //! `BIDEGREE_BENCH_CAGES` (e.g. `4k` or `4k,250k`), `BIDEGREE_BENCH_LEVELS` (e.g. `2,3`),
-//! `BIDEGREE_BENCH_SCHEMES` (e.g. `classic 3,averaging 4`).
+//! `BIDEGREE_BENCH_SCHEMES` (e.g. `classic 3,averaging 4`), `BIDEGREE_BENCH_LIMIT` (`0` skips
+//! the limit rows).
+//!
+//! Limit rows (issue 16, [`limit_rows`]): on the 4k cage, averaging degrees 2..9 at the
+//! benchmark's levels (4 skipped: minutes per row), `Plan::limit_surface` (positions and
+//! normals) against `Plan::evaluate` of the same plan, both cached ("limit/eval", target
+//! <= 2), and the first call (`Plan::new` + `limit_surface`, the limit masks already cached in
+//! the process) against a fresh `Plan::new` + `evaluate` ("first/fresh", target <= 3).
 
 use std::collections::HashMap;
 use std::hint::black_box;
@@ -297,5 +304,68 @@ fn main() {
             }
         }
     }
+    if std::env::var("BIDEGREE_BENCH_LIMIT").as_deref() != Ok("0") {
+        limit_rows(&levels, seconds);
+    }
     println!("\nload average at the end: {}", load_average());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Limit rows (issue 16, engineer "limits"): kept apart from the OpenSubdiv table above.
+
+/// The limit rows of the module documentation.
+fn limit_rows(levels: &[u32], seconds: f64) {
+    let (cage, _, _, points) = ico_quad_sphere(8);
+    println!(
+        "\nlimit surface, cage 4k (load average {}): ratios of times, limit/eval = cached \
+         limit_surface / cached evaluate (target <= 2), first/fresh = Plan::new + limit_surface \
+         / Plan::new + evaluate (target <= 3)",
+        load_average()
+    );
+    println!(
+        "{:>5} {:>6} {:>10} {:>10} {:>10} {:>10} {:>10} {:>11} {:>5}",
+        "level",
+        "degree",
+        "eval ms",
+        "limit ms",
+        "fresh ms",
+        "first ms",
+        "limit/eval",
+        "first/fresh",
+        "extra"
+    );
+    let moved: Vec<f32> = points.iter().map(|x| x * 1.01).collect();
+    for &level in levels.iter().filter(|&&l| l <= 3) {
+        for degree in 2..=9 {
+            let options = Options {
+                degree,
+                levels: level,
+                ..Options::default()
+            };
+            let plan = Plan::new(&cage, &options).unwrap();
+            let Ok(extra) = plan.limit_extra_levels() else {
+                println!("{level:>5} {degree:>6}   limit refused (memory budget)");
+                continue;
+            };
+            let eval = median_ms(seconds, || plan.evaluate(&moved, 3).unwrap());
+            let limit = median_ms(seconds, || plan.limit_surface(&moved).unwrap());
+            let fresh = median_ms(seconds, || {
+                let plan = Plan::new(&cage, &options).unwrap();
+                let out = plan.evaluate(&points, 3).unwrap();
+                (plan, out)
+            });
+            let first = median_ms(seconds, || {
+                let plan = Plan::new(&cage, &options).unwrap();
+                let out = plan.limit_surface(&points).unwrap();
+                (plan, out)
+            });
+            println!(
+                "{level:>5} {degree:>6} {eval:>10.2} {limit:>10.2} {fresh:>10.2} {first:>10.2} \
+                 {:>10.2} {:>11.2} {extra:>5}",
+                limit / eval,
+                first / fresh
+            );
+            std::io::stdout().flush().ok();
+        }
+    }
 }

@@ -10,7 +10,8 @@
 //!          target/release/examples/callgrind "$@" 2>&1 | awk '/Collected/ {print $4}'; }
 //! for case in fresh-averaging-3 cached-averaging-3 fresh-classic-3 cached-classic-3 \
 //!             fresh-averaging-4 cached-averaging-4 fresh-averaging-9 cached-averaging-9 \
-//!             limit-surface-4 adaptive-4; do
+//!             limit-surface-4 adaptive-4 limit-ico-4 limit-first-ico-4 limit-first-fan-400-9 \
+//!             limit-first-ngon-1000-9 limit-semisharp-4 limit-sharp-4; do
 //!   echo "$case $(( $(ir $case 2) - $(ir $case 1) ))"
 //! done
 //! ```
@@ -75,6 +76,45 @@ fn main() {
             let plan = Plan::new(&cage, &options(4, Rules::Averaging)).unwrap();
             black_box(plan.limit_surface(&points).unwrap());
         });
+    } else if let Some((shape, degree)) = case
+        .strip_prefix("limit-")
+        .and_then(|rest| rest.rsplit_once('-'))
+        .and_then(|(shape, d)| Some((shape, d.parse::<u32>().ok()?)))
+    {
+        // limit-[first-]SHAPE-D, SHAPE one of fan-400, ngon-1000, semisharp, sharp, ico: the
+        // limit cases of issue 16 (degree D, level 2 except the ico sphere's level 3); "first"
+        // builds the plan and its stencils (the masks stay cached per process), without it a
+        // cached call is timed.
+        let (first, shape) = match shape.strip_prefix("first-") {
+            Some(shape) => (true, shape),
+            None => (false, shape),
+        };
+        let (cage, points) = match shape {
+            "fan-400" => cages::triangle_fan(400),
+            "ngon-1000" => cages::polygon(1000),
+            "semisharp" => cages::creased_grid(12, 7.5),
+            "sharp" => cages::creased_grid(12, 10.0),
+            "ico" => (cage.clone(), points.clone()),
+            _ => usage(),
+        };
+        let levels = if shape == "ico" { 3 } else { 2 };
+        let o = Options {
+            degree,
+            levels,
+            ..Options::default()
+        };
+        if first {
+            measured(&|| {
+                let plan = Plan::new(&cage, &o).unwrap();
+                black_box(plan.limit_surface(&points).unwrap());
+            });
+        } else {
+            let plan = Plan::new(&cage, &o).unwrap();
+            black_box(plan.limit_surface(&points).unwrap());
+            measured(&|| {
+                black_box(plan.limit_surface(&points).unwrap());
+            });
+        }
     } else if case == "adaptive-4" {
         let adaptive = AdaptiveOptions {
             degree: 4,

@@ -81,8 +81,9 @@ use std::hash::{BuildHasherDefault, Hasher};
 
 use crate::curves::{CageFeatures, Curve, CurveNetwork};
 use crate::error::{Error, Result};
+use crate::memory;
 use crate::mesh::{validate_geometry, Cage};
-use crate::options::{check_degree, check_levels, Boundary, Options, DEFAULT_MEMORY_BUDGET};
+use crate::options::{check_degree, check_levels, Boundary, Options};
 use crate::refinement::Refinement;
 use crate::scalar::Scalar;
 use crate::scheme::Scheme;
@@ -124,7 +125,8 @@ pub struct AdaptiveOptions {
     pub tolerance: f64,
     /// Boundary interpolation.
     pub boundary: Boundary,
-    /// Largest memory, in bytes, the partial levels may need (estimated before each level).
+    /// Largest memory, in bytes, the partial levels, the bookkeeping and the output may need
+    /// (estimated before each level's work; default [`memory::default_memory_budget`]).
     pub memory_budget: u64,
     /// Also measure the error of every leaf (one more level is evaluated around each leaf);
     /// the largest is reported as [`AdaptiveMesh::max_error`].
@@ -138,7 +140,7 @@ impl Default for AdaptiveOptions {
             max_level: 4,
             tolerance: 1e-3,
             boundary: Boundary::EdgeOnly,
-            memory_budget: DEFAULT_MEMORY_BUDGET,
+            memory_budget: memory::default_memory_budget(),
             measure_leaves: false,
         }
     }
@@ -232,6 +234,18 @@ struct Context<T> {
     diagonal: f64,
 }
 
+impl<T> Context<T> {
+    /// Refuses, before the work, what is estimated at more than the budget or the machine's
+    /// memory ([`memory::check_request`]).
+    fn check(&self, required: f64, faces: f64) -> Result<()> {
+        memory::check_request(
+            required.min(u64::MAX as f64) as u64,
+            faces.min(u64::MAX as f64) as u64,
+            self.budget,
+        )
+    }
+}
+
 /// Rings of margin kept around the seed faces of every level for degree `n` (module docs).
 pub fn margin_rings(degree: u32) -> usize {
     2 * (degree.div_ceil(2).div_ceil(2) as usize)
@@ -315,15 +329,36 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
     // every node of level j, a superset of the nodes it ends up with, so it stays exact unless
     // the restriction criterion adds nodes below (then the levels above are made again).
     let mut parts: Vec<Part<T>> = Vec::new();
+    if options.tolerance == 0.0 {
+        // The result is uniform level `max_level`: its size is known before any work.
+        let leaves = roots as f64 * 4f64.powi(max_level as i32 - 1);
+        let required = leaves * (BYTES_PER_NODE + BYTES_PER_LEAF + 4.0 / 3.0 * BYTES_PER_FACE);
+        ctx.check(required, leaves)?;
+    }
+    // Uniform ids held by the bookkeeping (nodes, refined sets, seeds), in nodes.
+    let mut held = roots;
     for j in 1..max_level {
-        let nodes = nodes_at(&refined, roots, j);
+        // Before any of this level's work: its nodes, and their children's partial level.
+        let count = if j == 1 {
+            roots
+        } else {
+            4 * refined[j - 1].len() as u64
+        };
+        held += count;
+        ctx.check(
+            retained(&parts) + BYTES_PER_NODE * held as f64 + 4.0 * BYTES_PER_FACE * count as f64,
+            4.0 * count as f64,
+        )?;
+        let nodes = nodes_at(&refined, roots, j)?;
         if options.tolerance == 0.0 {
-            refined[j] = nodes.into_iter().collect();
+            try_insert(&mut refined[j], &nodes)?;
             continue;
         }
-        let mut seeds: Vec<Vec<u64>> = (0..=j).map(|t| nodes_at(&refined, roots, t)).collect();
-        seeds.push(children(&nodes));
-        extend_pass(&ctx, &mut parts, &seeds)?;
+        let mut seeds: Vec<Vec<u64>> = (0..=j)
+            .map(|t| nodes_at(&refined, roots, t))
+            .collect::<Result<_>>()?;
+        seeds.push(children(&nodes)?);
+        extend_pass(&ctx, &mut parts, &seeds, held)?;
         let errors = measure(&ctx, &parts, j, &nodes)?;
         let mut lowest = j;
         for (&node, &error) in nodes.iter().zip(&errors) {
@@ -338,7 +373,7 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
 
     let mut seeds: Vec<Vec<u64>> = (0..=max_level)
         .map(|t| nodes_at(&refined, roots, t))
-        .collect();
+        .collect::<Result<_>>()?;
     let leaves: Vec<Vec<u64>> = (0..=max_level)
         .map(|t| {
             if t == 0 {
@@ -359,13 +394,13 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
         let mut measured = seeds.clone();
         measured.push(Vec::new());
         for t in 1..=max_level {
-            let mut more = children(&leaves[t]);
+            let mut more = children(&leaves[t])?;
             more.extend_from_slice(&measured[t + 1]);
             more.sort_unstable();
             more.dedup();
             measured[t + 1] = more;
         }
-        let parts = run_pass(&ctx, &measured)?;
+        let parts = run_pass(&ctx, &measured, held)?;
         let mut worst = 0.0f64;
         for (t, leaves) in leaves.iter().enumerate().skip(1) {
             for e in measure(&ctx, &parts, t, leaves)? {
@@ -375,7 +410,12 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
         max_error = Some(worst);
     }
     seeds.truncate(max_level + 1);
-    extend_pass(&ctx, &mut parts, &seeds)?;
+    extend_pass(&ctx, &mut parts, &seeds, held)?;
+    let num_leaves: u64 = leaves.iter().map(|l| l.len() as u64).sum();
+    ctx.check(
+        retained(&parts) + BYTES_PER_NODE * held as f64 + BYTES_PER_LEAF * num_leaves as f64,
+        num_leaves as f64,
+    )?;
     triangulate(&ctx, &parts, &refined, &leaves).map(|mut mesh| {
         mesh.max_error = max_error;
         mesh
@@ -384,14 +424,23 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
 
 /// The nodes at level `t` (sorted uniform ids): every face of `M_1` at level 1, the children of
 /// the refined nodes of level `t - 1` above.
-fn nodes_at(refined: &[IdSet], roots: u64, t: usize) -> Vec<u64> {
+fn nodes_at(refined: &[IdSet], roots: u64, t: usize) -> Result<Vec<u64>> {
     match t {
-        0 => Vec::new(),
-        1 => (0..roots).collect(),
+        0 => Ok(Vec::new()),
+        1 => {
+            let mut nodes = try_vec(roots)?;
+            nodes.extend(0..roots);
+            Ok(nodes)
+        }
         _ => {
-            let mut parents: Vec<u64> = refined
-                .get(t - 1)
-                .map_or(Vec::new(), |r| r.iter().copied().collect());
+            let mut parents: Vec<u64> = match refined.get(t - 1) {
+                Some(r) => {
+                    let mut parents = try_vec(r.len() as u64)?;
+                    parents.extend(r.iter().copied());
+                    parents
+                }
+                None => Vec::new(),
+            };
             parents.sort_unstable();
             children(&parents)
         }
@@ -399,43 +448,77 @@ fn nodes_at(refined: &[IdSet], roots: u64, t: usize) -> Vec<u64> {
 }
 
 /// The children of sorted quad-level faces, sorted.
-fn children(faces: &[u64]) -> Vec<u64> {
-    faces
-        .iter()
-        .flat_map(|&f| (0..4).map(move |k| 4 * f + k))
-        .collect()
+fn children(faces: &[u64]) -> Result<Vec<u64>> {
+    let mut out = try_vec(4 * faces.len() as u64)?;
+    out.extend(faces.iter().flat_map(|&f| (0..4).map(move |k| 4 * f + k)));
+    Ok(out)
 }
 
-/// Estimated bytes of a partial level per corner (topology tables, ids, values and 1-D data).
+/// Estimated bytes of a partial level per corner (topology tables, ids, values and 1-D data,
+/// and the transient tables of its refinement), measured as the peak resident memory of
+/// uniform runs (`tolerance = 0`) divided by their corners.
 const BYTES_PER_CORNER: u64 = 160;
+/// [`BYTES_PER_CORNER`] per quad face.
+const BYTES_PER_FACE: f64 = 4.0 * BYTES_PER_CORNER as f64;
+/// Estimated bytes of the bookkeeping per uniform id it holds (the node lists, the seeds and
+/// the refined sets with their growth).
+const BYTES_PER_NODE: f64 = 64.0;
+/// Estimated bytes of the output per leaf (its triangles, origins and levels, its share of the
+/// points and of the vertex index).
+const BYTES_PER_LEAF: f64 = 160.0;
+
+/// Estimated bytes the partial levels in `parts` hold.
+fn retained<T>(parts: &[Part<T>]) -> f64 {
+    parts
+        .iter()
+        .map(|p| BYTES_PER_CORNER as f64 * p.level.num_corners() as f64)
+        .sum()
+}
+
+/// An empty vector with room for `len` uniform ids ([`memory::with_capacity`]).
+fn try_vec(len: u64) -> Result<Vec<u64>> {
+    memory::with_capacity(usize::try_from(len).unwrap_or(usize::MAX))
+}
+
+/// Adds `nodes` to the set `refined`, reserving first (an allocation failure is
+/// [`Error::OutOfMemory`], as from [`memory`]).
+fn try_insert(refined: &mut IdSet, nodes: &[u64]) -> Result<()> {
+    reserve_set(refined, nodes.len())?;
+    refined.extend(nodes.iter().copied());
+    Ok(())
+}
+
+/// Room for `more` ids in `set`, or [`Error::OutOfMemory`].
+fn reserve_set(set: &mut IdSet, more: usize) -> Result<()> {
+    set.try_reserve(more)
+        .map_err(|_| memory::refused_bytes((BYTES_PER_NODE * (set.len() + more) as f64) as u64))
+}
 
 /// Evaluates the partial levels `P_0..P_T` (T = `seeds.len() - 1`) from scratch: `P_0` is the
 /// cage, `P_{t+1}` is `P_t.refine()` restricted to the margin rings around `seeds[t + 1]`
 /// (uniform face ids, sorted, children of `seeds[t]`).
-fn run_pass<T: Scalar>(ctx: &Context<T>, seeds: &[Vec<u64>]) -> Result<Vec<Part<T>>> {
+fn run_pass<T: Scalar>(ctx: &Context<T>, seeds: &[Vec<u64>], held: u64) -> Result<Vec<Part<T>>> {
     let mut parts = Vec::new();
-    extend_pass(ctx, &mut parts, seeds)?;
+    extend_pass(ctx, &mut parts, seeds, held)?;
     Ok(parts)
 }
 
 /// As [`run_pass`], keeping the partial levels already in `parts` (which must have been made
-/// for seeds containing these seeds: a superset of the margin rings is exact as well).
+/// for seeds containing these seeds: a superset of the margin rings is exact as well). `held`
+/// uniform ids are held by the bookkeeping meanwhile (for the budget).
 fn extend_pass<T: Scalar>(
     ctx: &Context<T>,
     parts: &mut Vec<Part<T>>,
     seeds: &[Vec<u64>],
+    held: u64,
 ) -> Result<()> {
     if parts.is_empty() {
         parts.push(cage_part(ctx));
     }
-    let mut retained: u64 = parts
-        .iter()
-        .map(|p| BYTES_PER_CORNER * p.level.num_corners() as u64)
-        .sum();
+    let mut retained = retained(parts) + BYTES_PER_NODE * held as f64;
     for t in parts.len() - 1..seeds.len() - 1 {
         let coarse = &parts[t];
         let fine_corners = 4 * coarse.level.num_corners() as u64;
-        let required = retained + BYTES_PER_CORNER * fine_corners;
         if fine_corners >= u32::MAX as u64 {
             return Err(Error::InvalidInput(format!(
                 "{} faces at level {} is more than 32-bit indices can address",
@@ -443,15 +526,12 @@ fn extend_pass<T: Scalar>(
                 t + 1
             )));
         }
-        if required > ctx.budget {
-            return Err(Error::MemoryBudget {
-                required,
-                budget: ctx.budget,
-                faces: fine_corners / 4,
-            });
-        }
+        ctx.check(
+            retained + BYTES_PER_CORNER as f64 * fine_corners as f64,
+            fine_corners as f64 / 4.0,
+        )?;
         let next = refine_part(ctx, t, coarse, &seeds[t + 1])?;
-        retained += BYTES_PER_CORNER * next.level.num_corners() as u64;
+        retained += BYTES_PER_CORNER as f64 * next.level.num_corners() as f64;
         parts.push(next);
     }
     Ok(())
@@ -813,6 +893,7 @@ fn restrict_refine<T>(
     let mut lowest = t;
     let mut stack = vec![(t, node)];
     while let Some((s, x)) = stack.pop() {
+        reserve_set(&mut refined[s], 1)?;
         if !refined[s].insert(x) {
             continue;
         }

@@ -22,8 +22,14 @@ use crate::error::{Error, Result};
 /// The error of a refused allocation of `count` values of `T`.
 fn refused<T>(count: usize) -> Error {
     let required = (count as u128 * std::mem::size_of::<T>() as u128).min(u64::MAX as u128);
+    refused_bytes(required as u64)
+}
+
+/// The error of a refused allocation of `required` bytes (for containers these helpers do not
+/// make, e.g. a hash set's `try_reserve`).
+pub(crate) fn refused_bytes(required: u64) -> Error {
     Error::OutOfMemory {
-        required: required as u64,
+        required,
         available: available_memory(),
     }
 }

@@ -525,3 +525,41 @@ fn random_cases_hold_every_property() {
     println!("{mixed} of 48 cases mixed levels");
     assert!(mixed >= 16, "only {mixed} cases mixed levels");
 }
+
+/// Issue 18 item 2: the budget covers the bookkeeping and the output too, and is checked before
+/// each level's work. Tolerance 0 at level 16 is refused before any work (the result's size is
+/// known); a tiny tolerance stops at the level whose estimate passes the budget. Both finish at
+/// once (they ran past 9.5 GB before, or aborted under an address-space limit).
+#[test]
+fn adaptive_memory_budget_is_checked_before_the_work() {
+    let (cage, points) = bumped_cube();
+    let refused = |tolerance: f64, budget: u64| {
+        let o = AdaptiveOptions {
+            memory_budget: budget,
+            ..options(4, 16, tolerance)
+        };
+        match subdivide_adaptive(&cage, &points, &o).unwrap_err() {
+            Error::MemoryBudget {
+                required,
+                budget: b,
+                ..
+            } => {
+                assert_eq!(b, budget);
+                assert!(required > budget);
+                required
+            }
+            other => panic!("not a budget error: {other}"),
+        }
+    };
+    // Uniform level 16 of 24 roots: 24 * 4^15 leaves, far above the default 4 GiB.
+    assert!(refused(0.0, bidegree::DEFAULT_MEMORY_BUDGET) > 1 << 40);
+    // A tiny tolerance under 32 MiB: refused at the first level whose estimate passes it.
+    refused(1e-14, 32 << 20);
+    // The same request under a budget that holds it succeeds (the checks refuse nothing that
+    // fits).
+    let o = AdaptiveOptions {
+        memory_budget: 32 << 20,
+        ..options(4, 4, 1e-14)
+    };
+    assert!(subdivide_adaptive(&cage, &points, &o).is_ok());
+}

@@ -129,3 +129,54 @@ pub fn ico_quad_sphere(n: usize) -> (Cage, Vec<u32>, Vec<u32>, Vec<f32>) {
     .expect("the generated cage is a valid closed quad mesh");
     (cage, sizes, indices, points)
 }
+
+/// A closed disc: a fan of `valence` triangles around vertex 0 (the rim on the unit circle,
+/// a boundary), the limit's worst case near one high valence.
+pub fn triangle_fan(valence: usize) -> (Cage, Vec<f32>) {
+    let mut points = vec![0.0f32, 0.0, 0.0];
+    let mut indices = Vec::with_capacity(3 * valence);
+    for i in 0..valence {
+        let a = 2.0 * std::f64::consts::PI * i as f64 / valence as f64;
+        points.extend([a.cos() as f32, a.sin() as f32, 0.0]);
+        indices.extend([0, 1 + i as i64, 1 + ((i + 1) % valence) as i64]);
+    }
+    let cage = Cage::from_indices(valence + 1, &vec![3; valence], &indices).expect("a fan");
+    (cage, points)
+}
+
+/// A single `k`-gon on the unit circle.
+pub fn polygon(k: usize) -> (Cage, Vec<f32>) {
+    let mut points = Vec::with_capacity(3 * k);
+    for i in 0..k {
+        let a = 2.0 * std::f64::consts::PI * i as f64 / k as f64;
+        points.extend([a.cos() as f32, a.sin() as f32, 0.0]);
+    }
+    let indices: Vec<i64> = (0..k as i64).collect();
+    let cage = Cage::from_indices(k, &[k as i64], &indices).expect("a polygon");
+    (cage, points)
+}
+
+/// A `n x n` quad grid, bumped, with one crease of `sharpness` along its middle row of edges.
+pub fn creased_grid(n: usize, sharpness: f32) -> (Cage, Vec<f32>) {
+    let id = |i: usize, j: usize| (i * (n + 1) + j) as i64;
+    let mut points = Vec::new();
+    for i in 0..=n {
+        for j in 0..=n {
+            let (x, y) = (i as f32 / n as f32, j as f32 / n as f32);
+            points.extend([x, y, 0.1 * ((7.0 * x).sin() + (5.0 * y).cos())]);
+        }
+    }
+    let mut indices = Vec::new();
+    for i in 0..n {
+        for j in 0..n {
+            indices.extend([id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    let creases: Vec<(i64, i64, f32)> = (0..n)
+        .map(|i| (id(i, n / 2), id(i + 1, n / 2), sharpness))
+        .collect();
+    let cage = Cage::from_indices((n + 1) * (n + 1), &vec![4; n * n], &indices)
+        .and_then(|c| c.with_creases(&creases))
+        .expect("a grid");
+    (cage, points)
+}
