@@ -128,7 +128,10 @@ impl Plan {
             .edge_verts()
             .iter()
             .map(|&[a, b]| {
-                let (a, b) = (self.refinement.cage_vertex(a), self.refinement.cage_vertex(b));
+                let (a, b) = (
+                    self.refinement.cage_vertex(a),
+                    self.refinement.cage_vertex(b),
+                );
                 [a.min(b), a.max(b)]
             })
             .collect()

@@ -267,7 +267,8 @@ impl PyPlan {
                     if e == bidegree::Level::NONE {
                         Ok(-1)
                     } else {
-                        i32::try_from(e).map_err(|_| Error::Internal(format!("index {e} exceeds int32")))
+                        i32::try_from(e)
+                            .map_err(|_| Error::Internal(format!("index {e} exceeds int32")))
                     }
                 })
                 .collect()
