@@ -7,8 +7,9 @@ the faces drawn), UVs per face corner (:func:`opensubdiv_reference.corner_map`).
 
 The cases bidegree cannot do yet are ``xfail(strict=True)`` with the reason it fails today: when
 issue 13 or 14 makes one pass, pytest reports it and the mark must go. The calls use the API the
-issues ask for where it does not exist yet (``Mesh(holes=...)``, ``boundary="none"``,
-``subdivide(uv_mode=...)``); they fail today with a ``TypeError`` or a typed bidegree error.
+issues ask for where it does not exist yet (``Mesh(holes=...)``, ``boundary="none"``); they
+fail today with a ``TypeError`` or a typed bidegree error. UVs go through
+``subdivide(uv_mode=...)`` (issue 14).
 
 What the comparison rests on (``docs/research/*.md``; each checked against Debian's libosd):
 - Blender adds two rules of its own before OpenSubdiv sees the mesh (a vertex on a loose edge is
@@ -23,7 +24,6 @@ What the comparison rests on (``docs/research/*.md``; each checked against Debia
 
 from __future__ import annotations
 
-import inspect
 import itertools
 import warnings
 from typing import Any
@@ -241,12 +241,7 @@ def _uv_reference(name: str, levels: int) -> tuple[Any, np.ndarray]:
 
 
 def _bidegree_uvs(name: str, levels: int, mode: str) -> np.ndarray:
-    """bidegree's UVs in ``mode`` (``uv_mode=`` of issue 14; today only linear, i.e. ``all``)."""
-    if "uv_mode" not in inspect.signature(bidegree.subdivide).parameters:
-        if mode != "all":
-            pytest.fail(f"bidegree.subdivide has no uv_mode; its UVs are linear, not {mode!r}")
-        ours, _ = _uv_reference(name, levels)
-        return np.asarray(ours.uvs)
+    """bidegree's UVs in ``mode``."""
     mesh = _mesh(UV_CAGES[name], uvs=True)
     result = _subdivide(mesh, levels=levels, uv_mode=mode)
     return np.asarray(result.uvs)
@@ -277,26 +272,14 @@ def _check_uvs(name: str, mode: str, ours: Any) -> None:
 
 @pytest.mark.parametrize("name", sorted(UV_CAGES))
 def test_linear_uvs_match_opensubdiv_all(name: str) -> None:
-    """Today's UVs are linear: OpenSubdiv's ``FVAR_LINEAR_ALL`` (Blender's *None*)."""
+    """``uv_mode="all"`` is linear: OpenSubdiv's ``FVAR_LINEAR_ALL`` (Blender's *None*)."""
     _check_uvs(name, "all", lambda levels: _bidegree_uvs(name, levels, "all"))
 
 
-@pytest.mark.parametrize(
-    ("name", "mode"),
-    [
-        pytest.param(
-            n,
-            m,
-            marks=pytest.mark.xfail(
-                strict=True, raises=pytest.fail.Exception, reason="no uv_mode: UVs are linear"
-            ),
-        )
-        for n in sorted(UV_CAGES)
-        for m in UV_MODES
-        if m != "all"
-    ],
-)
+@pytest.mark.parametrize("mode", [m for m in UV_MODES if m != "all"])
+@pytest.mark.parametrize("name", sorted(UV_CAGES))
 def test_uvs_match_opensubdiv(name: str, mode: str) -> None:
+    """``subdivide(uv_mode=...)`` (classic degree 3) gives Blender's UVs in every smooth mode."""
     _check_uvs(name, mode, lambda levels: _bidegree_uvs(name, levels, mode))
 
 

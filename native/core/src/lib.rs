@@ -34,6 +34,7 @@ pub mod analysis;
 mod curves;
 mod error;
 mod evaluate;
+mod face_varying;
 pub mod io;
 mod limit;
 mod mesh;
@@ -59,6 +60,7 @@ pub use adaptive::{
 };
 pub use curves::CurveNetwork;
 pub use error::{Error, Result};
+pub use face_varying::FaceVaryingMode;
 pub use mesh::{validate_geometry, Cage, Corner, Crease, INFINITELY_SHARP};
 pub use options::{
     estimate, Boundary, Creasing, Estimate, Options, OutputKind, Rules, DEFAULT_MEMORY_BUDGET,

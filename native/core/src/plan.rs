@@ -8,6 +8,7 @@
 use crate::curves::CurveNetwork;
 use crate::error::Result;
 use crate::evaluate;
+use crate::face_varying::{self, FaceVaryingCache, FaceVaryingMode};
 use crate::limit::{self, LimitCache};
 use crate::mesh::{check_values, Cage};
 use crate::options::Options;
@@ -26,6 +27,7 @@ pub struct Plan {
     output: OutputMesh,
     scratch: Scratch,
     limit: LimitCache,
+    face_varying: FaceVaryingCache,
 }
 
 impl Plan {
@@ -41,6 +43,7 @@ impl Plan {
                 output,
                 scratch: Scratch::default(),
                 limit: LimitCache::default(),
+                face_varying: FaceVaryingCache::default(),
             })
         })
     }
@@ -155,27 +158,39 @@ impl Plan {
         ))
     }
 
-    /// Evaluates face-varying values (one per corner of the cage, e.g. UVs) with linear
-    /// (bilinear per face) interpolation and returns one value per corner of the output faces.
+    /// Evaluates face-varying values (one per corner of the cage, e.g. UVs; `channels`
+    /// interleaved per corner) in `mode` and returns one value per corner of the output faces
+    /// (in the order of [`Plan::output_face_vertices`]). The corners of one cage vertex with
+    /// equal values (every channel) are one face-varying vertex, so a seam is where they differ.
+    /// [`FaceVaryingMode::All`] is bilinear per face; the other modes subdivide the values with
+    /// the plan's own scheme on the face-varying mesh (built on first use for each topology and
+    /// mode, and kept in the plan). `limit`: the values on their limit surface (the masks of
+    /// [`Plan::limit_positions`]).
     pub fn evaluate_face_varying<T: Scalar>(
         &self,
         values: &[T],
         channels: usize,
+        mode: FaceVaryingMode,
+        limit: bool,
     ) -> Result<Vec<T>> {
         let corners = self.refinement.levels_as_built()[0].num_corners();
         check_values(values, channels, corners)?;
-        Ok(evaluate::evaluate_face_varying(
+        face_varying::evaluate(
             &self.refinement,
             &self.output,
+            &self.face_varying,
             values,
             channels,
-        ))
+            mode,
+            limit,
+        )
     }
 
     /// Frees the working buffers that evaluations keep in the plan for the next ones (up to two
     /// arrays of the last level's size); the next evaluation allocates them again.
     pub fn release_buffers(&self) {
         self.scratch.clear();
+        self.face_varying.release_buffers();
     }
 
     /// Limit positions at the output vertices (the drawing mesh's), for any per-vertex data of

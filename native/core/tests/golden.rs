@@ -20,8 +20,8 @@ use std::path::PathBuf;
 
 use bidegree::analysis::{basis_function, subdivision_matrix};
 use bidegree::{
-    subdivide_adaptive, AdaptiveMesh, AdaptiveOptions, Boundary, Cage, Creasing, Options,
-    OutputKind, Plan, Result, Rules, Scalar,
+    subdivide_adaptive, AdaptiveMesh, AdaptiveOptions, Boundary, Cage, Creasing, FaceVaryingMode,
+    Options, OutputKind, Plan, Result, Rules, Scalar,
 };
 use common::{cage, cube, Random};
 
@@ -265,7 +265,10 @@ fn hash_plan<T: Bits>(h: &mut Hash, plan: &Plan, points: &[T], uvs: &[T]) {
         .flat_map(|p| [p[0], p[1], p[2], p[0] + p[1], p[2] * p[2]])
         .collect();
     record(h, plan.evaluate(&five, 5));
-    record(h, plan.evaluate_face_varying(uvs, 2));
+    record(
+        h,
+        plan.evaluate_face_varying(uvs, 2, FaceVaryingMode::All, false),
+    );
 }
 
 /// The hash of a result: its bits, or its error message.

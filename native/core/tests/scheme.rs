@@ -4,7 +4,7 @@
 
 mod common;
 
-use bidegree::{subdivide, Boundary, Options, OutputKind, Plan};
+use bidegree::{subdivide, Boundary, FaceVaryingMode, Options, OutputKind, Plan};
 use common::{cage, cube, grid, plan, torus, Random};
 
 type P = [f64; 3];
@@ -419,7 +419,7 @@ fn face_varying_values_are_the_bilinear_refinement() {
                 let bilinear = plan(&cage, 1, levels);
                 let at_vertices = bilinear.evaluate(&per_vertex, channels).unwrap();
                 let at_corners = plan(&cage, 4, levels)
-                    .evaluate_face_varying(&per_corner, channels)
+                    .evaluate_face_varying(&per_corner, channels, FaceVaryingMode::All, false)
                     .unwrap();
                 let corners = bilinear.output_face_vertices();
                 assert_eq!(at_corners.len(), corners.len() * channels);

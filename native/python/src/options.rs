@@ -1,8 +1,8 @@
 //! Option strings and numbers from Python into the core's option types, and back.
 
 use bidegree::{
-    Boundary, Creasing, Error, Options, OutputKind, Rules, DEFAULT_MEMORY_BUDGET, MAX_DEGREE,
-    MAX_LEVELS,
+    Boundary, Creasing, Error, FaceVaryingMode, Options, OutputKind, Rules, DEFAULT_MEMORY_BUDGET,
+    MAX_DEGREE, MAX_LEVELS,
 };
 
 use crate::errors::invalid;
@@ -27,6 +27,25 @@ pub(crate) fn parse_boundary(boundary: &str) -> bidegree::Result<Boundary> {
             "boundary must be 'edge-only' or 'edge-and-corner', not {other:?}"
         ))),
     }
+}
+
+/// One of OpenSubdiv's face-varying modes: `"none"`, `"corners-only"`, `"corners-plus1"`,
+/// `"corners-plus2"`, `"boundaries"`, `"all"`.
+pub(crate) fn parse_face_varying_mode(mode: &str) -> bidegree::Result<FaceVaryingMode> {
+    Ok(match mode {
+        "none" => FaceVaryingMode::None,
+        "corners-only" => FaceVaryingMode::CornersOnly,
+        "corners-plus1" => FaceVaryingMode::CornersPlus1,
+        "corners-plus2" => FaceVaryingMode::CornersPlus2,
+        "boundaries" => FaceVaryingMode::Boundaries,
+        "all" => FaceVaryingMode::All,
+        other => {
+            return Err(invalid(format!(
+                "uv_mode must be 'none', 'corners-only', 'corners-plus1', 'corners-plus2', \
+                 'boundaries' or 'all', not {other:?}"
+            )))
+        }
+    })
 }
 
 /// The Python name of an output kind.

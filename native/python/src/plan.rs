@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use bidegree::{Error, Options, Plan, Scalar};
+use bidegree::{Error, FaceVaryingMode, Options, Plan, Scalar};
 use numpy::{Element, PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
@@ -12,7 +12,7 @@ use crate::arrays::{array2, check_output, contiguous, floats, to_i32, Floats};
 use crate::cage::PyCage;
 use crate::errors::{guard, invalid, run, to_py_err};
 use crate::obj::write_mesh;
-use crate::options::{boundary_name, options, output_name, rules_name};
+use crate::options::{boundary_name, options, output_name, parse_face_varying_mode, rules_name};
 
 /// Registers the plan class and the one-call functions in the extension module.
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -81,8 +81,8 @@ impl PyPlan {
         values: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
         match floats(values, "values")? {
-            Floats::F32(a) => Ok(evaluate(py, &self.inner, &a, false)?.into_any()),
-            Floats::F64(a) => Ok(evaluate(py, &self.inner, &a, false)?.into_any()),
+            Floats::F32(a) => Ok(evaluate(py, &self.inner, &a, Evaluation::Vertex)?.into_any()),
+            Floats::F64(a) => Ok(evaluate(py, &self.inner, &a, Evaluation::Vertex)?.into_any()),
         }
     }
 
@@ -165,15 +165,21 @@ impl PyPlan {
         guard(py, || rules_name(self.inner.options().rules))
     }
 
-    /// Per cage face corner values `(corners, C)` -> per output face corner values, linearly.
+    /// Per cage face corner values `(corners, C)` -> per output face corner values, in the
+    /// face-varying `mode` (one of OpenSubdiv's six names), optionally on the limit surface.
+    #[pyo3(signature = (values, mode="all", limit=false))]
     fn evaluate_face_varying<'py>(
         &self,
         py: Python<'py>,
         values: &Bound<'py, PyAny>,
+        mode: &str,
+        limit: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
+        let mode = parse_face_varying_mode(mode).map_err(|e| to_py_err(py, e))?;
+        let how = Evaluation::FaceVarying { mode, limit };
         match floats(values, "values")? {
-            Floats::F32(a) => Ok(evaluate(py, &self.inner, &a, true)?.into_any()),
-            Floats::F64(a) => Ok(evaluate(py, &self.inner, &a, true)?.into_any()),
+            Floats::F32(a) => Ok(evaluate(py, &self.inner, &a, how)?.into_any()),
+            Floats::F64(a) => Ok(evaluate(py, &self.inner, &a, how)?.into_any()),
         }
     }
 
@@ -318,11 +324,18 @@ impl PyPlan {
     }
 }
 
+/// What `evaluate` computes: per-vertex values, or face-varying values in a mode.
+#[derive(Clone, Copy)]
+enum Evaluation {
+    Vertex,
+    FaceVarying { mode: FaceVaryingMode, limit: bool },
+}
+
 fn evaluate<'py, T: Scalar + Element>(
     py: Python<'py>,
     plan: &Plan,
     values: &PyReadonlyArray2<'_, T>,
-    face_varying: bool,
+    how: Evaluation,
 ) -> PyResult<Bound<'py, PyArray2<T>>> {
     let channels = values.shape()[1];
     let data = contiguous(values, "values")?;
@@ -330,10 +343,11 @@ fn evaluate<'py, T: Scalar + Element>(
         if channels == 0 {
             return Err(invalid("values need at least one channel"));
         }
-        let out = if face_varying {
-            plan.evaluate_face_varying(data, channels)?
-        } else {
-            plan.evaluate(data, channels)?
+        let out = match how {
+            Evaluation::FaceVarying { mode, limit } => {
+                plan.evaluate_face_varying(data, channels, mode, limit)?
+            }
+            Evaluation::Vertex => plan.evaluate(data, channels)?,
         };
         check_output(&out, channels, data)?;
         Ok(out)

@@ -26,6 +26,7 @@ from ._convert import Creasing as Creasing
 from ._convert import FloatArray as FloatArray
 from ._convert import Output as Output
 from ._convert import Rules as Rules
+from ._convert import UvMode as UvMode
 from ._errors import (
     BidegreeError,
     BidegreeIOError,

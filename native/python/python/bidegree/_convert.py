@@ -18,12 +18,15 @@ Output = Literal["primal", "dual"]
 Boundary = Literal["edge-only", "edge-and-corner"]
 Rules = Literal["averaging", "classic"]
 Creasing = Literal["uniform", "chaikin"]
+UvMode = Literal["none", "corners-only", "corners-plus1", "corners-plus2", "boundaries", "all"]
 FloatArray = NDArray[np.float32] | NDArray[np.float64]
 
 OUTPUTS = ("primal", "dual")
 BOUNDARIES = ("edge-only", "edge-and-corner")
 RULES = ("averaging", "classic")
 CREASING = ("uniform", "chaikin")
+#: OpenSubdiv's face-varying modes (``FVarLinearInterpolation``), smoothest first.
+UV_MODES = ("none", "corners-only", "corners-plus1", "corners-plus2", "boundaries", "all")
 _INT64_MIN, _INT64_MAX = -(2**63), 2**63 - 1
 
 

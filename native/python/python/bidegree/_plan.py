@@ -5,14 +5,15 @@ mesh), :func:`subdivide` (both in one call) and :func:`estimate`.
 from __future__ import annotations
 
 import os
-from typing import Any
+from collections.abc import Mapping
+from typing import Any, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import _convert as convert
 from . import _native
-from ._convert import Boundary, Creasing, FloatArray, Output, Rules
+from ._convert import Boundary, Creasing, FloatArray, Output, Rules, UvMode
 from ._errors import InvalidInputError
 from ._mesh import Mesh
 
@@ -217,21 +218,66 @@ class Plan(_Output):
         vertex has a clean neighbourhood (0 on regular meshes); built on first use."""
         return int(self._native_plan.limit_extra_levels)
 
-    def evaluate_face_varying(self, values: ArrayLike) -> FloatArray:
-        """Interpolates per-face-corner values (e.g. UVs) linearly: (corners, C) -> (output
-        corners, C), in the order of :attr:`face_indices`."""
+    @overload
+    def evaluate_face_varying(
+        self, values: Mapping[str, ArrayLike], mode: UvMode = ..., *, limit: bool = ...
+    ) -> dict[str, FloatArray]: ...
+
+    @overload
+    def evaluate_face_varying(
+        self, values: ArrayLike, mode: UvMode = ..., *, limit: bool = ...
+    ) -> FloatArray: ...
+
+    def evaluate_face_varying(
+        self,
+        values: ArrayLike | Mapping[str, ArrayLike],
+        mode: UvMode = "boundaries",
+        *,
+        limit: bool = False,
+    ) -> FloatArray | dict[str, FloatArray]:
+        """Subdivides per-face-corner values (UVs, any channel count): (corners, C) ->
+        (output corners, C) in the order of :attr:`face_indices`; a (corners,) array gives
+        (output corners,). A mapping of name -> array (several UV sets, each its own seams)
+        gives a dict of the results.
+
+        The corners of one cage vertex with equal values (every channel) share one
+        face-varying value; where they differ is a seam, a boundary of the face-varying mesh.
+        ``mode`` is OpenSubdiv's ``FVarLinearInterpolation`` (USD's
+        ``faceVaryingLinearInterpolation``): ``"none"`` (smooth everywhere: Blender's *All*),
+        ``"corners-only"``, ``"corners-plus1"``, ``"corners-plus2"``, ``"boundaries"`` (seams and
+        boundary linear, smooth inside: Blender's default *Keep Boundaries*) or ``"all"``
+        (bilinear per face: Blender's *None*). Every mode but ``"all"`` subdivides the values
+        with this plan's scheme and degree (the face-varying mesh is refined on first use per
+        UV layout and mode, and kept). ``limit``: the values on their limit surface (the masks
+        of :meth:`limit_positions`; ``"all"`` is its own limit).
+
+        Raises:
+            InvalidInputError: wrong shape, unknown mode. NonFiniteError: a non-finite value.
+        """
+        if isinstance(values, Mapping):
+            return {
+                name: self.evaluate_face_varying(v, mode, limit=limit) for name, v in values.items()
+            }
+        mode = convert.choice(mode, convert.UV_MODES, "uv_mode")  # type: ignore[assignment]
+        if not isinstance(limit, bool):
+            raise InvalidInputError(f"limit must be True or False, not {limit!r}")
         array, flat = convert.values_2d(values, self._mesh.num_corners, "values", "face corners")
-        out = self._native_plan.evaluate_face_varying(array)
+        out = self._native_plan.evaluate_face_varying(array, mode, limit)
         return out.reshape(-1) if flat else out
 
     def result(
-        self, points: ArrayLike | None = None, *, limit: bool = False, normals: bool = False
+        self,
+        points: ArrayLike | None = None,
+        *,
+        limit: bool = False,
+        normals: bool = False,
+        uv_mode: UvMode = "boundaries",
     ) -> Result:
         """A :class:`Result` for ``points`` (default: the cage's own points), with uvs when the
-        cage has them. ``limit``: the points are pushed to the limit surface
-        (:meth:`limit_positions`); ``normals``: the result carries the limit normals
-        (:meth:`limit_surface`)."""
-        return _result(self, self._points(points), None, limit, normals)
+        cage has them (in ``uv_mode``, see :meth:`evaluate_face_varying`). ``limit``: the points
+        (and uvs) are pushed to the limit surface (:meth:`limit_positions`); ``normals``: the
+        result carries the limit normals (:meth:`limit_surface`)."""
+        return _result(self, self._points(points), None, limit, normals, uv_mode)
 
     def _points(self, points: ArrayLike | None) -> FloatArray:
         """``points`` checked as (V, 3), or the cage's own points."""
@@ -279,21 +325,32 @@ class Result(_Output):
     """A subdivided mesh: ``points`` (N, 3) in the dtype of the input (refined points, or limit
     positions with ``limit=True``), the polygons (``face_sizes``, ``face_indices``, int32),
     ``face_origin`` (cage face of each face), ``edges`` (E, 2), ``corner_edges``, ``uvs``
-    (output corners, 2) when the cage has uvs and ``normals`` (output corners, 3) with
-    ``normals=True``.
+    (output corners, 2) when the cage has uvs (subdivided in :attr:`uv_mode`) and ``normals``
+    (output corners, 3) with ``normals=True``.
     Topology arrays are shared with the :class:`Plan` and read-only; ``points`` is yours.
     """
 
-    def __init__(self, plan: Plan, points: FloatArray, normals: FloatArray | None = None) -> None:
+    def __init__(
+        self,
+        plan: Plan,
+        points: FloatArray,
+        normals: FloatArray | None = None,
+        uv_mode: UvMode = "boundaries",
+        limit: bool = False,
+    ) -> None:
         self._plan = plan
         self._native_plan = plan._native_plan
         self._arrays = plan._arrays
         self.points: FloatArray = points
         #: (output corners, 3) unit limit normals, one per face corner, when asked for.
         self.normals: FloatArray | None = normals
+        #: The face-varying mode the uvs were subdivided in.
+        self.uv_mode: UvMode = uv_mode
         mesh_uvs = plan.mesh.uvs
         self.uvs: FloatArray | None = (
-            plan.evaluate_face_varying(mesh_uvs) if mesh_uvs is not None else None
+            plan.evaluate_face_varying(mesh_uvs, uv_mode, limit=limit)
+            if mesh_uvs is not None
+            else None
         )
 
     @property
@@ -347,6 +404,7 @@ def subdivide(
     *,
     limit: bool = False,
     normals: bool = False,
+    uv_mode: UvMode = "boundaries",
 ) -> Result:
     """Subdivides ``mesh``: validates its geometry (finite points, no zero-area face), builds
     the plan and evaluates it, in one call into the core. Options as in :class:`Plan`; the
@@ -355,7 +413,9 @@ def subdivide(
     ``limit=True`` puts the output vertices on the limit surface (:meth:`Plan.limit_positions`);
     ``normals=True`` adds the unit limit normals per face corner as :attr:`Result.normals`
     (:meth:`Plan.limit_surface`). Both need the primal output and the averaging rules (classic
-    degree 3 has limit positions, not normals).
+    degree 3 has limit positions, not normals). The mesh's uvs are subdivided in ``uv_mode``
+    (OpenSubdiv's face-varying modes, default ``"boundaries"`` as Blender's *Keep Boundaries*;
+    see :meth:`Plan.evaluate_face_varying`), on the limit surface with ``limit``.
 
     Raises:
         NonFiniteError, DegenerateFaceError: bad geometry.
@@ -367,6 +427,7 @@ def subdivide(
     """
     if not isinstance(mesh, Mesh):
         raise InvalidInputError(f"mesh must be a bidegree.Mesh, not {type(mesh).__name__}")
+    uv_mode = convert.choice(uv_mode, convert.UV_MODES, "uv_mode")  # type: ignore[assignment]
     native, points = _native.subdivide(
         mesh._cage,
         mesh.points,
@@ -381,7 +442,7 @@ def subdivide(
     )
     plan = Plan._wrap(mesh, native)
     convert.warn_isolated(plan.isolated_vertices, stacklevel=2)
-    return _result(plan, mesh.points, points, limit, normals)
+    return _result(plan, mesh.points, points, limit, normals, uv_mode)
 
 
 def _creasing(mesh: Mesh, creasing: Creasing | None) -> str:
@@ -392,19 +453,27 @@ def _creasing(mesh: Mesh, creasing: Creasing | None) -> str:
 
 
 def _result(
-    plan: Plan, values: FloatArray, refined: FloatArray | None, limit: bool, normals: bool
+    plan: Plan,
+    values: FloatArray,
+    refined: FloatArray | None,
+    limit: bool,
+    normals: bool,
+    uv_mode: UvMode,
 ) -> Result:
     """The :class:`Result` of ``values`` through ``plan`` (``refined``: already evaluated)."""
     native = plan._native_plan
+
+    def make(points: FloatArray, corner_normals: FloatArray | None = None) -> Result:
+        return Result(plan, points, corner_normals, uv_mode, limit)
+
     if normals:
         positions, corner_normals = native.limit_surface(values)
         if limit:
-            return Result(plan, positions, corner_normals)
-        points = refined if refined is not None else native.evaluate(values)
-        return Result(plan, points, corner_normals)
+            return make(positions, corner_normals)
+        return make(refined if refined is not None else native.evaluate(values), corner_normals)
     if limit:
-        return Result(plan, native.limit_positions(values))
-    return Result(plan, refined if refined is not None else native.evaluate(values))
+        return make(native.limit_positions(values))
+    return make(refined if refined is not None else native.evaluate(values))
 
 
 def estimate(mesh: Mesh, degree: int, levels: int, output: Output = "primal") -> dict[str, int]:
