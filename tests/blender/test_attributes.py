@@ -326,3 +326,40 @@ def test_apply_keeps_every_attribute(scene: Any) -> None:
         np.testing.assert_array_equal(get(obj.data, name), get(expected, name), err_msg=name)
     assert mod.name not in obj.modifiers
     bpy.data.meshes.remove(expected)
+
+
+def test_uv_smooth_menu(scene: Any) -> None:
+    from bidegree_blender import attributes
+
+    obj = make_object(scene, "Cube", CUBE_POINTS, CUBE_FACES)
+    me = obj.data
+    me.uv_layers.new(name="UVMap")
+    uvs = np.random.default_rng(5).random((24, 2)).astype(np.float32)
+    for d, uv in zip(me.uv_layers["UVMap"].data, uvs, strict=True):
+        d.uv = uv.tolist()
+    mod = bidegree_blender.add_modifier(obj, degree=3, levels=1)
+    assert modifier.uv_smooth(mod) == "Keep Boundaries"  # Blender's default
+    items = [
+        i[0]
+        for i in mod.id_properties_ui(
+            modifier._identifiers(mod.node_group)[modifier.UV_SMOOTH_INPUT]
+        ).as_dict()["items"]
+    ]
+    assert items == list(attributes.UV_SMOOTH)  # Blender's six names, in its order
+    for mode in ("corners-only", "boundaries"):
+        modifier.configure(mod, uv_mode=mode)
+        assert attributes.UV_SMOOTH[modifier.uv_smooth(mod)] == mode
+        depsgraph = update()
+        ev = obj.evaluated_get(depsgraph).to_mesh()
+        try:
+            # The node group's stamp matches the holder: the surface is shown, not the cage.
+            assert len(ev.polygons) == 24
+            shown = get(ev, "UVMap")
+        finally:
+            obj.evaluated_get(depsgraph).to_mesh_clear()
+        options = modifier.options_of(mod)
+        plan = bidegree.Plan(plain_cage(me), degree=3, levels=1)
+        expected = attributes.face_varying(plan, uvs.astype(np.float64), options.uv_mode)
+        np.testing.assert_allclose(shown, expected, atol=1e-6)
+    with pytest.raises(bidegree.InvalidInputError):
+        modifier.configure(mod, uv_mode="smooth")

@@ -33,6 +33,7 @@ _CHOICES = {
     "boundary": ("edge-only", "edge-and-corner"),
     "rules": ("averaging", "classic"),
     "creasing": ("uniform", "chaikin"),
+    "uv_mode": ("none", "corners-only", "corners-plus1", "corners-plus2", "boundaries", "all"),
 }
 
 
@@ -73,6 +74,8 @@ class Options:
         adaptive: adaptive triangles up to ``levels`` (``tolerance``) instead of uniform levels.
         tolerance: adaptive flatness tolerance relative to the cage's bounding-box diagonal.
         memory_budget: bytes a request may need (``None``: the core's default).
+        uv_mode: face-varying mode of UVs (OpenSubdiv's ``FVarLinearInterpolation``; default
+            ``"boundaries"``, Blender's *Keep Boundaries*).
     """
 
     degree: int = 4
@@ -87,6 +90,7 @@ class Options:
     adaptive: bool = False
     tolerance: float = 1e-3
     memory_budget: int | None = None
+    uv_mode: str = "boundaries"
 
     def __post_init__(self) -> None:
         set_field = object.__setattr__  # frozen: normalise once, here
@@ -179,7 +183,9 @@ class Options:
 
     def subdivide(self, mesh: bidegree.Mesh) -> bidegree.Result:
         """:func:`bidegree.subdivide` of ``mesh`` (uniform levels) with these options."""
-        return bidegree.subdivide(mesh, **self._request(), limit=self.limit, normals=self.normals)
+        return bidegree.subdivide(
+            mesh, **self._request(), limit=self.limit, normals=self.normals, uv_mode=self.uv_mode
+        )
 
     def subdivide_adaptive(self, mesh: bidegree.Mesh) -> bidegree.AdaptiveResult:
         """:func:`bidegree.subdivide_adaptive` of ``mesh`` up to ``levels``.

@@ -45,15 +45,18 @@ import numpy as np
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import bpy
 
-#: Blender's *UV Smooth* names (``SubsurfModifier.uv_smooth``) -> bidegree's face-varying modes.
+#: Blender's *UV Smooth* names (the Subdivision Surface modifier's, in its order) ->
+#: bidegree's face-varying modes (OpenSubdiv's ``FVarLinearInterpolation``).
 UV_SMOOTH: dict[str, str] = {
-    "NONE": "all",
-    "PRESERVE_CORNERS": "corners-only",
-    "PRESERVE_CORNERS_AND_JUNCTIONS": "corners-plus1",
-    "PRESERVE_CORNERS_JUNCTIONS_AND_CONCAVE": "corners-plus2",
-    "PRESERVE_BOUNDARIES": "boundaries",
-    "SMOOTH_ALL": "none",
+    "None": "all",
+    "Keep Corners": "corners-only",
+    "Keep Corners, Junctions": "corners-plus1",
+    "Keep Corners, Junctions, Concave": "corners-plus2",
+    "Keep Boundaries": "boundaries",
+    "All": "none",
 }
+#: Blender's default (and the modes' default), *Keep Boundaries*.
+UV_SMOOTH_DEFAULT = "Keep Boundaries"
 
 #: Attribute data type -> (``foreach_get`` property, numpy dtype, values per element).
 _LAYOUT: dict[str, tuple[str, Any, int]] = {
@@ -152,11 +155,12 @@ def read_attributes(mesh: bpy.types.Mesh, uv_maps: set[str]) -> CageAttributes:
     return CageAttributes(found, normals)
 
 
-def face_varying(plan: bidegree.Plan, values: np.ndarray, mode: str) -> np.ndarray:
-    """``values`` per cage corner at the output corners with the face-varying ``mode``
-    (``"all"``: linear)."""
-    if mode == "all":
-        return np.asarray(plan.evaluate_face_varying(values))
+def face_varying(plan: bidegree.Plan, values: Any, mode: str) -> Any:
+    """``values`` per cage corner (an array, or a dict of them: each welded on its own, so
+    one attribute's seams do not split another) at the output corners in the face-varying
+    ``mode``."""
+    if isinstance(values, dict):
+        return {k: np.asarray(v) for k, v in plan.evaluate_face_varying(values, mode).items()}
     return np.asarray(plan.evaluate_face_varying(values, mode))
 
 
@@ -224,7 +228,9 @@ def transfer(
         out += _split(points, np.asarray(plan.evaluate(_stack(points))))
     corner = [a for a in attrs if a.domain == "CORNER" and id(a) not in by_value]
     if corner:
-        out += _split(corner, face_varying(plan, _stack(corner), uv_mode))
+        values = face_varying(plan, {a.name: a.values for a in corner}, uv_mode)
+        for a in corner:
+            out += _split([a], values[a.name].reshape(len(values[a.name]), -1))
     origin = np.asarray(plan.face_origin, dtype=np.int64)
     for a in attrs:
         if a.domain == "FACE":

@@ -196,11 +196,6 @@ class Surface:
         return len(self.face_sizes)
 
 
-def uv_mode(options: Options) -> str:
-    """The face-varying mode of UV maps and corner attributes (``"all"``: linear)."""
-    return getattr(options, "uv_mode", "all")
-
-
 def _plan_uv_maps(
     plan: bidegree.Plan, cage: mesh_io.CageArrays, options: Options
 ) -> dict[str, np.ndarray]:
@@ -208,10 +203,7 @@ def _plan_uv_maps(
     pass."""
     if not cage.uv_maps:
         return {}
-    names = list(cage.uv_maps)
-    stacked = np.concatenate([cage.uv_maps[n] for n in names], axis=1)
-    out = attributes.face_varying(plan, stacked, uv_mode(options))
-    return {n: out[:, 2 * i : 2 * i + 2] for i, n in enumerate(names)}
+    return attributes.face_varying(plan, dict(cage.uv_maps), options.uv_mode)
 
 
 def plan_vertex_groups(plan: bidegree.Plan, cage: mesh_io.CageArrays) -> dict[str, np.ndarray]:
@@ -255,7 +247,7 @@ def plan_surface(
             plan,
             cage,
             cage.attributes,
-            uv_mode=uv_mode(options),
+            uv_mode=options.uv_mode,
             use_creases=options.use_creases,
         )
     return surface
@@ -356,14 +348,16 @@ def subdivide_object(
     rules: str = "averaging",
     limit: bool = False,
     normals: bool = False,
+    uv_mode: str = "boundaries",
     options: Options | None = None,
 ) -> bpy.types.Mesh:
     """Subdivide ``obj``'s evaluated mesh and return a new mesh datablock.
 
     Modifiers of ``obj`` are honoured (the evaluated mesh is used). Materials, per-face
-    material indices, flat/smooth shading (through ``face_origin``) and every UV map (linear
-    interpolation) carry over; edge and vertex creases shape the surface (sharpness
-    ``10 * c**2``). ``limit`` puts the vertices on the limit surface, ``normals`` writes its
+    material indices, flat/smooth shading (through ``face_origin``), every UV map
+    (face-varying in ``uv_mode``, default Blender's *Keep Boundaries*) and every other attribute
+    (:mod:`bidegree_blender.attributes`) carry over; edge and vertex creases shape the surface
+    (sharpness ``10 * c**2``). ``limit`` puts the vertices on the limit surface, ``normals`` writes its
     limit normals as custom normals. ``options`` (a :class:`bidegree.options.Options`) replaces
     every keyword setting at once.
 
@@ -386,6 +380,7 @@ def subdivide_object(
             rules=rules,
             limit=limit,
             normals=normals,
+            uv_mode=uv_mode,
         )
     cage = evaluated_cage(obj, depsgraph=depsgraph, use_creases=options.use_creases)
     surface, _notes = subdivide_cage(cage, options)
