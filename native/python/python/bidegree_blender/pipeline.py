@@ -357,9 +357,9 @@ def subdivide_object(
     material indices, flat/smooth shading (through ``face_origin``), every UV map
     (face-varying in ``uv_mode``, default Blender's *Keep Boundaries*) and every other attribute
     (:mod:`bidegree_blender.attributes`) carry over; edge and vertex creases shape the surface
-    (sharpness ``10 * c**2``). ``limit`` puts the vertices on the limit surface, ``normals`` writes its
-    limit normals as custom normals. ``options`` (a :class:`bidegree.options.Options`) replaces
-    every keyword setting at once.
+    (sharpness ``10 * c**2``). ``limit`` puts the vertices on the limit surface, ``normals``
+    writes its limit normals as custom normals. ``options`` (a
+    :class:`bidegree.options.Options`) replaces every keyword setting at once.
 
     Raises:
         bidegree.BidegreeError: a subclass describing bad input (not a mesh object, no
