@@ -240,6 +240,7 @@ def test_creases_are_lowered_so_that_the_surface_subdivides_on(scene: Any, rules
 def test_dual_output_edges(scene: Any) -> None:
     obj = grid(scene, 2)
     put(obj.data, "edge_value", "FLOAT", "EDGE", np.ones(len(obj.data.edges), np.float32))
+    put(obj.data, "crease_vert", "FLOAT", "POINT", np.full(9, 0.5, np.float32))
     result = subdivided(obj, degree=2, levels=2, output="dual")
     plan = bidegree.Plan(plain_cage(obj.data), degree=2, levels=2, output="dual")
     origin = np.asarray(plan.edge_origin)
@@ -248,6 +249,8 @@ def test_dual_output_edges(scene: Any) -> None:
     np.testing.assert_array_equal(value > 0, origin >= 0)
     counts = np.bincount(np.asarray(plan.corner_edges), minlength=len(origin))
     assert (counts[origin >= 0] == 1).all() and (origin >= 0).any()
+    # No dual vertex is a cage vertex: no vertex crease.
+    assert not get(result, "crease_vert").any()
     bpy.data.meshes.remove(result)
 
 

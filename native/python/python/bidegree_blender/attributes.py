@@ -190,8 +190,11 @@ class _Corners:
         angle = np.arctan2(self.direction[:, 1], self.direction[:, 0])
         #: For each output corner, the cage corner whose quadrant of the origin face holds it.
         self.quadrant = starts[origin] + np.rint(angle * n / (2 * np.pi)).astype(np.int64) % n
-        #: Output corners that are cage corners (their vector is the corner's, bit for bit).
+        #: Output corners at cage vertices (their vector is the corner's, bit for bit); none
+        #: on the dual mesh, whose vertices are face points (its corners take a corner's value).
         self.exact = (self.direction == self.unit[self.quadrant]).all(axis=1)
+        if plan.output == "dual":
+            self.exact[:] = False
         face_indices = np.asarray(plan.face_indices, dtype=np.int64)
         self.face_indices = face_indices
         #: The first output corner of each output vertex (it picks the vertex's quadrant).
