@@ -77,7 +77,12 @@ def test_point_attributes_are_the_scheme_applied(scene: Any) -> None:
     put(me, "paint", "FLOAT_COLOR", "POINT", colour)
     put(me, "label", "INT", "POINT", np.arange(8) * 10)
     put(me, "mask", "BOOLEAN", "POINT", [bool(i % 2) for i in range(8)])
+    me.color_attributes.new("second", "BYTE_COLOR", "CORNER")
+    me.color_attributes.active_color_name = "second"
+    me.color_attributes.default_color_name = "paint"
     result = subdivided(obj, degree=4, levels=2)
+    assert result.color_attributes.active_color_name == "second"
+    assert result.color_attributes.default_color_name == "paint"
     plan = bidegree.Plan(plain_cage(me), degree=4, levels=2)
     stacked = np.concatenate([weight[:, None], vector, colour], axis=1).astype(np.float64)
     expected = plan.evaluate(stacked)

@@ -106,6 +106,8 @@ class CageAttributes:
     attributes: list[Attribute]
     #: Corner normals ``(corners, 3)`` when the cage has custom normals, else ``None``.
     custom_normals: np.ndarray | None = None
+    #: The active and the default (render) colour attribute, by name.
+    colors: tuple[str, str] = ("", "")
 
     def fingerprint(self, update: Any) -> None:
         """Feed the attributes into the hash ``update`` (``hashlib``'s ``update``); not the
@@ -114,6 +116,7 @@ class CageAttributes:
             update(f"{attr.domain}:{attr.data_type}:{attr.name}".encode())
             update(np.ascontiguousarray(attr.values).tobytes())
         update(b"custom normals" if self.custom_normals is not None else b"-")
+        update(repr(self.colors).encode())
 
 
 def _read(attr: Any, count: int) -> np.ndarray:
@@ -152,7 +155,8 @@ def read_attributes(mesh: bpy.types.Mesh, uv_maps: set[str]) -> CageAttributes:
         normals = np.empty(counts["CORNER"] * 3, dtype=np.float32)
         mesh.corner_normals.foreach_get("vector", normals)
         normals = normals.reshape(-1, 3)
-    return CageAttributes(found, normals)
+    colors = mesh.color_attributes
+    return CageAttributes(found, normals, (colors.active_color_name, colors.default_color_name))
 
 
 def face_varying(plan: bidegree.Plan, values: Any, mode: str) -> Any:
@@ -169,6 +173,8 @@ class SurfaceAttributes:
     """Attributes of a surface, ready to write: per output element of their domain."""
 
     attributes: list[Attribute]
+    #: The active and the default (render) colour attribute, by name.
+    colors: tuple[str, str] = ("", "")
 
 
 class _Corners:
@@ -251,7 +257,7 @@ def transfer(
         out += _edge_attributes(edges, plan, cage, use_creases)
     order = {(a.domain, a.name): i for i, a in enumerate(attrs)}
     out.sort(key=lambda a: order[(a.domain, a.name)])
-    return SurfaceAttributes(out)
+    return SurfaceAttributes(out, cage_attributes.colors)
 
 
 def face_attributes(cage_attributes: CageAttributes, face_origin: np.ndarray) -> SurfaceAttributes:
@@ -376,3 +382,9 @@ def write_attributes(mesh: bpy.types.Mesh, surface: SurfaceAttributes) -> None:
         values = np.ascontiguousarray(a.values, dtype=dtype).ravel()
         if values.size:
             target.data.foreach_set(prop, values)
+    colors = mesh.color_attributes
+    active, default = surface.colors
+    if active in colors:
+        colors.active_color_name = active
+    if default in colors:
+        colors.default_color_name = default
