@@ -139,6 +139,5 @@ def test_from_namespace_takes_every_field_the_cli_has() -> None:
     assert (adaptive.adaptive, adaptive.levels, adaptive.tolerance) == (True, 5, 0.01)
     # Every field of Options is either read from the CLI or deliberately left to its default.
     names = {f.name for f in dataclasses.fields(Options)}
-    # uv_mode: the CLI's --uv-mode is issue 14's face-varying part (branch fvar).
-    assert names - set(vars(args)) <= {"creasing", "use_creases", "uv_mode"}
+    assert names - set(vars(args)) <= {"creasing", "use_creases"}
     assert Options.from_namespace(argparse.Namespace()) == Options()

@@ -86,7 +86,7 @@ def test_round_trip_every_attribute(
     assert cprim.GetTypeName() == "Mesh"
     assert cmesh.GetSubdivisionSchemeAttr().Get() == UsdGeom.Tokens.catmullClark
     assert cmesh.GetInterpolateBoundaryAttr().Get() == UsdGeom.Tokens.edgeAndCorner
-    assert cmesh.GetFaceVaryingLinearInterpolationAttr().Get() == UsdGeom.Tokens.all
+    assert cmesh.GetFaceVaryingLinearInterpolationAttr().Get() == UsdGeom.Tokens.boundaries
     assert cmesh.GetOrientationAttr().Get() == UsdGeom.Tokens.rightHanded
     np.testing.assert_allclose(_np(cmesh.GetPointsAttr().Get()), cage.points, rtol=0, atol=1e-6)
     np.testing.assert_array_equal(_np(cmesh.GetFaceVertexCountsAttr().Get()), cage.face_sizes)

@@ -14,7 +14,7 @@
 
 use std::sync::{Arc, Mutex};
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::evaluate;
 use crate::limit::{self, LimitCache};
 use crate::mesh::{Cage, INFINITELY_SHARP};
@@ -130,7 +130,7 @@ fn face_varying_cage(
     mode: FaceVaryingMode,
 ) -> Result<Cage> {
     use FaceVaryingMode as M;
-    let level0 = &cage_refinement.levels()[0];
+    let level0 = &cage_refinement.levels_as_built()[0];
     let features = cage_refinement.features();
     let sizes: Vec<i64> = (0..level0.num_faces())
         .map(|f| level0.face_corners(f).len() as i64)
@@ -408,8 +408,15 @@ pub(crate) fn evaluate<T: Scalar>(
             refinement, output, values, channels,
         ));
     }
+    if limit && refinement.options().output != OutputKind::Primal {
+        return Err(Error::InvalidInput(
+            "limit face-varying values are given at the drawing mesh's corners: use the primal \
+             output"
+                .into(),
+        ));
+    }
     in_pool(|| {
-        let level0 = &refinement.levels()[0];
+        let level0 = &refinement.levels_as_built()[0];
         let (value_of, num_values) = weld(level0, values, channels);
         let fv = cache.get(refinement, value_of, num_values, mode)?;
         let per_corner = fv.evaluate(values, channels, limit)?;

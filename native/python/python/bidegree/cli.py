@@ -183,6 +183,13 @@ def _add_subdivide(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="write the limit normals (per face corner, split at creases: OBJ vn, USD faceVarying)",
     )
+    parser.add_argument(
+        "--uv-mode",
+        choices=("none", "corners-only", "corners-plus1", "corners-plus2", "boundaries", "all"),
+        default="boundaries",
+        help="how the OBJ's vt are subdivided: OpenSubdiv's face-varying modes, from smooth "
+        "everywhere (none) to linear (all); default boundaries (Blender's Keep Boundaries)",
+    )
     parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     _add_adaptive_arguments(parser)
 

@@ -74,8 +74,10 @@ class Options:
         adaptive: adaptive triangles up to ``levels`` (``tolerance``) instead of uniform levels.
         tolerance: adaptive flatness tolerance relative to the cage's bounding-box diagonal.
         memory_budget: bytes a request may need (``None``: the core's default).
-        uv_mode: face-varying mode of UVs (OpenSubdiv's ``FVarLinearInterpolation``; default
-            ``"boundaries"``, Blender's *Keep Boundaries*).
+        uv_mode: how face-varying values (UVs) are subdivided: OpenSubdiv's six modes
+            (``"none"``, ``"corners-only"``, ``"corners-plus1"``, ``"corners-plus2"``,
+            ``"boundaries"``: Blender's default *Keep Boundaries*, ``"all"``: linear), see
+            :meth:`bidegree.Plan.evaluate_face_varying`.
     """
 
     degree: int = 4
@@ -181,10 +183,19 @@ class Options:
             return plan.limit_positions(points), None
         return plan.evaluate(points), None
 
+    def evaluate_face_varying(self, plan: bidegree.Plan, values: Any) -> Any:
+        """Face-varying ``values`` (one array per corner, or a mapping of them) through ``plan``
+        in ``uv_mode``, on the limit surface with ``limit``."""
+        return plan.evaluate_face_varying(values, self.uv_mode, limit=self.limit)  # type: ignore[arg-type]
+
     def subdivide(self, mesh: bidegree.Mesh) -> bidegree.Result:
         """:func:`bidegree.subdivide` of ``mesh`` (uniform levels) with these options."""
         return bidegree.subdivide(
-            mesh, **self._request(), limit=self.limit, normals=self.normals, uv_mode=self.uv_mode
+            mesh,
+            **self._request(),
+            limit=self.limit,
+            normals=self.normals,
+            uv_mode=self.uv_mode,  # type: ignore[arg-type]
         )
 
     def subdivide_adaptive(self, mesh: bidegree.Mesh) -> bidegree.AdaptiveResult:

@@ -24,8 +24,10 @@ Conventions:
   area (Newell's formula, exact for planar faces) to each of its vertices and the sums are
   normalised.  A vertex whose sum vanishes gets a zero normal.
 - UVs are face-varying ``primvars:st`` (``texCoord2f[]``), one value per face corner, on both the
-  cage and the result.  bidegree interpolates UVs linearly, so the cage also says
-  ``faceVaryingLinearInterpolation = all`` and a renderer subdividing it gets the same UV layout.
+  cage and the result; further UV sets (``uv_sets``) are primvars of their own names.  The cage's
+  ``faceVaryingLinearInterpolation`` is the result's ``uv_mode`` (OpenSubdiv's names:
+  :data:`UV_MODE_TO_USD`; ``all``, linear, for a result without one), so a renderer subdividing
+  the cage gets the same UV layout.
 - Crease and corner sharpness use the OpenSubdiv convention, shared with bidegree: a sharpness of
   10 or more is infinitely sharp.  Infinite values (``inf``) are written as 10.0, finite values as
   given.  Each crease is one ``creaseLengths`` entry of length 2.
@@ -53,6 +55,7 @@ from ._errors import BidegreeIOError, InvalidInputError
 __all__ = [
     "BOUNDARY_TO_USD",
     "SUPPORTED_EXTENSIONS",
+    "UV_MODE_TO_USD",
     "distance_colors",
     "export",
     "validate",
@@ -63,6 +66,16 @@ __all__ = [
 BOUNDARY_TO_USD: dict[str, str] = {
     "edge-only": "edgeOnly",
     "edge-and-corner": "edgeAndCorner",
+}
+
+#: bidegree face-varying mode (``uv_mode``) -> UsdGeom ``faceVaryingLinearInterpolation`` token
+UV_MODE_TO_USD: dict[str, str] = {
+    "none": "none",
+    "corners-only": "cornersOnly",
+    "corners-plus1": "cornersPlus1",
+    "corners-plus2": "cornersPlus2",
+    "boundaries": "boundaries",
+    "all": "all",
 }
 
 #: File extensions :func:`export` accepts.
@@ -350,6 +363,7 @@ def _build_stage(
     meters_per_unit: float,
     distances: Any,
     extra_meshes: Mapping[str, tuple[Any, Any]] | None,
+    uv_sets: Mapping[str, tuple[Any, Any]] | None = None,
 ) -> Any:
     pxr = _pxr()
     Usd, UsdGeom, Sdf, Kind = pxr.Usd, pxr.UsdGeom, pxr.Sdf, pxr.Kind
@@ -371,6 +385,18 @@ def _build_stage(
         getattr(result, "normals", None), res_topo.num_corners, "result", "normals", 3
     )
     dist = _check_distances(distances, res_topo.num_points, "result")
+    uv_mode = str(getattr(result, "uv_mode", None) or "all")
+    if uv_mode not in UV_MODE_TO_USD:
+        raise InvalidInputError(
+            f"unknown uv_mode {uv_mode!r}; expected one of {sorted(UV_MODE_TO_USD)}"
+        )
+    more_uvs: list[tuple[str, np.ndarray, np.ndarray]] = []
+    for name, (cage_set, result_set) in (uv_sets or {}).items():
+        if not Sdf.Path.IsValidIdentifier(name) or name in ("st", "normals", "displayColor"):
+            raise InvalidInputError(f"invalid UV set name {name!r}")
+        cage_values = _face_varying(cage_set, cage_topo.num_corners, "cage", name)
+        result_values = _face_varying(result_set, res_topo.num_corners, "result", name)
+        more_uvs.append((name, cage_values, result_values))
 
     boundary = str(getattr(cage, "boundary", None) or getattr(result, "boundary", "edge-only"))
     result_boundary = getattr(result, "boundary", None)
@@ -427,7 +453,7 @@ def _build_stage(
     cmesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.catmullClark)
     cmesh.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
     cmesh.CreateInterpolateBoundaryAttr(BOUNDARY_TO_USD[boundary])
-    cmesh.CreateFaceVaryingLinearInterpolationAttr(UsdGeom.Tokens.all)
+    cmesh.CreateFaceVaryingLinearInterpolationAttr(UV_MODE_TO_USD[uv_mode])
     cmesh.CreatePointsAttr(_vec3f(pxr, cage_topo.points))
     cmesh.CreateFaceVertexCountsAttr(_ints(pxr, cage_topo.face_sizes))
     cmesh.CreateFaceVertexIndicesAttr(_ints(pxr, cage_topo.face_indices))
@@ -468,6 +494,12 @@ def _build_stage(
     ):
         prim.CreateAttribute(name, type_name, custom=True).Set(value)
 
+    for name, cage_values, result_values in more_uvs:
+        for mesh, values in ((cmesh, cage_values), (rmesh, result_values)):
+            UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
+                name, Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying
+            ).Set(_vec2f(pxr, values))
+
     for name, topo, extra_dist in extras:
         _define_polymesh(pxr, stage, f"/Bidegree/{name}", topo, normals=True, distances=extra_dist)
     return stage
@@ -492,6 +524,7 @@ def export(
     meters_per_unit: float = 1.0,
     distances: Any = None,
     extra_meshes: Mapping[str, tuple[Any, Any]] | None = None,
+    uv_sets: Mapping[str, tuple[Any, Any]] | None = None,
 ) -> None:
     """Write ``cage`` and its subdivided ``result`` to a USD file (see the module docstring).
 
@@ -510,6 +543,11 @@ def export(
         extra_meshes: optional ``{name: (mesh, distances_or_None)}``; each mesh (anything with
             points, face_sizes, face_indices) is written as a plain polygon mesh
             ``/Bidegree/<name>``.
+        uv_sets: optional further UV sets ``{name: (cage (corners, 2), result (output
+            corners, 2))}`` (e.g. ``Plan.evaluate_face_varying`` of a dict), each written as a
+            face-varying ``texCoord2f[]`` primvar ``name`` on the cage and the result (``st`` is
+            the cage's own ``uvs``). They share the cage's ``faceVaryingLinearInterpolation``
+            (USD has one per mesh): subdivide them in the result's ``uv_mode``.
 
     Raises:
         bidegree.InvalidInputError: mismatched or malformed arrays, bad options, unsupported
@@ -537,6 +575,7 @@ def export(
         meters_per_unit=meters_per_unit,
         distances=distances,
         extra_meshes=extra_meshes,
+        uv_sets=uv_sets,
     )
 
     try:

@@ -1,0 +1,108 @@
+//! `cargo bench -p bidegree --bench face_varying`: smooth face-varying values (UVs) against
+//! positions through the same plan, in the same run (issue 14's target: smooth UVs cost at most
+//! 2x positions, cached). The cage is `scripts/bench_opensubdiv.sh`'s ico-quad sphere (253,500
+//! quads; `BIDEGREE_BENCH_N=8` for the 3,840-quad one) with a seamed UV layout: each of its 60
+//! base patches is its own UV island (the patch's x, y shifted per patch), so every patch border
+//! is a seam. Rows: classic degree 3 and averaging degree 4 at levels 2 and 3: positions
+//! (3 channels, `Plan::evaluate`), then UVs (2 channels, `Plan::evaluate_face_varying` in
+//! `boundaries` and `none`) first (the face-varying mesh is refined) and cached, and the ratio
+//! cached UVs / cached positions. f32, medians of 3 to 21 repetitions after a warm-up
+//! (`BIDEGREE_BENCH_SECONDS`, default 1; `BIDEGREE_BENCH_LEVELS`, default `2,3`); the load
+//! average is printed with the rows.
+
+use std::hint::black_box;
+use std::time::Instant;
+
+use bidegree::{FaceVaryingMode, Options, Plan, Rules};
+
+mod cages;
+use cages::ico_quad_sphere;
+
+fn median_ms<R>(seconds: f64, mut f: impl FnMut() -> R) -> f64 {
+    let mut once = || {
+        let t = Instant::now();
+        let r = f();
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        drop(black_box(r));
+        ms
+    };
+    let warmup = once();
+    let reps = ((seconds * 1e3 / warmup.max(1e-3)) as usize).clamp(3, 21);
+    let mut times: Vec<f64> = (0..reps).map(|_| once()).collect();
+    times.sort_by(f64::total_cmp);
+    times[times.len() / 2]
+}
+
+fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_else(|_| "unknown".into())
+}
+
+fn main() {
+    let env = |name: &str, default: f64| {
+        std::env::var(name)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(default)
+    };
+    let n = env("BIDEGREE_BENCH_N", 65.0) as usize;
+    let seconds = env("BIDEGREE_BENCH_SECONDS", 1.0);
+    let levels_list: Vec<u32> = std::env::var("BIDEGREE_BENCH_LEVELS")
+        .unwrap_or_else(|_| "2,3".into())
+        .split(',')
+        .filter_map(|l| l.trim().parse().ok())
+        .collect();
+    let (cage, _, indices, points) = ico_quad_sphere(n);
+    // Corner k of face f is in base patch f / n^2 (the cage is built patch by patch).
+    let uvs: Vec<f32> = indices
+        .iter()
+        .enumerate()
+        .flat_map(|(k, &v)| {
+            let patch = (k / 4 / (n * n)) as f32;
+            let p = &points[3 * v as usize..][..3];
+            [
+                p[0] + 3.0 * (patch % 8.0),
+                p[1] + 3.0 * (patch / 8.0).floor(),
+            ]
+        })
+        .collect();
+    println!(
+        "face-varying bench: {} quads, 60 UV islands; load average {}",
+        cage.num_faces(),
+        load_average()
+    );
+    println!(
+        "{:<12} {:>5} {:>13} {:>10} {:>13} {:>12} {:>7}",
+        "scheme", "level", "positions ms", "mode", "UVs first ms", "UVs ms", "ratio"
+    );
+    for (name, degree, rules) in [
+        ("classic 3", 3, Rules::Classic),
+        ("averaging 4", 4, Rules::Averaging),
+    ] {
+        for levels in levels_list.iter().copied() {
+            let options = Options {
+                degree,
+                levels,
+                rules,
+                ..Options::default()
+            };
+            let plan = Plan::new(&cage, &options).expect("a plan of the bench cage");
+            let positions = median_ms(seconds, || plan.evaluate(&points, 3).unwrap());
+            for mode in [FaceVaryingMode::Boundaries, FaceVaryingMode::None] {
+                let t = Instant::now();
+                black_box(plan.evaluate_face_varying(&uvs, 2, mode, false).unwrap());
+                let first = t.elapsed().as_secs_f64() * 1e3;
+                let cached = median_ms(seconds, || {
+                    plan.evaluate_face_varying(&uvs, 2, mode, false).unwrap()
+                });
+                println!(
+                    "{name:<12} {levels:>5} {positions:>13.1} {:>10} {first:>13.1} {cached:>12.1} {:>7.2}",
+                    format!("{mode:?}").to_lowercase(),
+                    cached / positions
+                );
+            }
+        }
+    }
+    println!("load average after: {}", load_average());
+}

@@ -1,0 +1,223 @@
+"""Face-varying values (UVs) of every degree in OpenSubdiv's six modes (issue 14): the API,
+the options, the CLI, OBJ and USD. The comparison of classic degree 3 with Blender's
+Subdivision Surface in every mode is ``tests/test_dirty_reference.py`` (it needs ``bpy``)."""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+
+import bidegree
+import numpy as np
+import pytest
+from bidegree import usd
+from bidegree.options import Options
+from cages import torus
+from cages_dirty import cube_unwrap, cylinder_seam, uv_junctions
+
+MODES = ("none", "corners-only", "corners-plus1", "corners-plus2", "boundaries", "all")
+SMOOTH = MODES[:-1]
+N, M = 6, 5  # the torus: N x M vertices, vertex (i, j) = i * M + j
+
+
+def _torus_uvs(seed: int = 3) -> tuple[bidegree.Mesh, np.ndarray, np.ndarray]:
+    """The regular torus with a UV layout without seams: random values per vertex, given per
+    corner. Returns the mesh (uvs set), the per-vertex values and the per-corner values."""
+    plain = torus(N, M)
+    per_vertex = np.random.default_rng(seed).random((N * M, 2))
+    per_corner = per_vertex[plain.face_indices]
+    mesh = bidegree.Mesh(plain.points, face_sizes=plain.face_sizes,
+                         face_indices=plain.face_indices, uvs=per_corner)  # fmt: skip
+    return mesh, per_vertex, per_corner
+
+
+def _lane_riesenfeld(grid: np.ndarray, degree: int, levels: int) -> np.ndarray:
+    """Periodic tensor-product Lane-Riesenfeld of a (rows, cols, C) grid: per level replicate,
+    then ``degree`` passes of (1 + z) / 2 along each axis; even degrees get the drawing step
+    (one more pass)."""
+    for _ in range(levels):
+        for axis in (0, 1):
+            grid = np.repeat(grid, 2, axis=axis)
+            for _ in range(degree):
+                grid = 0.5 * (grid + np.roll(grid, -1, axis=axis))
+    if degree % 2 == 0:
+        for axis in (0, 1):
+            grid = 0.5 * (grid + np.roll(grid, -1, axis=axis))
+    return grid.reshape(-1, grid.shape[-1])
+
+
+def _same_sets(ours: np.ndarray, reference: np.ndarray, tolerance: float) -> None:
+    """Every point of each set has one of the other within ``tolerance`` (max norm)."""
+    d = np.abs(ours[:, None, :] - reference[None, :, :]).max(axis=2)
+    assert d.min(axis=1).max() <= tolerance
+    assert d.min(axis=0).max() <= tolerance
+
+
+@pytest.mark.parametrize("degree", range(1, 10))
+def test_seamless_torus_uvs_are_the_tensor_b_spline(degree: int) -> None:
+    """No seams: every mode gives the tensor-product B-spline of the cage UVs (every corner of
+    an output vertex the same value), i.e. the UVs through the plan like positions."""
+    mesh, per_vertex, per_corner = _torus_uvs()
+    levels = 2
+    plan = bidegree.Plan(mesh, degree=degree, levels=levels)
+    as_points = plan.evaluate(per_vertex)[plan.face_indices]
+    reference = _lane_riesenfeld(per_vertex.reshape(N, M, 2), degree, levels)
+    for mode in SMOOTH:
+        uvs = plan.evaluate_face_varying(per_corner, mode)
+        np.testing.assert_array_equal(uvs, as_points)
+        _same_sets(uvs, reference, 1e-12)
+    # Limit values: the limit masks of the positions.
+    limit = plan.evaluate_face_varying(per_corner, "boundaries", limit=True)
+    np.testing.assert_array_equal(limit, plan.limit_positions(per_vertex)[plan.face_indices])
+
+
+@pytest.mark.parametrize("degree", range(1, 10))
+def test_all_is_bilinear(degree: int) -> None:
+    """``all`` is linear whatever the degree: the bilinear (degree 1) refinement per face."""
+    mesh, per_vertex, per_corner = _torus_uvs(5)
+    linear = bidegree.Plan(mesh, degree=1, levels=2, rules="classic")
+    want = linear.evaluate(per_vertex)[linear.face_indices]
+    got = bidegree.Plan(mesh, degree=degree, levels=2).evaluate_face_varying(per_corner, "all")
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)
+
+
+def _values_per_vertex(result: bidegree.Result, uvs: np.ndarray) -> np.ndarray:
+    """Number of distinct values among the corners of each output vertex."""
+    order = np.lexsort((uvs[:, 1], uvs[:, 0], result.face_indices))
+    v, u = result.face_indices[order], uvs[order]
+    new = np.ones(len(v), dtype=bool)
+    new[1:] = (v[1:] != v[:-1]) | np.any(u[1:] != u[:-1], axis=1)
+    return np.bincount(v[new], minlength=result.num_vertices)
+
+
+@pytest.mark.parametrize("degree", range(1, 10))
+def test_seams_stay_seams_and_positions_ignore_the_mode(degree: int) -> None:
+    """On a cylinder with one seam, every mode keeps the seam where the linear UVs have it:
+    each output vertex on it has exactly two values (one per side, shared bitwise by that
+    side's corners), every other vertex one. The positions do not depend on the mode."""
+    cage = cylinder_seam()
+    mesh = bidegree.Mesh(cage.points, face_sizes=cage.face_sizes,
+                         face_indices=cage.face_indices, uvs=cage.uvs)  # fmt: skip
+    results = {m: bidegree.subdivide(mesh, degree=degree, levels=2, uv_mode=m) for m in MODES}
+    seams = _values_per_vertex(results["all"], results["all"].uvs)
+    assert set(np.unique(seams)) == {1, 2}
+    for mode, result in results.items():
+        assert result.uv_mode == mode
+        np.testing.assert_array_equal(result.points, results["all"].points)
+        np.testing.assert_array_equal(_values_per_vertex(result, result.uvs), seams)
+        if mode != "all" and degree > 1:  # degree 1 is bilinear in every mode
+            assert np.abs(result.uvs - results["all"].uvs).max() > 1e-4, mode
+
+
+def test_modes_differ_and_several_uv_sets_go_at_once() -> None:
+    """The modes give different UVs on a cage with junctions; a mapping of UV sets gives each
+    set as if alone (each with its own seams)."""
+    cage = uv_junctions()
+    mesh = bidegree.Mesh(cage.points, face_sizes=cage.face_sizes, face_indices=cage.face_indices)
+    plan = bidegree.Plan(mesh, degree=4, levels=2)
+    seamless = cage.points[cage.face_indices, :2].copy()
+    sets = {"UVMap": np.asarray(cage.uvs), "Flat": seamless}
+    for mode in MODES:
+        both = plan.evaluate_face_varying(sets, mode)
+        assert set(both) == set(sets)
+        for name, values in sets.items():
+            np.testing.assert_array_equal(both[name], plan.evaluate_face_varying(values, mode))
+    by_mode = {m: plan.evaluate_face_varying(sets["UVMap"], m) for m in MODES}
+    separated = {
+        (a, b) for a, b in itertools.pairwise(MODES) if np.abs(by_mode[a] - by_mode[b]).max() > 1e-6
+    }
+    # corners-plus1 and -plus2 differ where a convex corner's other side is concave: the cube.
+    cube = cube_unwrap()
+    cube_mesh = bidegree.Mesh(cube.points, face_sizes=cube.face_sizes,
+                              face_indices=cube.face_indices)  # fmt: skip
+    cube_plan = bidegree.Plan(cube_mesh, degree=4, levels=2)
+    plus = [cube_plan.evaluate_face_varying(cube.uvs, m) for m in MODES[2:4]]
+    if np.abs(plus[0] - plus[1]).max() > 1e-6:
+        separated.add(MODES[2:4])
+    assert separated == set(itertools.pairwise(MODES))
+    # One channel and many channels, float32 kept.
+    one = plan.evaluate_face_varying(sets["UVMap"][:, 0].astype(np.float32), "none")
+    assert one.dtype == np.float32 and one.shape == (len(plan.face_indices),)
+    five = np.concatenate([sets["UVMap"], sets["UVMap"], sets["UVMap"][:, :1]], axis=1)
+    out = plan.evaluate_face_varying(five, "corners-plus1")
+    np.testing.assert_array_equal(out[:, :2], by_mode["corners-plus1"])
+
+
+def test_bad_requests_are_typed_errors() -> None:
+    mesh, _, per_corner = _torus_uvs()
+    plan = bidegree.Plan(mesh, degree=3, levels=1)
+    with pytest.raises(bidegree.InvalidInputError, match="uv_mode"):
+        plan.evaluate_face_varying(per_corner, "smooth")  # type: ignore[arg-type]
+    with pytest.raises(bidegree.InvalidInputError, match="uv_mode"):
+        bidegree.subdivide(mesh, uv_mode="linear")  # type: ignore[arg-type]
+    with pytest.raises(bidegree.InvalidInputError, match="uv_mode"):
+        Options(uv_mode="linear")
+    with pytest.raises(bidegree.InvalidInputError):
+        plan.evaluate_face_varying(per_corner[:-1], "none")
+    bad = per_corner.copy()
+    bad[3, 1] = np.nan
+    with pytest.raises(bidegree.NonFiniteError):
+        plan.evaluate_face_varying(bad, "none")
+    dual = bidegree.Plan(mesh, degree=3, levels=1, output="dual")
+    with pytest.raises(bidegree.InvalidInputError, match="primal"):
+        dual.evaluate_face_varying(per_corner, "none", limit=True)
+    # The dual output takes each of its corners' values from the drawing mesh's corners.
+    assert len(dual.evaluate_face_varying(per_corner, "none")) == len(dual.face_indices)
+
+
+def test_options_cli_and_obj_vt(tmp_path: Path) -> None:
+    """``Options.uv_mode`` reaches the request; the CLI's ``--uv-mode`` subdivides an OBJ's
+    ``vt`` and writes them smooth."""
+    from test_cli import run_here
+
+    cage = uv_junctions()
+    mesh = bidegree.Mesh(cage.points, face_sizes=cage.face_sizes,
+                         face_indices=cage.face_indices, uvs=cage.uvs)  # fmt: skip
+    source = tmp_path / "cage.obj"
+    mesh.write_obj(source)
+    for mode in ("corners-plus2", "boundaries"):
+        options = Options(degree=3, levels=2, uv_mode=mode)
+        want = bidegree.subdivide(mesh, degree=3, levels=2, uv_mode=mode)  # type: ignore[arg-type]
+        np.testing.assert_array_equal(options.subdivide(mesh).uvs, want.uvs)
+        np.testing.assert_array_equal(options.evaluate_face_varying(want.plan, mesh.uvs), want.uvs)
+        out = tmp_path / f"{mode}.obj"
+        done = run_here("subdivide", source, "-o", out, "--degree", "3", "--uv-mode", mode, "-q")
+        assert done.returncode == 0, done.stderr
+        back = bidegree.Mesh.from_obj(out)
+        np.testing.assert_allclose(back.uvs, want.uvs, rtol=0, atol=1e-6)
+    args = (
+        __import__("bidegree.cli")
+        .cli.build_parser()
+        .parse_args(["subdivide", "in.obj", "-o", "o.obj", "--uv-mode", "none"])
+    )
+    assert Options.from_namespace(args).uv_mode == "none"
+    assert Options().uv_mode == "boundaries"
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_usd_writes_the_mode_and_every_uv_set(tmp_path: Path, mode: str) -> None:
+    pxr = pytest.importorskip("pxr")
+    cage = uv_junctions()
+    mesh = bidegree.Mesh(cage.points, face_sizes=cage.face_sizes,
+                         face_indices=cage.face_indices, uvs=cage.uvs)  # fmt: skip
+    result = bidegree.subdivide(mesh, degree=3, levels=1, uv_mode=mode)  # type: ignore[arg-type]
+    flat = cage.points[cage.face_indices, :2]
+    extra = {"flat": (flat, result.plan.evaluate_face_varying(flat, mode))}  # type: ignore[arg-type]
+    path = tmp_path / "uv.usda"
+    usd.export(path, mesh, result, uv_sets=extra)
+    stage = pxr.Usd.Stage.Open(str(path))
+    cmesh = pxr.UsdGeom.Mesh(stage.GetPrimAtPath("/Bidegree/Cage"))
+    assert cmesh.GetFaceVaryingLinearInterpolationAttr().Get() == usd.UV_MODE_TO_USD[mode]
+    for prim, st, more in (
+        ("Cage", mesh.uvs, extra["flat"][0]),
+        ("Result", result.uvs, extra["flat"][1]),
+    ):
+        primvars = pxr.UsdGeom.PrimvarsAPI(stage.GetPrimAtPath(f"/Bidegree/{prim}"))
+        for name, want in (("st", st), ("flat", more)):
+            primvar = primvars.GetPrimvar(name)
+            assert primvar.GetInterpolation() == pxr.UsdGeom.Tokens.faceVarying
+            got = np.asarray(primvar.Get())
+            np.testing.assert_allclose(got, want, rtol=0, atol=1e-6)
+    assert usd.validate(path) == []
+    with pytest.raises(bidegree.InvalidInputError, match="UV set"):
+        usd.export(tmp_path / "bad.usda", mesh, result, uv_sets={"st": extra["flat"]})
