@@ -326,13 +326,14 @@ def test_apply_keeps_every_attribute(scene: Any) -> None:
     put(me, "corner_paint", "FLOAT_COLOR", "CORNER", np.random.default_rng(4).random((24, 4)))
     expected = subdivided(obj, degree=3, levels=1)
     mod = bidegree_blender.add_modifier(obj, degree=3, levels=1)
+    name = mod.name  # the modifier is gone after Apply
     update()
     with bpy.context.temp_override(object=obj, active_object=obj):
         assert bpy.ops.object.bidegree_apply() == {"FINISHED"}
     assert len(obj.data.vertices) == len(expected.vertices)
-    for name in ("weight", "label", "sharp_edge", "face_id", "corner_paint"):
-        np.testing.assert_array_equal(get(obj.data, name), get(expected, name), err_msg=name)
-    assert mod.name not in obj.modifiers
+    for attr in ("weight", "label", "sharp_edge", "face_id", "corner_paint"):
+        np.testing.assert_array_equal(get(obj.data, attr), get(expected, attr), err_msg=attr)
+    assert name not in obj.modifiers
     bpy.data.meshes.remove(expected)
 
 
