@@ -1,8 +1,8 @@
 //! Output meshes: the drawing mesh (`M_L` itself) or the true dual mesh of `M_L` (one face per
 //! vertex, its corners the points of the faces around it, closed along boundaries by the 1-D
-//! points of the boundary curve), with edges, corner edges and the cage face of every face.
-//! Faces whose cage face is a hole are left out of the drawing mesh, and so are the vertices
-//! only they use.
+//! points of the boundary curve), with edges, corner edges, the cage face of every face and the
+//! cage edge of every edge. Faces whose cage face is a hole are left out of the drawing mesh, and
+//! so are the vertices only they use.
 
 use std::sync::OnceLock;
 
@@ -12,6 +12,7 @@ use crate::options::OutputKind;
 use crate::parallel::gather_hinted;
 use crate::refinement::Refinement;
 use crate::scalar::{Scalar, Value};
+use crate::scheme::decrement;
 use crate::step::Final;
 use crate::topology::{Level, NONE};
 
@@ -36,6 +37,8 @@ pub(crate) struct OutputMesh {
     face_offsets: OnceLock<Vec<u32>>,
     /// Cage face of each face of the drawing mesh, built on first use.
     face_origin: OnceLock<Vec<u32>>,
+    /// Cage edge of each output edge (`NONE` inside a cage face), built on first use.
+    edge_origin: OnceLock<Vec<u32>>,
     /// The dual mesh, when asked for, or the drawing mesh without its holes (a polygon level
     /// like the dual's; `corner_source` then maps its corners to those of `M_L`).
     dual: Option<DualMesh>,
@@ -155,6 +158,81 @@ impl OutputMesh {
         self.level(refinement, true).corner_edges()
     }
 
+    /// The cage edge (an edge of `M_0`) each output edge lies on, [`NONE`] for an edge inside a
+    /// cage face. Drawing mesh: the halves of edge `e` are edges `2e` and `2e + 1` of the next
+    /// level ([`Level::refine`]), every other edge is inside a face. Dual mesh: only the edges
+    /// that close a boundary face (between the boundary points of two halves of one cage edge)
+    /// lie on a cage edge; every other dual edge crosses the edges of `M_L`.
+    pub(crate) fn edge_origin<'a>(&'a self, refinement: &'a Refinement) -> &'a [u32] {
+        self.edge_origin.get_or_init(|| {
+            let levels = refinement.levels();
+            let origin = |e: u32| primal_edge_origin(levels, e);
+            let table = match &self.dual {
+                None => gather_hinted(levels.last().expect("a level").num_edges(), |e| {
+                    origin(e as u32)
+                }),
+                Some(d) if refinement.options().output == OutputKind::Primal => {
+                    gather_hinted(d.level.num_edges(), |e| {
+                        origin(self.level_edge(refinement, e))
+                    })
+                }
+                Some(d) => {
+                    let curves = refinement.curve_networks().last().expect("a step");
+                    let num_faces = levels.last().expect("a level").num_faces() as u32;
+                    let on_cage = |p: u32| {
+                        p.checked_sub(num_faces).map(|i| {
+                            origin(curves.edges()[d.boundary_points[i as usize] as usize].edge)
+                        })
+                    };
+                    let edges = d.level.edge_verts();
+                    gather_hinted(edges.len(), |e| {
+                        let [a, b] = edges[e];
+                        match (on_cage(a), on_cage(b)) {
+                            (Some(x), Some(y)) if x == y => x,
+                            _ => NONE,
+                        }
+                    })
+                }
+            };
+            table.unwrap_or_else(|e| panic!("output edge origins: {e}"))
+        })
+    }
+
+    /// The edge of `M_L` that edge `e` of the drawing mesh is: itself, or, when holes are left
+    /// out, the edge leaving the `M_L` corner of one of its corners.
+    fn level_edge(&self, refinement: &Refinement, e: usize) -> u32 {
+        match &self.dual {
+            Some(d) if refinement.options().output == OutputKind::Primal => {
+                let c = d.level.edge_slots(e).next().expect("an edge has a corner");
+                let last = refinement.levels().last().expect("a level");
+                last.corner_edges()[d.corner_source[c as usize] as usize]
+            }
+            _ => e as u32,
+        }
+    }
+
+    /// The sharpness each output edge keeps at the last level (what one more level would use):
+    /// the classic Catmull-Clark rules' own per-level table on the drawing mesh (uniform or
+    /// Chaikin creasing), otherwise its cage edge's sharpness lowered once per level
+    /// ([`decrement`]); 0 for an edge inside a cage face. Boundary edges are infinitely sharp.
+    pub(crate) fn edge_sharpness(&self, refinement: &Refinement) -> Result<Vec<f32>> {
+        let depth = refinement.levels_as_built().len() - 1;
+        let origin = self.edge_origin(refinement);
+        let primal = refinement.options().output == OutputKind::Primal;
+        match refinement.sharpness(depth) {
+            Some(level) if primal => gather_hinted(origin.len(), |e| {
+                level.edge(self.level_edge(refinement, e) as usize)
+            }),
+            _ => {
+                let cage = &refinement.features().edge_sharpness;
+                gather_hinted(origin.len(), |e| match origin[e] {
+                    NONE => 0.0,
+                    o => (0..depth).fold(cage[o as usize], |s, _| decrement(s)),
+                })
+            }
+        }
+    }
+
     /// Turns the values of the last level into output vertex values.
     pub(crate) fn finish<T: Scalar, const N: usize>(
         &self,
@@ -263,6 +341,17 @@ fn face_origin(refinement: &Refinement) -> Result<Vec<u32>> {
         let cage = &levels[0];
         gather_hinted(last.num_faces(), |f| cage.corner_faces[f >> shift])
     }
+}
+
+/// The edge of `M_0` that edge `e` of the last of `levels` lies on, [`NONE`] inside a face.
+fn primal_edge_origin(levels: &[Level], mut e: u32) -> u32 {
+    for parent in levels[..levels.len() - 1].iter().rev() {
+        if e as usize >= 2 * parent.num_edges() {
+            return NONE;
+        }
+        e /= 2;
+    }
+    e
 }
 
 /// The dual of `M_L`: the faces around each vertex, walked from face to face across edges and

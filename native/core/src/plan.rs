@@ -106,6 +106,40 @@ impl Plan {
         self.output.edges(&self.refinement)
     }
 
+    /// The cage edge (index into [`Plan::cage_edges`]) each output edge lies on, [`Level::NONE`]
+    /// for an edge inside a cage face (for edge attributes: creases, sharp edges, seams). The
+    /// halves of a cage edge on the drawing mesh; on the dual mesh only the boundary edges
+    /// between two boundary points of one cage edge (the others cross the surface's edges).
+    pub fn output_edge_origin(&self) -> &[u32] {
+        self.output.edge_origin(&self.refinement)
+    }
+
+    /// The sharpness each output edge keeps at the last level (OpenSubdiv's convention, 10
+    /// infinitely sharp): what one more level of refinement would use, so that a surface
+    /// written with it and subdivided again continues this one. Classic Catmull-Clark on the
+    /// drawing mesh: its per-level table (uniform or Chaikin creasing); otherwise the cage
+    /// edge's sharpness lowered by one per level. 0 inside cage faces; boundary edges 10.
+    pub fn output_edge_sharpness(&self) -> Result<Vec<f32>> {
+        self.output.edge_sharpness(&self.refinement)
+    }
+
+    /// The edges of the cage (of `M_0`) as pairs of cage vertices (the user's numbering, smaller
+    /// first), ordered by pair.
+    pub fn cage_edges(&self) -> Vec<[u32; 2]> {
+        let level = &self.refinement.levels()[0];
+        level
+            .edge_verts()
+            .iter()
+            .map(|&[a, b]| {
+                let (a, b) = (
+                    self.refinement.cage_vertex(a),
+                    self.refinement.cage_vertex(b),
+                );
+                [a.min(b), a.max(b)]
+            })
+            .collect()
+    }
+
     /// For each entry of [`Plan::output_face_vertices`], the edge to the next corner of its face.
     pub fn output_corner_edges(&self) -> &[u32] {
         self.output.corner_edges(&self.refinement)

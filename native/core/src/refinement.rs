@@ -173,6 +173,11 @@ impl Refinement {
         }
     }
 
+    /// The cage vertex (the user's numbering) of vertex `v` of `M_0`.
+    pub(crate) fn cage_vertex(&self, v: u32) -> u32 {
+        self.vertex_map.as_ref().map_or(v, |map| map[v as usize])
+    }
+
     /// The refined levels `M_0..M_L`, every table built (the last level's edge and vertex ->
     /// corner tables are added on the first call).
     pub(crate) fn levels(&self) -> &[Level] {

@@ -269,6 +269,37 @@ impl PyPlan {
         self.indices(py, |plan| to_i32(plan.output_corner_edges()))
     }
 
+    /// Cage edge (row of `cage_edges`) each output edge lies on, -1 inside a cage face, int32.
+    fn edge_origin<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<i32>>> {
+        self.indices(py, |plan| {
+            plan.output_edge_origin()
+                .iter()
+                .map(|&e| {
+                    if e == bidegree::Level::NONE {
+                        Ok(-1)
+                    } else {
+                        i32::try_from(e)
+                            .map_err(|_| Error::Internal(format!("index {e} exceeds int32")))
+                    }
+                })
+                .collect()
+        })
+    }
+
+    /// Sharpness each output edge keeps at the last level, float32 `(E,)`.
+    fn edge_sharpness<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f32>>> {
+        let plan = &self.inner;
+        let sharpness = run(py, || plan.output_edge_sharpness())?;
+        Ok(PyArray1::from_vec(py, sharpness))
+    }
+
+    /// Edges of the cage as pairs of cage vertices (smaller first), ordered by pair, int32 `(E, 2)`.
+    fn cage_edges<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<i32>>> {
+        let plan = &self.inner;
+        let flat = run(py, || to_i32(plan.cage_edges().as_flattened()))?;
+        array2(py, flat, 2)
+    }
+
     /// Edges of the output mesh, int32 `(E, 2)`.
     fn edges<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<i32>>> {
         let plan = &self.inner;

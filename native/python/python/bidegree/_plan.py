@@ -79,6 +79,29 @@ class _Output:
         """Edge (row of :attr:`edges`) from each output face corner to the next, int32."""
         return self._array("corner_edges")
 
+    @property
+    def edge_origin(self) -> NDArray[np.int32]:
+        """(E,) cage edge (row of :attr:`cage_edges`) each output edge lies on, -1 for an edge
+        inside a cage face, int32, read-only. Primal output: the child edges of each cage
+        edge; dual output: only the boundary edges between two boundary points of one cage
+        edge (every other dual edge crosses the surface's edges)."""
+        return self._array("edge_origin")
+
+    @property
+    def edge_sharpness(self) -> NDArray[np.float32]:
+        """(E,) sharpness each output edge keeps at the last level (10 infinitely sharp, 0
+        inside cage faces), float32, read-only: what one more level would use, so that the
+        output, subdivided again with these creases, continues this surface. Classic
+        Catmull-Clark: OpenSubdiv's per-level rule (uniform or Chaikin); otherwise the cage
+        edge's sharpness minus one per level."""
+        return self._array("edge_sharpness")
+
+    @property
+    def cage_edges(self) -> NDArray[np.int32]:
+        """(E0, 2) edges of the cage as vertex pairs (smaller first, the cage's numbering),
+        ordered by pair, int32, read-only."""
+        return self._array("cage_edges")
+
 
 class Plan(_Output):
     """The topology work of a subdivision, done once: evaluate it for any number of point sets

@@ -8,7 +8,7 @@ current topology and fingerprints of what the last update consumed:
   plan and rewrites the mesh;
 * positions -> a change re-evaluates through the cached plan and rewrites positions only;
 * face and corner data (UV maps, material indices, flat/smooth, materials, vertex group
-  weights) -> a change keeps the plan and rewrites the mesh;
+  weights, every other attribute) -> a change keeps the plan and rewrites the mesh;
 * nothing changed -> no work at all.
 
 The work itself is :mod:`bidegree_blender.pipeline`'s; the counters in :class:`LiveStats` let
@@ -81,6 +81,7 @@ def face_data_fingerprint(cage: mesh_io.CageArrays, materials: list[Any] | None)
         for name, values in group.items():
             h.update(name.encode())
             h.update(np.ascontiguousarray(values).tobytes())
+    cage.attributes.fingerprint(h.update)
     h.update(repr(cage.active_uv).encode())
     for arr in (cage.material_index, cage.sharp_face):
         h.update(b"-" if arr is None else np.ascontiguousarray(arr).tobytes())

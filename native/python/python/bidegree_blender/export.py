@@ -91,7 +91,7 @@ def _add_object_data(
             continue  # written as ``st`` by bidegree.usd
         primvar = _identifier(name, names)
         for label, prim in meshes.items():
-            values = uvs if label == "Cage" else plan.evaluate_face_varying(uvs, "all")
+            values = uvs if label == "Cage" else plan.evaluate_face_varying(uvs, result.uv_mode)
             UsdGeom.PrimvarsAPI(prim).CreatePrimvar(
                 primvar, Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying
             ).Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(values, dtype=np.float32)))

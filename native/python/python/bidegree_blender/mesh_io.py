@@ -21,6 +21,8 @@ from typing import TYPE_CHECKING, Any
 import bidegree
 import numpy as np
 
+from .attributes import CageAttributes
+
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import bpy
 
@@ -54,6 +56,7 @@ class CageArrays:
         active_uv: name of the active render UV map (or ``None``).
         material_index: ``(F,)`` int32 or ``None`` when the mesh has no such attribute.
         sharp_face: ``(F,)`` bool or ``None`` when the mesh has no such attribute.
+        attributes: every other attribute and the custom normals (:mod:`.attributes`).
     """
 
     points: np.ndarray
@@ -68,6 +71,7 @@ class CageArrays:
     material_index: np.ndarray | None = None
     sharp_face: np.ndarray | None = None
     vertex_groups: dict[str, np.ndarray] = field(default_factory=dict)
+    attributes: CageAttributes = field(default_factory=lambda: CageAttributes([]))
 
     @property
     def num_vertices(self) -> int:

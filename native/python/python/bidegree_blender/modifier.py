@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Any
 import bidegree
 from bidegree.options import Options
 
-from . import mesh_io, pipeline
+from . import attributes, mesh_io, pipeline
 from .cache import LiveCache, UpdateReport
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -44,13 +44,15 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 #: Name of the add-on's node group; its custom property says which layout it has.
 NODE_GROUP = "bidegree"
 NODE_GROUP_TAG = "bidegree_node_group"
-NODE_GROUP_VERSION = 1
+NODE_GROUP_VERSION = 2  # 2: the UV Smooth menu
 #: Custom properties of a holder object: its variant, owner object and owner modifier.
 HOLDER_TAG = "bidegree_holder"
 OWNER_TAG = "bidegree_owner"
 MODIFIER_TAG = "bidegree_modifier"
 VIEWPORT, RENDER = "viewport", "render"
 
+#: The input of the face-varying mode (a menu of Blender's UV Smooth names).
+UV_SMOOTH_INPUT = "UV Smooth"
 #: The modifier's settings, as (input name, type, default, min, max, description).
 SETTINGS: tuple[tuple[str, str, Any, Any, Any, str], ...] = (
     ("Degree", "INT", 4, 1, 31, "Degree of the surface (3 ~ Catmull-Clark, 4 biquartic)"),
@@ -108,11 +110,27 @@ SETTINGS: tuple[tuple[str, str, Any, Any, Any, str], ...] = (
         1.0,
         "Adaptive flatness tolerance, relative to the cage's bounding-box diagonal",
     ),
+    (
+        UV_SMOOTH_INPUT,
+        "MENU",
+        attributes.UV_SMOOTH_DEFAULT,
+        None,
+        None,
+        "How UV maps and corner attributes are smoothed (Blender's UV Smooth; Keep "
+        "Boundaries: smooth inside, UV boundaries kept sharp)",
+    ),
+)
+#: The UV Smooth names in their stamp order (the default first: node groups from before the
+#: setting, which have no such input, stamp 0 for it).
+_UV_STAMP = (
+    attributes.UV_SMOOTH_DEFAULT,
+    *(name for name in attributes.UV_SMOOTH if name != attributes.UV_SMOOTH_DEFAULT),
 )
 #: Hidden inputs set by the add-on: the holders and the last error.
 SURFACE, RENDER_SURFACE, ERROR = "Surface", "Render Surface", "Error"
 
 _SOCKET_TYPES = {
+    "MENU": "NodeSocketMenu",
     "INT": "NodeSocketInt",
     "BOOLEAN": "NodeSocketBool",
     "FLOAT": "NodeSocketFloat",
@@ -190,7 +208,8 @@ def _build_node_group(tree: Any) -> None:
     iface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
     for name, kind, default, low, high, description in SETTINGS:
         socket = iface.new_socket(name, in_out="INPUT", socket_type=_SOCKET_TYPES[kind])
-        socket.default_value = default
+        if kind != "MENU":  # a menu's items come from its Menu Switch (below)
+            socket.default_value = default
         socket.description = description
         if low is not None:
             socket.min_value, socket.max_value = low, high
@@ -236,6 +255,16 @@ def _build_node_group(tree: Any) -> None:
     for bit, name in enumerate(_STAMP_FLAGS):
         flag = value("MULTIPLY", group_in.outputs[name], float(1024 << bit), (-1150, -60 * bit))
         acc = flag if acc is None else value("ADD", acc, flag, (-950, -60 * bit))
+    # UV Smooth: a Menu Switch gives the menu its items (Blender's names) and the stamp its code.
+    uv_menu = _new_node(tree, "GeometryNodeMenuSwitch", (-1150, -600), data_type="INT")
+    uv_menu.enum_items.clear()
+    for name in attributes.UV_SMOOTH:
+        uv_menu.enum_items.new(name)
+        uv_menu.inputs[name].default_value = _UV_STAMP.index(name)
+    link(group_in.outputs[UV_SMOOTH_INPUT], uv_menu.inputs["Menu"])
+    iface.items_tree[UV_SMOOTH_INPUT].default_value = attributes.UV_SMOOTH_DEFAULT
+    uv = value("MULTIPLY", uv_menu.outputs[0], float(1024 << 7), (-950, -600))
+    acc = value("ADD", acc, uv, (-800, -400))
     common = value("ADD", acc, group_in.outputs["Degree"], (-650, -100))
     adaptive = value("MULTIPLY", group_in.outputs["Adaptive"], float(1024 << 6), (-1150, -400))
     warning_node = "GeometryNodeWarning" if hasattr(bpy.types, "GeometryNodeWarning") else None
@@ -384,6 +413,31 @@ def options_of(mod: bpy.types.Modifier, *, render: bool = False) -> Options:
         # Adaptive subdivision is a viewport option: renders stay uniform.
         adaptive=bool(read("Adaptive")) and not render,
         tolerance=float(read("Tolerance")),
+        uv_mode=attributes.UV_SMOOTH[uv_smooth(mod)],
+    )
+
+
+def uv_smooth(mod: bpy.types.Modifier) -> str:
+    """The modifier's *UV Smooth* name (the default on node groups from before the setting)."""
+    ident = _identifiers(mod.node_group).get(UV_SMOOTH_INPUT)
+    if ident is None:
+        return attributes.UV_SMOOTH_DEFAULT
+    value = mod[ident]
+    for item in mod.id_properties_ui(ident).as_dict().get("items", ()):
+        if item[-1] == value:
+            return str(item[0])
+    return attributes.UV_SMOOTH_DEFAULT
+
+
+def set_uv_smooth(mod: bpy.types.Modifier, name: str) -> None:
+    """Set the modifier's *UV Smooth* by Blender's name (the caller tags the object)."""
+    ident = _identifiers(mod.node_group)[UV_SMOOTH_INPUT]
+    for item in mod.id_properties_ui(ident).as_dict().get("items", ()):
+        if item[0] == name:
+            mod[ident] = item[-1]
+            return
+    raise bidegree.InvalidInputError(
+        f"UV Smooth must be one of {', '.join(attributes.UV_SMOOTH)}, got {name!r}"
     )
 
 
@@ -411,7 +465,13 @@ def stamp(options: Options) -> float:
         | options.normals << 5
         | options.adaptive << 6
     )
-    return float(options.degree + 32 * options.levels + 1024 * flags)
+    uv = _UV_STAMP.index(_uv_name(options.uv_mode))
+    return float(options.degree + 32 * options.levels + 1024 * (flags + (uv << 7)))
+
+
+def _uv_name(uv_mode: str) -> str:
+    """Blender's *UV Smooth* name of a face-varying mode."""
+    return next(name for name, mode in attributes.UV_SMOOTH.items() if mode == uv_mode)
 
 
 _SETTING_FIELDS = {
@@ -426,6 +486,7 @@ _SETTING_FIELDS = {
     "normals": "Limit Normals",
     "adaptive": "Adaptive",
     "tolerance": "Tolerance",
+    "uv_mode": UV_SMOOTH_INPUT,
 }
 
 
@@ -447,6 +508,9 @@ def configure(mod: bpy.types.Modifier, **settings: Any) -> None:
     for name, value in settings.items():
         if name == "render_levels":
             set_input(mod, "Render Levels", int(value))
+            continue
+        if name == "uv_mode":
+            set_uv_smooth(mod, _uv_name(checked.uv_mode))
             continue
         value = getattr(checked, name)
         if name == "rules":

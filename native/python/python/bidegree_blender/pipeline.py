@@ -19,7 +19,7 @@ import bidegree
 import numpy as np
 from bidegree.options import Options
 
-from . import mesh_io
+from . import attributes, mesh_io
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import bpy
@@ -74,6 +74,7 @@ def evaluated_cage(
     tmp = eval_obj.to_mesh()
     try:
         cage = mesh_io.read_mesh(tmp, use_creases=use_creases)
+        cage.attributes = attributes.read_attributes(tmp, set(cage.uv_maps))
         names = [group.name for group in eval_obj.vertex_groups]
         if names:
             cage.vertex_groups = mesh_io.read_vertex_groups(tmp, names)
@@ -148,6 +149,10 @@ class Surface:
     uv_maps: dict[str, np.ndarray] = field(default_factory=dict)
     #: Vertex group name -> (points,) weights (every group of the cage, in its order).
     vertex_groups: dict[str, np.ndarray] = field(default_factory=dict)
+    #: Every other attribute of the cage on the surface (:mod:`.attributes`).
+    attributes: attributes.SurfaceAttributes = field(
+        default_factory=lambda: attributes.SurfaceAttributes([])
+    )
 
     @property
     def num_faces(self) -> int:
@@ -155,14 +160,14 @@ class Surface:
         return len(self.face_sizes)
 
 
-def _plan_uv_maps(plan: bidegree.Plan, cage: mesh_io.CageArrays) -> dict[str, np.ndarray]:
-    """Every UV map of ``cage`` through ``plan`` (linear face-varying), in one pass."""
+def _plan_uv_maps(
+    plan: bidegree.Plan, cage: mesh_io.CageArrays, options: Options
+) -> dict[str, np.ndarray]:
+    """Every UV map of ``cage`` through ``plan`` (face-varying in the options' mode), in one
+    pass."""
     if not cage.uv_maps:
         return {}
-    names = list(cage.uv_maps)
-    stacked = np.concatenate([cage.uv_maps[n] for n in names], axis=1)
-    out = np.asarray(plan.evaluate_face_varying(stacked, "all"))
-    return {n: out[:, 2 * i : 2 * i + 2] for i, n in enumerate(names)}
+    return attributes.face_varying(plan, dict(cage.uv_maps), options.uv_mode)
 
 
 def plan_vertex_groups(plan: bidegree.Plan, cage: mesh_io.CageArrays) -> dict[str, np.ndarray]:
@@ -184,8 +189,12 @@ def plan_surface(
     with_attributes: bool = True,
 ) -> Surface:
     """The :class:`Surface` of ``cage`` through ``plan`` (``with_attributes=False``: points and
-    normals only, for a positions-only update of a mesh that has the rest)."""
+    normals only, for a positions-only update of a mesh that has the rest). Normals: the limit
+    normals with ``options.normals``, else the cage's custom normals carried over (they follow
+    the positions), else none."""
     points, normals = options.evaluate(plan, cage.points)
+    if normals is None and cage.attributes.custom_normals is not None:
+        normals = attributes.custom_normals(plan, cage.attributes.custom_normals)
     surface = Surface(
         points=points,
         face_sizes=plan.face_sizes,
@@ -196,8 +205,15 @@ def plan_surface(
         normals=normals,
     )
     if with_attributes:
-        surface.uv_maps = _plan_uv_maps(plan, cage)
+        surface.uv_maps = _plan_uv_maps(plan, cage, options)
         surface.vertex_groups = plan_vertex_groups(plan, cage)
+        surface.attributes = attributes.transfer(
+            plan,
+            cage,
+            cage.attributes,
+            uv_mode=options.uv_mode,
+            use_creases=options.use_creases,
+        )
     return surface
 
 
@@ -213,8 +229,9 @@ def triangle_edges(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def adaptive_surface(cage: mesh_io.CageArrays, options: Options) -> tuple[Surface, list[str]]:
-    """The adaptive :class:`Surface` of ``cage`` (triangles; face data through ``face_origin``;
-    no UVs and no vertex group weights: the core evaluates no attributes for adaptive output)."""
+    """The adaptive :class:`Surface` of ``cage`` (triangles; face data through ``face_origin``,
+    generic face attributes included; no UVs, no point, corner or edge attributes and no vertex
+    group weights: the core evaluates no data on adaptive output)."""
     bmesh = cage_mesh(cage, options)
     result, notes = _with_warnings(lambda: options.subdivide_adaptive(bmesh))
     edges, corner_edges = triangle_edges(result.triangles)
@@ -226,6 +243,7 @@ def adaptive_surface(cage: mesh_io.CageArrays, options: Options) -> tuple[Surfac
         corner_edges=corner_edges,
         face_origin=result.face_origin,
     )
+    surface.attributes = attributes.face_attributes(cage.attributes, result.face_origin)
     if cage.vertex_groups:
         # The core evaluates no attributes on adaptive output: the groups keep their names.
         surface.vertex_groups = {
@@ -269,6 +287,7 @@ def write_surface(
         materials=materials,
         normals=surface.normals,
     )
+    attributes.write_attributes(mesh, surface.attributes)
     if holder is not None:
         mesh_io.write_vertex_groups(holder, surface.vertex_groups)
 
@@ -293,16 +312,18 @@ def subdivide_object(
     rules: str = "averaging",
     limit: bool = False,
     normals: bool = False,
+    uv_mode: str = "boundaries",
     options: Options | None = None,
 ) -> bpy.types.Mesh:
     """Subdivide ``obj``'s evaluated mesh and return a new mesh datablock.
 
     Modifiers of ``obj`` are honoured (the evaluated mesh is used). Materials, per-face
-    material indices, flat/smooth shading (through ``face_origin``) and every UV map (linear
-    interpolation) carry over; edge and vertex creases shape the surface (sharpness
-    ``10 * c**2``). ``limit`` puts the vertices on the limit surface, ``normals`` writes its
-    limit normals as custom normals. ``options`` (a :class:`bidegree.options.Options`) replaces
-    every keyword setting at once.
+    material indices, flat/smooth shading (through ``face_origin``), every UV map
+    (face-varying in ``uv_mode``, default Blender's *Keep Boundaries*) and every other attribute
+    (:mod:`bidegree_blender.attributes`) carry over; edge and vertex creases shape the surface
+    (sharpness ``10 * c**2``). ``limit`` puts the vertices on the limit surface, ``normals``
+    writes its limit normals as custom normals. ``options`` (a
+    :class:`bidegree.options.Options`) replaces every keyword setting at once.
 
     Raises:
         bidegree.BidegreeError: a subclass describing bad input (not a mesh object, no
@@ -323,6 +344,7 @@ def subdivide_object(
             rules=rules,
             limit=limit,
             normals=normals,
+            uv_mode=uv_mode,
         )
     cage = evaluated_cage(obj, depsgraph=depsgraph, use_creases=options.use_creases)
     surface, _notes = subdivide_cage(cage, options)

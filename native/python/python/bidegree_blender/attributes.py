@@ -1,0 +1,390 @@
+"""Every Blender attribute of the cage on the surface (issue 14): read, transfer, write.
+
+What each domain does (Blender's Subdivision Surface, ``subdiv_mesh.cc``, is the comparison):
+
+* **Point** (colour attributes, generic float / vector / 2-D vector / colour attributes; vertex
+  groups stay in :mod:`.mesh_io`): through the plan like the positions (``Plan.evaluate``, any
+  channel count), so a weight is the scheme applied to the weights (Subsurf mixes them
+  bilinearly). Byte colours are clamped to ``[0, 1]``. Integers, booleans, quaternions and
+  matrices are not averaged: each output vertex takes the value of the *nearest cage vertex in
+  its origin face's parameter*: the cage corner whose quadrant of the face (the sub-face of the
+  first refinement that holds the corner) it lies in. That quadrant is found without positions
+  (so a deforming cage never changes it): a linear face-varying evaluation of the unit vector
+  at angle ``2 pi i / n`` on corner ``i`` of each ``n``-gon points, at every output corner,
+  into the angular sector of its quadrant's corner.
+* **Corner** (UV maps, corner colours, generic corner attributes): face-varying through
+  ``Plan.evaluate_face_varying`` with the UV mode (:data:`UV_SMOOTH` maps Blender's six names;
+  Subsurf smooths only UV maps and mixes the others bilinearly). Integers and booleans: the
+  value of the quadrant's cage corner.
+* **Face** (generic; material indices and flat/smooth stay in :mod:`.mesh_io`): copied from the
+  origin face.
+* **Edge** (sharp edges, seams, generic): copied onto the child edges of each cage edge
+  (``Plan.edge_origin``); edges inside a cage face get the default (0, false), as Subsurf. The
+  edge crease is the sharpness each child edge keeps at the last level (``Plan.edge_sharpness``,
+  OpenSubdiv's per-level rule, as crease ``sqrt(s / 10)``), so that the applied surface,
+  subdivided again, continues this one; Subsurf copies the cage's crease unchanged.
+* **Vertex crease**: on the output vertex of each cage vertex, lowered by one per level (a
+  vertex of sharpness ``s`` is a corner while ``s > level``); 0 elsewhere (Subsurf mixes it).
+* **Custom normals** (the cage has them: Subsurf's *Use Custom Normals*): the cage's corner
+  normals, linear face-varying (Subsurf's bilinear mix) and renormalized. The limit normals of
+  *Limit Normals* take precedence.
+
+Dual output: edges lie on cage edges only along the boundary (``Plan.edge_origin``) and no
+output vertex is a cage vertex, so interior edge attributes and vertex creases stay at their
+defaults. Adaptive output keeps face attributes only (the core evaluates no data on it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import bidegree
+import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    import bpy
+
+#: Blender's *UV Smooth* names (the Subdivision Surface modifier's, in its order) ->
+#: bidegree's face-varying modes (OpenSubdiv's ``FVarLinearInterpolation``).
+UV_SMOOTH: dict[str, str] = {
+    "None": "all",
+    "Keep Corners": "corners-only",
+    "Keep Corners, Junctions": "corners-plus1",
+    "Keep Corners, Junctions, Concave": "corners-plus2",
+    "Keep Boundaries": "boundaries",
+    "All": "none",
+}
+#: Blender's default (and the modes' default), *Keep Boundaries*.
+UV_SMOOTH_DEFAULT = "Keep Boundaries"
+
+#: Attribute data type -> (``foreach_get`` property, numpy dtype, values per element).
+_LAYOUT: dict[str, tuple[str, Any, int]] = {
+    "FLOAT": ("value", np.float32, 1),
+    "FLOAT2": ("vector", np.float32, 2),
+    "FLOAT_VECTOR": ("vector", np.float32, 3),
+    "FLOAT_COLOR": ("color", np.float32, 4),
+    "BYTE_COLOR": ("color", np.float32, 4),
+    "QUATERNION": ("value", np.float32, 4),
+    "FLOAT4X4": ("value", np.float32, 16),
+    "INT": ("value", np.int32, 1),
+    "INT8": ("value", np.int32, 1),
+    "INT16_2D": ("value", np.int32, 2),
+    "INT32_2D": ("value", np.int32, 2),
+    "BOOLEAN": ("value", bool, 1),
+}
+#: Types that are averaged (through the plan or face-varying); the others take a cage value.
+_AVERAGED = {"FLOAT", "FLOAT2", "FLOAT_VECTOR", "FLOAT_COLOR", "BYTE_COLOR"}
+#: Attributes another part of the add-on carries (or that are topology).
+_HANDLED_ELSEWHERE = {
+    ("POINT", "position"),
+    ("FACE", "material_index"),
+    ("FACE", "sharp_face"),
+    ("CORNER", "custom_normal"),
+}
+#: Internal (dot) attributes that are user data: seams (Blender 4.2; ``uv_seam`` from 4.3).
+_INTERNAL_KEPT = {".uv_seam"}
+CREASE_EDGE, CREASE_VERT = "crease_edge", "crease_vert"
+_CREASE_SCALE = 10.0
+
+
+@dataclass
+class Attribute:
+    """One attribute of a mesh: ``values`` is ``(n,)`` or ``(n, width)`` per element of
+    ``domain`` (``POINT``, ``EDGE``, ``FACE``, ``CORNER``)."""
+
+    name: str
+    domain: str
+    data_type: str
+    values: np.ndarray
+
+
+@dataclass
+class CageAttributes:
+    """The cage's attributes that :mod:`.mesh_io` does not carry, and its custom normals."""
+
+    attributes: list[Attribute]
+    #: Corner normals ``(corners, 3)`` when the cage has custom normals, else ``None``.
+    custom_normals: np.ndarray | None = None
+    #: The active and the default (render) colour attribute, by name.
+    colors: tuple[str, str] = ("", "")
+
+    def fingerprint(self, update: Any) -> None:
+        """Feed the attributes into the hash ``update`` (``hashlib``'s ``update``); not the
+        custom normals, which follow the positions and are written with them."""
+        for attr in self.attributes:
+            update(f"{attr.domain}:{attr.data_type}:{attr.name}".encode())
+            update(np.ascontiguousarray(attr.values).tobytes())
+        update(b"custom normals" if self.custom_normals is not None else b"-")
+        update(repr(self.colors).encode())
+
+
+def _read(attr: Any, count: int) -> np.ndarray:
+    prop, dtype, width = _LAYOUT[attr.data_type]
+    out = np.empty(count * width, dtype=dtype)
+    if count:
+        attr.data.foreach_get(prop, out)
+    return out.reshape(count, width) if width > 1 else out
+
+
+def read_attributes(mesh: bpy.types.Mesh, uv_maps: set[str]) -> CageAttributes:
+    """The attributes of ``mesh`` to carry (all of them but topology, positions, ``uv_maps``
+    (read by :mod:`.mesh_io`), material indices, flat/smooth and strings), and its corner
+    normals if it has custom normals."""
+    counts = {
+        "POINT": len(mesh.vertices),
+        "EDGE": len(mesh.edges),
+        "FACE": len(mesh.polygons),
+        "CORNER": len(mesh.loops),
+    }
+    found: list[Attribute] = []
+    for attr in mesh.attributes:
+        name, domain = attr.name, attr.domain
+        if domain not in counts or attr.data_type not in _LAYOUT:
+            continue
+        if (name.startswith(".") and name not in _INTERNAL_KEPT) or (
+            domain,
+            name,
+        ) in _HANDLED_ELSEWHERE:
+            continue
+        if domain == "CORNER" and name in uv_maps:
+            continue
+        found.append(Attribute(name, domain, attr.data_type, _read(attr, counts[domain])))
+    normals = None
+    if mesh.has_custom_normals and counts["CORNER"]:
+        normals = np.empty(counts["CORNER"] * 3, dtype=np.float32)
+        mesh.corner_normals.foreach_get("vector", normals)
+        normals = normals.reshape(-1, 3)
+    colors = mesh.color_attributes
+    return CageAttributes(found, normals, (colors.active_color_name, colors.default_color_name))
+
+
+def face_varying(plan: bidegree.Plan, values: Any, mode: str) -> Any:
+    """``values`` per cage corner (an array, or a dict of them: each welded on its own, so
+    one attribute's seams do not split another) at the output corners in the face-varying
+    ``mode``."""
+    if isinstance(values, dict):
+        return {k: np.asarray(v) for k, v in plan.evaluate_face_varying(values, mode).items()}
+    return np.asarray(plan.evaluate_face_varying(values, mode))
+
+
+@dataclass
+class SurfaceAttributes:
+    """Attributes of a surface, ready to write: per output element of their domain."""
+
+    attributes: list[Attribute]
+    #: The active and the default (render) colour attribute, by name.
+    colors: tuple[str, str] = ("", "")
+
+
+class _Corners:
+    """The cage corners as the core sees them, and where each output corner lies in them."""
+
+    def __init__(self, plan: bidegree.Plan, cage: Any) -> None:
+        sizes = np.asarray(cage.face_sizes, dtype=np.int64)
+        starts = np.zeros(len(sizes), dtype=np.int64)
+        np.cumsum(sizes[:-1], out=starts[1:])
+        face = np.repeat(np.arange(len(sizes)), sizes)
+        local = np.arange(int(sizes.sum())) - starts[face]
+        theta = 2 * np.pi * local / sizes[face]
+        #: The unit vector of each cage corner, and its linear face-varying values (float64:
+        #: exact at the output corners that are cage corners).
+        self.unit = np.stack([np.cos(theta), np.sin(theta)], axis=1)
+        self.direction = face_varying(plan, self.unit, "all")
+        origin = np.repeat(np.asarray(plan.face_origin, dtype=np.int64), plan.face_sizes)
+        n = sizes[origin]
+        angle = np.arctan2(self.direction[:, 1], self.direction[:, 0])
+        #: For each output corner, the cage corner whose quadrant of the origin face holds it.
+        self.quadrant = starts[origin] + np.rint(angle * n / (2 * np.pi)).astype(np.int64) % n
+        #: Output corners at cage vertices (their vector is the corner's, bit for bit); none
+        #: on the dual mesh, whose vertices are face points (its corners take a corner's value).
+        self.exact = (self.direction == self.unit[self.quadrant]).all(axis=1)
+        if plan.output == "dual":
+            self.exact[:] = False
+        face_indices = np.asarray(plan.face_indices, dtype=np.int64)
+        self.face_indices = face_indices
+        #: The first output corner of each output vertex (it picks the vertex's quadrant).
+        self.first = np.empty(int(plan.num_output_vertices), dtype=np.int64)
+        self.first[face_indices[::-1]] = np.arange(len(face_indices) - 1, -1, -1)
+        self.corner_verts = np.asarray(cage.corner_verts, dtype=np.int64)
+
+    def point_source(self) -> np.ndarray:
+        """The cage vertex each output vertex takes a non-averaged value from."""
+        return self.corner_verts[self.quadrant[self.first]]
+
+
+def transfer(
+    plan: bidegree.Plan,
+    cage: Any,
+    cage_attributes: CageAttributes,
+    *,
+    uv_mode: str,
+    use_creases: bool,
+) -> SurfaceAttributes:
+    """The attributes of ``cage`` (:class:`.mesh_io.CageArrays`) on ``plan``'s surface (custom
+    normals: :func:`custom_normals`, which follow the positions)."""
+    attrs = cage_attributes.attributes
+    by_value = {
+        id(a)
+        for a in attrs
+        if a.domain in ("POINT", "CORNER")
+        and (a.data_type not in _AVERAGED or (a.domain, a.name) == ("POINT", CREASE_VERT))
+    }
+    corners = _Corners(plan, cage) if by_value else None
+    out: list[Attribute] = []
+    points = [a for a in attrs if a.domain == "POINT" and id(a) not in by_value]
+    if points:
+        out += _split(points, np.asarray(plan.evaluate(_stack(points))))
+    corner = [a for a in attrs if a.domain == "CORNER" and id(a) not in by_value]
+    if corner:
+        values = face_varying(plan, {a.name: a.values for a in corner}, uv_mode)
+        for a in corner:
+            out += _split([a], values[a.name].reshape(len(values[a.name]), -1))
+    origin = np.asarray(plan.face_origin, dtype=np.int64)
+    for a in attrs:
+        if a.domain == "FACE":
+            out.append(_like(a, a.values[origin]))
+        elif id(a) in by_value:
+            assert corners is not None
+            if a.name == CREASE_VERT and a.domain == "POINT":
+                out.append(_vertex_crease(a, plan, corners, use_creases))
+            elif a.domain == "POINT":
+                out.append(_like(a, a.values[corners.point_source()]))
+            else:
+                out.append(_like(a, a.values[corners.quadrant]))
+    edges = [a for a in attrs if a.domain == "EDGE"]
+    if edges:
+        out += _edge_attributes(edges, plan, cage, use_creases)
+    order = {(a.domain, a.name): i for i, a in enumerate(attrs)}
+    out.sort(key=lambda a: order[(a.domain, a.name)])
+    return SurfaceAttributes(out, cage_attributes.colors)
+
+
+def face_attributes(cage_attributes: CageAttributes, face_origin: np.ndarray) -> SurfaceAttributes:
+    """Only the face attributes of the cage, through ``face_origin`` (adaptive output)."""
+    origin = np.asarray(face_origin, dtype=np.int64)
+    return SurfaceAttributes(
+        [_like(a, a.values[origin]) for a in cage_attributes.attributes if a.domain == "FACE"]
+    )
+
+
+def custom_normals(plan: bidegree.Plan, normals: np.ndarray) -> np.ndarray:
+    """The cage's corner normals at the output corners: linear face-varying (Subsurf's
+    bilinear mix of *Use Custom Normals*), renormalized; float32 ``(corners, 3)``."""
+    out = face_varying(plan, np.asarray(normals, dtype=np.float64), "all")
+    length = np.linalg.norm(out, axis=1, keepdims=True)
+    return (out / np.where(length > 0, length, 1.0)).astype(np.float32)
+
+
+def _stack(attrs: list[Attribute]) -> np.ndarray:
+    return np.concatenate([a.values.reshape(len(a.values), -1) for a in attrs], axis=1)
+
+
+def _like(attr: Attribute, values: np.ndarray) -> Attribute:
+    return Attribute(attr.name, attr.domain, attr.data_type, values)
+
+
+def _split(attrs: list[Attribute], values: np.ndarray) -> list[Attribute]:
+    """Columns of ``values`` back into one attribute each (in the order of ``attrs``)."""
+    out = []
+    at = 0
+    for a in attrs:
+        width = 1 if a.values.ndim == 1 else a.values.shape[1]
+        part = values[:, at : at + width]
+        at += width
+        part = part[:, 0] if a.values.ndim == 1 else part
+        if a.data_type == "BYTE_COLOR":
+            part = np.clip(part, 0.0, 1.0)
+        out.append(_like(a, part.astype(np.float32)))
+    return out
+
+
+def _lowered(sharpness: np.ndarray, levels: int) -> np.ndarray:
+    """OpenSubdiv's uniform decrement, ``levels`` times: minus one per level, 10 stays."""
+    return np.where(sharpness >= _CREASE_SCALE, _CREASE_SCALE, np.maximum(sharpness - levels, 0))
+
+
+def _to_crease(sharpness: np.ndarray) -> np.ndarray:
+    return np.sqrt(np.clip(sharpness, 0.0, _CREASE_SCALE) / _CREASE_SCALE).astype(np.float32)
+
+
+def _vertex_crease(
+    attr: Attribute, plan: bidegree.Plan, corners: _Corners, use_creases: bool
+) -> Attribute:
+    """The crease of each cage vertex on its own output vertex (lowered per level), 0 elsewhere."""
+    values = np.zeros(int(plan.num_output_vertices), dtype=np.float32)
+    crease = attr.values[corners.corner_verts[corners.quadrant[corners.exact]]]
+    if use_creases:
+        sharpness = _CREASE_SCALE * np.clip(crease, 0.0, 1.0) ** 2
+        crease = _to_crease(_lowered(sharpness, int(plan.levels)))
+    values[corners.face_indices[corners.exact]] = crease
+    return _like(attr, values)
+
+
+def _edge_attributes(
+    attrs: list[Attribute], plan: bidegree.Plan, cage: Any, use_creases: bool
+) -> list[Attribute]:
+    """Edge attributes on the child edges of each cage edge (the default elsewhere)."""
+    cage_edges = np.asarray(plan.cage_edges, dtype=np.int64)
+    core_keys = cage_edges[:, 0] << 32 | cage_edges[:, 1]
+    edges = np.sort(np.asarray(cage.edges, dtype=np.int64).reshape(-1, 2), axis=1)
+    keys = edges[:, 0] << 32 | edges[:, 1]
+    at = np.minimum(np.searchsorted(core_keys, keys), max(len(core_keys) - 1, 0))
+    found = (core_keys[at] == keys) if len(core_keys) else np.zeros(len(keys), bool)
+    blender_of_core = np.full(len(core_keys), -1, dtype=np.int64)
+    blender_of_core[at[found]] = np.flatnonzero(found)
+    origin = np.asarray(plan.edge_origin, dtype=np.int64)
+    source = np.where(origin >= 0, blender_of_core[np.maximum(origin, 0)], -1)
+    on_edge = source >= 0
+    out = []
+    for a in attrs:
+        values = np.zeros((len(origin), *a.values.shape[1:]), dtype=a.values.dtype)
+        values[on_edge] = a.values[source[on_edge]]
+        if a.name == CREASE_EDGE and a.data_type == "FLOAT" and use_creases:
+            values = _edge_crease(a.values, values, source, plan, cage)
+        out.append(_like(a, values))
+    return out
+
+
+def _edge_crease(
+    crease: np.ndarray, copied: np.ndarray, source: np.ndarray, plan: bidegree.Plan, cage: Any
+) -> np.ndarray:
+    """The crease each child edge keeps: the core's sharpness at the last level (its own
+    per-level rule), the uniform decrement on boundary edges (always infinitely sharp in the
+    core, so the user's value is lowered as it would be inside)."""
+    faces_per_edge = np.bincount(np.asarray(cage.corner_edges), minlength=len(crease))
+    creased = (source >= 0) & (copied > 0)
+    boundary = np.zeros(len(source), dtype=bool)
+    boundary[creased] = faces_per_edge[source[creased]] == 1
+    sharpness = np.asarray(plan.edge_sharpness, dtype=np.float32).copy()
+    cage_sharpness = _CREASE_SCALE * np.clip(copied, 0.0, 1.0) ** 2
+    sharpness[boundary] = _lowered(cage_sharpness[boundary], int(plan.levels))
+    return np.where(creased, _to_crease(sharpness), 0.0).astype(np.float32)
+
+
+def write_attributes(mesh: bpy.types.Mesh, surface: SurfaceAttributes) -> None:
+    """Create every attribute of ``surface`` on ``mesh`` (which has the surface's topology)."""
+    for a in surface.attributes:
+        existing = mesh.attributes.get(a.name)
+        if existing is not None:
+            if existing.domain == a.domain and existing.data_type == a.data_type:
+                target = existing
+            else:
+                mesh.attributes.remove(existing)
+                target = None
+        else:
+            target = None
+        if target is None:
+            target = mesh.attributes.new(a.name, a.data_type, a.domain)
+            if target is None:  # a reserved name on this Blender version
+                continue
+        prop, dtype, _width = _LAYOUT[a.data_type]
+        values = np.ascontiguousarray(a.values, dtype=dtype).ravel()
+        if values.size:
+            target.data.foreach_set(prop, values)
+    colors = mesh.color_attributes
+    active, default = surface.colors
+    if active in colors:
+        colors.active_color_name = active
+    if default in colors:
+        colors.default_color_name = default
