@@ -89,6 +89,16 @@ impl<'a> Tables<'a> {
         &self.vertex_corners[self.vertex_offsets[v] as usize..self.vertex_offsets[v + 1] as usize]
     }
 
+    /// The values of `x` (per vertex) at the four corners of quad `f`.
+    #[inline(always)]
+    fn at_corners<T: Scalar, const N: usize>(
+        &self,
+        x: &[Value<T, N>],
+        f: usize,
+    ) -> [Value<T, N>; 4] {
+        std::array::from_fn(|k| x[self.corner_verts[4 * f + k] as usize])
+    }
+
     /// [`Level::face_of`].
     #[inline(always)]
     fn face_of(&self, corner: usize) -> usize {
@@ -493,13 +503,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
             let mut out = self.take_faces();
             let v: &[Value<T, N>] = &self.vertices;
             child_face_centroids(&t, curves, &curve, &touched, &mut out, n, |f| {
-                let q = &t.corner_verts[4 * f..4 * f + 4];
-                let p = [
-                    v[q[0] as usize],
-                    v[q[1] as usize],
-                    v[q[2] as usize],
-                    v[q[3] as usize],
-                ];
+                let p = t.at_corners(v, f);
                 let centre = scale(p.iter().fold(zero(), |s, &x| add(s, x)), reciprocal(4));
                 let m = std::array::from_fn(|k| scale(add(p[k], p[(k + 1) & 3]), half));
                 (p, m, centre)
@@ -524,13 +528,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
             let corner_edges = coarse.corner_edges();
             let mut out = self.take_vertices();
             child_face_centroids(&t, curves, &curve, &touched, &mut out, n, |f| {
-                let q = &t.corner_verts[4 * f..4 * f + 4];
-                let p = [
-                    old[q[0] as usize],
-                    old[q[1] as usize],
-                    old[q[2] as usize],
-                    old[q[3] as usize],
-                ];
+                let p = t.at_corners(old, f);
                 let m = std::array::from_fn(|k| {
                     edge_face_mean(&t, data, corner_edges[4 * f + k] as usize)
                 });
