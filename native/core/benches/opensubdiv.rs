@@ -12,7 +12,10 @@
 //! factory + RefineUniform + PrimvarRefiner::Interpolate; bidegree: Plan::new + evaluate),
 //! "cached" only the points through existing topology (Interpolate; Plan::evaluate). Times are
 //! medians of 3 to 21 repetitions after a warm-up. The ratios are bidegree's faces/s over
-//! OpenSubdiv's for the same cage and level (> 1: bidegree faster).
+//! OpenSubdiv's for the same cage and level (> 1: bidegree faster). Each bidegree row is
+//! measured twice: on rayon's default pool, then (suffix `1t`) on a pool of one thread, against
+//! OpenSubdiv's one thread. The last column, `/copy`, is the cached time over that of copying
+//! the output into a new vector (1: memory speed).
 //!
 //! Environment: `BIDEGREE_OSD_DRIVER` (path of the driver; without it only bidegree's numbers
 //! are printed), `BIDEGREE_BENCH_SECONDS` (target time per measurement, default 1),
@@ -188,9 +191,24 @@ fn main() {
         load_average()
     );
     let header = format!(
-        "{:>5} {:>5} {:<14} {:>10} {:>11} {:>11} {:>8} {:>8}",
-        "cage", "level", "scheme", "faces", "fresh f/s", "cached f/s", "fresh x", "cached x"
+        "{:>5} {:>5} {:<14} {:>10} {:>11} {:>11} {:>8} {:>8} {:>8}",
+        "cage",
+        "level",
+        "scheme",
+        "faces",
+        "fresh f/s",
+        "cached f/s",
+        "fresh x",
+        "cached x",
+        "/copy"
     );
+    let default_pool = rayon::ThreadPoolBuilder::new()
+        .build()
+        .expect("a thread pool");
+    let one_thread = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("a thread pool of one thread");
     for name in &cages {
         let n = match name.as_str() {
             "4k" => 8,
@@ -271,36 +289,46 @@ fn main() {
                     );
                     continue;
                 }
-                let fresh = median_ms(seconds, || {
-                    let plan = Plan::new(&cage, &options).unwrap();
-                    let out = plan.evaluate(&points, 3).unwrap();
-                    (plan, out)
-                });
-                let plan = Plan::new(&cage, &options).unwrap();
-                let cached = median_ms(seconds, || plan.evaluate(&moved, 3).unwrap());
-                let faces = plan.num_output_faces() as f64;
-                drop(plan);
                 let ratio = |ours: f64, theirs: Option<f64>| {
                     theirs.map_or("-".to_string(), |t| format!("{:.2}", t / ours))
                 };
-                if let Some(o) = reference {
-                    assert_eq!(
-                        o.faces as f64, faces,
-                        "same output face count as OpenSubdiv"
+                // Each row twice: on the default pool, then on a pool of one thread (against
+                // OpenSubdiv's one thread).
+                for (threads, pool) in [("", &default_pool), (" 1t", &one_thread)] {
+                    let (fresh, cached, copy, faces) = pool.install(|| {
+                        let fresh = median_ms(seconds, || {
+                            let plan = Plan::new(&cage, &options).unwrap();
+                            let out = plan.evaluate(&points, 3).unwrap();
+                            (plan, out)
+                        });
+                        let plan = Plan::new(&cage, &options).unwrap();
+                        let cached = median_ms(seconds, || plan.evaluate(&moved, 3).unwrap());
+                        // The reference of "memory speed": a copy of the output into a new
+                        // vector (what a cached evaluation returns).
+                        let out = plan.evaluate(&moved, 3).unwrap();
+                        let copy = median_ms(seconds, || out.clone());
+                        (fresh, cached, copy, plan.num_output_faces() as f64)
+                    });
+                    if let Some(o) = reference {
+                        assert_eq!(
+                            o.faces as f64, faces,
+                            "same output face count as OpenSubdiv"
+                        );
+                    }
+                    println!(
+                        "{:>5} {:>5} {:<14} {:>10} {:>11.3e} {:>11.3e} {:>8} {:>8} {:>8.2}",
+                        name,
+                        level,
+                        format!("{label}{threads}"),
+                        faces,
+                        faces / fresh * 1e3,
+                        faces / cached * 1e3,
+                        ratio(fresh, reference.map(|o| o.fresh_ms)),
+                        ratio(cached, reference.map(|o| o.cached_ms)),
+                        cached / copy,
                     );
+                    std::io::stdout().flush().ok();
                 }
-                println!(
-                    "{:>5} {:>5} {:<14} {:>10} {:>11.3e} {:>11.3e} {:>8} {:>8}",
-                    name,
-                    level,
-                    label,
-                    faces,
-                    faces / fresh * 1e3,
-                    faces / cached * 1e3,
-                    ratio(fresh, reference.map(|o| o.fresh_ms)),
-                    ratio(cached, reference.map(|o| o.cached_ms)),
-                );
-                std::io::stdout().flush().ok();
             }
         }
     }

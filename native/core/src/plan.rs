@@ -145,6 +145,13 @@ impl Plan {
         self.output.corner_edges(&self.refinement)
     }
 
+    /// Builds the output mesh's tables that wait for their first use (face offsets, cage faces,
+    /// the last level's edges). The accessors below build them too, but panic if memory runs
+    /// out there; call this first to get [`crate::Error::OutOfMemory`] instead.
+    pub fn complete_output(&self) -> Result<()> {
+        in_pool(|| self.output.complete(&self.refinement))
+    }
+
     /// Evaluates per-vertex values of the cage (`channels` interleaved values per cage vertex,
     /// in the user's numbering) and returns the values at the output vertices, interleaved.
     pub fn evaluate<T: Scalar>(&self, values: &[T], channels: usize) -> Result<Vec<T>> {

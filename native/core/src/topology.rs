@@ -261,7 +261,15 @@ impl Level {
     /// corner, if the level was refined without its vertex -> corner table).
     #[inline]
     pub fn corners_of_vertex(&self, v: usize) -> &[u32] {
-        let (offsets, corners) = if self.vert_corner_offsets.is_empty() {
+        let (offsets, corners) = self.vertex_corner_table();
+        &corners[offsets[v] as usize..offsets[v + 1] as usize]
+    }
+
+    /// The vertex -> corner table as CSR `(offsets, corners)` (what [`Level::corners_of_vertex`]
+    /// reads, for passes that look it up once instead of once per vertex).
+    #[inline]
+    pub(crate) fn vertex_corner_table(&self) -> (&[u32], &[u32]) {
+        if self.vert_corner_offsets.is_empty() {
             // Only levels built without the table get here (plans index theirs when built).
             let (o, c) = self.lazy_vertex_corners.get_or_init(|| {
                 vertex_corners(self.num_vertices, &self.corner_verts)
@@ -270,8 +278,7 @@ impl Level {
             (o, c)
         } else {
             (&self.vert_corner_offsets, &self.vert_corners)
-        };
-        &corners[offsets[v] as usize..offsets[v + 1] as usize]
+        }
     }
 
     /// True if edge `e` has a single face.

@@ -8,7 +8,7 @@
 
 use std::borrow::Cow;
 
-use super::{blend, curve_to_dual, first_point, CurveData, LevelData, Step};
+use super::{blend, curve_to_dual, first_point, CurveData, LevelData, Step, Tables};
 use crate::parallel::gather_into;
 use crate::scalar::{add, mad, scale, zero, Scalar, Value};
 use crate::scheme::doo_sabin_weight;
@@ -30,7 +30,8 @@ impl<T: Scalar, const N: usize> LevelData<'_, T, N> {
         };
         let before: &[Value<T, N>] = if primal { &self.vertices } else { &self.faces };
         // Fine vertex `w` after replication and the first (dual -> primal) average.
-        let point = |w: usize| first_point(coarse, before, primal, w);
+        let t = Tables::of(coarse);
+        let point = |w: usize| first_point(&t, before, primal, w);
         let curve = self.curve_to_primal(curves, point);
         let blended = |w: usize| -> Value<T, N> {
             let mut p = point(w);

@@ -13,9 +13,10 @@
 //! the number of threads, and the same on a partial level as on the full one wherever the
 //! inputs of a value are present.
 //!
-//! Performance notes: a step on primal data over a quad level runs its replication and first
-//! two averages as one pass over the coarse faces (nothing of the first average is stored,
-//! bitwise the separate passes); the other passes gather through the coarse level's tables. The
+//! Performance notes: a step over a quad level runs its replication and first two averages as
+//! one pass over the coarse faces (nothing of the first average is stored but, on dual data,
+//! the old vertices' points; bitwise the separate passes); the other passes gather through the
+//! coarse level's tables, looked up once per pass ([`Tables`]). The
 //! working buffers come from a [`Scratch`] that a plan keeps between evaluations, so that a
 //! cached re-evaluation pays page faults only for the array it returns.
 
@@ -51,6 +52,83 @@ pub(crate) struct Step<'a> {
     pub curves: &'a CurveNetwork,
     /// Classic Catmull-Clark: sharpness and rules of `coarse` and `fine`.
     pub sharpness: Option<(&'a LevelSharpness, &'a LevelSharpness)>,
+}
+
+/// The tables of a coarse level that a pass reads, looked up once per pass: the accessors of
+/// [`Level`] check per call which tables the level has (a quad level has no face tables, the
+/// edge tables sit behind a `OnceLock`), which cost a tenth of a cached evaluation's
+/// instructions when done per vertex.
+#[derive(Clone, Copy)]
+pub(super) struct Tables<'a> {
+    level: &'a Level,
+    quads: bool,
+    corner_verts: &'a [u32],
+    edge_verts: &'a [[u32; 2]],
+    edge_corners: &'a [[u32; 2]],
+    vertex_offsets: &'a [u32],
+    vertex_corners: &'a [u32],
+}
+
+impl<'a> Tables<'a> {
+    /// The tables of `level` (a level with its edge tables: every coarse level of a step).
+    pub(super) fn of(level: &'a Level) -> Self {
+        let (vertex_offsets, vertex_corners) = level.vertex_corner_table();
+        Tables {
+            level,
+            quads: level.is_quads(),
+            corner_verts: &level.corner_verts,
+            edge_verts: level.edge_verts(),
+            edge_corners: level.edge_corners(),
+            vertex_offsets,
+            vertex_corners,
+        }
+    }
+
+    /// [`Level::corners_of_vertex`].
+    #[inline(always)]
+    fn corners_of_vertex(&self, v: usize) -> &'a [u32] {
+        &self.vertex_corners[self.vertex_offsets[v] as usize..self.vertex_offsets[v + 1] as usize]
+    }
+
+    /// The values of `x` (per vertex) at the four corners of quad `f`.
+    #[inline(always)]
+    fn at_corners<T: Scalar, const N: usize>(
+        &self,
+        x: &[Value<T, N>],
+        f: usize,
+    ) -> [Value<T, N>; 4] {
+        std::array::from_fn(|k| x[self.corner_verts[4 * f + k] as usize])
+    }
+
+    /// [`Level::face_of`].
+    #[inline(always)]
+    fn face_of(&self, corner: usize) -> usize {
+        if self.quads {
+            corner >> 2
+        } else {
+            self.level.face_of(corner)
+        }
+    }
+
+    /// [`Level::next`].
+    #[inline(always)]
+    fn next(&self, corner: usize) -> usize {
+        if self.quads {
+            (corner & !3) | ((corner + 1) & 3)
+        } else {
+            self.level.next(corner)
+        }
+    }
+
+    /// [`Level::face_corners`].
+    #[inline(always)]
+    fn face_corners(&self, f: usize) -> std::ops::Range<usize> {
+        if self.quads {
+            4 * f..4 * f + 4
+        } else {
+            self.level.face_corners(f)
+        }
+    }
 }
 
 /// 1-D data on the curve network: per curve vertex (primal) or per curve edge (dual) of the
@@ -236,7 +314,9 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
 
     /// The step of the averaging rules of `degree`: replicate, then `degree` averages.
     fn average(&mut self, step: &Step, degree: u32) {
-        let first = if self.primal && degree >= 2 && step.coarse.is_quads() {
+        // The fused first pass needs, on dual data, a buffer of our own for its old vertices.
+        let fusable = self.primal || matches!(self.faces, Cow::Owned(_));
+        let first = if fusable && degree >= 2 && step.coarse.is_quads() {
             self.first_average_to_dual(step);
             3
         } else {
@@ -391,6 +471,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         self.replicate_curves(step.curves);
         let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
         let sections = [nv, ne, fine.num_vertices - nv - ne];
+        let t = Tables::of(coarse);
         if self.primal {
             let mut out = self.take_faces();
             let v: &[Value<T, N>] = &self.vertices;
@@ -398,8 +479,8 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
                 &mut out,
                 sections,
                 |w| v[w],
-                |e| edge_midpoint(coarse, v, e),
-                |f| face_centroid(coarse, v, f),
+                |e| edge_midpoint(&t, v, e),
+                |f| face_centroid(&t, v, f),
             );
             // The coarse primal buffer is free now: keep it for later passes.
             if let Cow::Owned(old) = std::mem::replace(&mut self.vertices, Cow::Borrowed(&[])) {
@@ -412,101 +493,75 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
             gather_sections(
                 &mut out,
                 sections,
-                |w| vertex_face_centroid(coarse, f, w),
-                |e| edge_face_mean(coarse, f, e),
+                |w| vertex_face_centroid(&t, f, w),
+                |e| edge_face_mean(&t, f, e),
                 |face| f[face],
             );
             self.finish_primal(out, step.curves);
         }
     }
 
-    /// Replication, the first dual -> primal and the first primal -> dual average of a step whose
-    /// data is primal on a quad level, in one pass over the coarse faces: each computes the
-    /// nine child points of its face in closed form (as [`LevelData::first_average`], never
-    /// stored) and the centroids of its four child faces. Faces next to curve vertices use the
-    /// blended points. The result is bitwise that of the separate passes.
+    /// Replication, the first dual -> primal and the first primal -> dual average of a step on a
+    /// quad level, in one pass over the coarse faces: each computes the nine child points of its
+    /// face in closed form (as [`LevelData::first_average`], never stored) and the centroids of
+    /// its four child faces. Primal data gives the child points from the face's corners; dual
+    /// data (which must be in a buffer of our own) from the face, its edge neighbours and the
+    /// old vertices' points, computed once each into the tail of that buffer (it has room for
+    /// a level of the plan). Faces next to curve vertices use the blended points. The result is
+    /// bitwise that of the separate passes.
     fn first_average_to_dual(&mut self, step: &Step) {
         let (coarse, fine, curves) = (step.coarse, step.fine, step.curves);
-        debug_assert!(self.primal && coarse.is_quads());
+        debug_assert!(coarse.is_quads());
+        let primal = self.primal;
         self.replicate_curves(curves);
-        let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
+        let nv = coarse.num_vertices;
+        let t = Tables::of(coarse);
         let curve = {
-            let v: &[Value<T, N>] = &self.vertices;
-            self.curve_to_primal(curves, |w| first_point(coarse, v, true, w))
+            let x: &[Value<T, N>] = if primal { &self.vertices } else { &self.faces };
+            self.curve_to_primal(curves, |w| first_point(&t, x, primal, w))
         };
-        // Coarse faces whose child faces have a curve vertex among their corners.
-        let mut touched = vec![
-            false;
-            if curve.is_empty() {
-                0
-            } else {
-                coarse.num_faces()
-            }
-        ];
-        for cv in curves.vertices() {
-            let w = cv.vertex as usize;
-            if w < nv {
-                for &c in coarse.corners_of_vertex(w) {
-                    touched[coarse.face_of(c as usize)] = true;
-                }
-            } else if w < nv + ne {
-                for &c in &coarse.edge_corners()[w - nv] {
-                    if c != NONE {
-                        touched[coarse.face_of(c as usize)] = true;
-                    }
-                }
-            } else {
-                touched[w - nv - ne] = true;
-            }
-        }
+        let touched = touched_faces(&t, curves);
         let n = fine.num_faces();
-        let mut out = self.take_faces();
-        if out.len() < n {
-            // Written in parallel, so that a new buffer's pages are touched by both threads.
-            gather_into(&mut out, n, |_| zero());
-        }
-        out.truncate(n);
-        let v: &[Value<T, N>] = &self.vertices;
         let half = T::from_f64(0.5);
-        let quarter = T::from_f64(0.25);
-        let blended = |w: usize, mut p: Value<T, N>| -> Value<T, N> {
-            if let Some(i) = curves.vertex_index(w as u32) {
-                blend(&mut p, curve[i as usize], &curves.vertices()[i as usize]);
-            }
-            p
-        };
-        out.par_chunks_mut(4 * CHUNK)
-            .enumerate()
-            .for_each(|(chunk, faces)| {
-                for (i, quad) in faces.chunks_exact_mut(4).enumerate() {
-                    let f = chunk * CHUNK + i;
-                    let q = &coarse.corner_verts[4 * f..4 * f + 4];
-                    let mut p = [
-                        v[q[0] as usize],
-                        v[q[1] as usize],
-                        v[q[2] as usize],
-                        v[q[3] as usize],
-                    ];
-                    let centre = scale(p.iter().fold(zero(), |s, &x| add(s, x)), reciprocal(4));
-                    // m[k]: the edge point of corner k's outgoing edge.
-                    let mut m: [Value<T, N>; 4] =
-                        std::array::from_fn(|k| scale(add(p[k], p[(k + 1) & 3]), half));
-                    let mut centre = centre;
-                    if touched.get(f).copied().unwrap_or(false) {
-                        for k in 0..4 {
-                            p[k] = blended(q[k] as usize, p[k]);
-                            let e = coarse.corner_edges()[4 * f + k] as usize;
-                            m[k] = blended(nv + e, m[k]);
-                        }
-                        centre = blended(nv + ne + f, centre);
-                    }
-                    for (k, out) in quad.iter_mut().enumerate() {
-                        let s = add(add(p[k], m[k]), add(centre, m[(k + 3) & 3]));
-                        *out = scale(s, quarter);
-                    }
-                }
+        if primal {
+            let mut out = self.take_faces();
+            let v: &[Value<T, N>] = &self.vertices;
+            child_face_centroids(&t, curves, &curve, &touched, &mut out, n, |f| {
+                let p = t.at_corners(v, f);
+                let centre = scale(p.iter().fold(zero(), |s, &x| add(s, x)), reciprocal(4));
+                let m = std::array::from_fn(|k| scale(add(p[k], p[(k + 1) & 3]), half));
+                (p, m, centre)
             });
-        self.faces = Cow::Owned(out);
+            self.faces = Cow::Owned(out);
+        } else {
+            let Cow::Owned(mut x) = std::mem::replace(&mut self.faces, Cow::Borrowed(&[])) else {
+                unreachable!("the fused pass on dual data takes its own buffer")
+            };
+            let nf = x.len();
+            x.resize(nf + nv, zero());
+            let (data, old) = x.split_at_mut(nf);
+            let data: &[Value<T, N>] = data;
+            old.par_chunks_mut(CHUNK)
+                .enumerate()
+                .for_each(|(chunk, points)| {
+                    for (i, p) in points.iter_mut().enumerate() {
+                        *p = vertex_face_centroid(&t, data, chunk * CHUNK + i);
+                    }
+                });
+            let old: &[Value<T, N>] = old;
+            let corner_edges = coarse.corner_edges();
+            let mut out = self.take_vertices();
+            child_face_centroids(&t, curves, &curve, &touched, &mut out, n, |f| {
+                let p = t.at_corners(old, f);
+                let m = std::array::from_fn(|k| {
+                    edge_face_mean(&t, data, corner_edges[4 * f + k] as usize)
+                });
+                (p, m, data[f])
+            });
+            x.truncate(nf);
+            self.vertices = Cow::Owned(x);
+            self.faces = Cow::Owned(out);
+        }
         self.curve = CurveData::Dual(curve_to_dual(curves, &curve));
         self.primal = false;
     }
@@ -521,24 +576,25 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         let f: &[Value<T, N>] = &self.faces;
         let quarter = T::from_f64(0.25);
         let half = T::from_f64(0.5);
+        let t = Tables::of(coarse);
         gather_sections(
             out,
             [nv, ne, step.fine.num_vertices - nv - ne],
             |w| {
-                let corners = coarse.corners_of_vertex(w);
+                let corners = t.corners_of_vertex(w);
                 let sum = corners.iter().fold(zero(), |s, &c| add(s, f[c as usize]));
                 scale(sum, reciprocal(corners.len()))
             },
-            |e| match coarse.edge_corners()[e] {
-                [c, NONE] => scale(add(f[c as usize], f[coarse.next(c as usize)]), half),
+            |e| match t.edge_corners[e] {
+                [c, NONE] => scale(add(f[c as usize], f[t.next(c as usize)]), half),
                 [c, d] => {
                     let (c, d) = (c as usize, d as usize);
-                    let s = add(add(f[c], f[coarse.next(c)]), add(f[d], f[coarse.next(d)]));
+                    let s = add(add(f[c], f[t.next(c)]), add(f[d], f[t.next(d)]));
                     scale(s, quarter)
                 }
             },
             |face| {
-                let corners = coarse.face_corners(face);
+                let corners = t.face_corners(face);
                 let k = corners.len();
                 let sum = f[corners].iter().fold(zero(), |s, &x| add(s, x));
                 scale(sum, reciprocal(k))
@@ -559,8 +615,9 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         let quarter = T::from_f64(0.25);
         let mut out = self.take_faces();
         let v: &[Value<T, N>] = &self.vertices;
+        let (quads, _) = fine.corner_verts.as_chunks::<4>();
         gather_into(&mut out, fine.num_faces(), |f| {
-            let q = &fine.corner_verts[4 * f..4 * f + 4];
+            let q = quads[f];
             let s = add(
                 add(v[q[0] as usize], v[q[1] as usize]),
                 add(v[q[2] as usize], v[q[3] as usize]),
@@ -587,31 +644,113 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
 /// or dual data `x` of `coarse`, in closed form (the sections of [`LevelData::first_average`]).
 #[inline]
 fn first_point<T: Scalar, const N: usize>(
-    coarse: &Level,
+    t: &Tables,
     x: &[Value<T, N>],
     primal: bool,
     w: usize,
 ) -> Value<T, N> {
-    let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
+    let (nv, ne) = (t.level.num_vertices, t.level.num_edges());
     match (primal, w < nv, w < nv + ne) {
         (true, true, _) => x[w],
-        (true, false, true) => edge_midpoint(coarse, x, w - nv),
-        (true, false, false) => face_centroid(coarse, x, w - nv - ne),
-        (false, true, _) => vertex_face_centroid(coarse, x, w),
-        (false, false, true) => edge_face_mean(coarse, x, w - nv),
+        (true, false, true) => edge_midpoint(t, x, w - nv),
+        (true, false, false) => face_centroid(t, x, w - nv - ne),
+        (false, true, _) => vertex_face_centroid(t, x, w),
+        (false, false, true) => edge_face_mean(t, x, w - nv),
         (false, false, false) => x[w - nv - ne],
     }
+}
+
+/// The coarse faces whose child faces have a curve vertex of `curves` among their corners
+/// (empty when the step has none).
+fn touched_faces(t: &Tables, curves: &CurveNetwork) -> Vec<bool> {
+    let coarse = t.level;
+    if curves.vertices().is_empty() {
+        return Vec::new();
+    }
+    let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
+    let mut touched = vec![false; coarse.num_faces()];
+    for cv in curves.vertices() {
+        let w = cv.vertex as usize;
+        if w < nv {
+            for &c in t.corners_of_vertex(w) {
+                touched[t.face_of(c as usize)] = true;
+            }
+        } else if w < nv + ne {
+            for &c in &t.edge_corners[w - nv] {
+                if c != NONE {
+                    touched[t.face_of(c as usize)] = true;
+                }
+            }
+        } else {
+            touched[w - nv - ne] = true;
+        }
+    }
+    touched
+}
+
+/// The second half of [`LevelData::first_average_to_dual`]: `out` becomes the `n` faces of
+/// the fine level, four per coarse quad `f`, each the centroid of its corners among the nine
+/// child points `nine(f)` = (old vertices, edge points of the corners' outgoing edges, face
+/// point), which take their 1-D values `curve` where `touched`. Each face is written once, in
+/// parallel chunks (so a new buffer's pages are touched by both threads).
+fn child_face_centroids<T: Scalar, const N: usize>(
+    t: &Tables,
+    curves: &CurveNetwork,
+    curve: &[Value<T, N>],
+    touched: &[bool],
+    out: &mut Vec<Value<T, N>>,
+    n: usize,
+    nine: impl Fn(usize) -> ([Value<T, N>; 4], [Value<T, N>; 4], Value<T, N>) + Sync,
+) {
+    let coarse = t.level;
+    let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
+    out.clear();
+    if out.capacity() < n {
+        *out = hinted_or_abort(n);
+    }
+    let quarter = T::from_f64(0.25);
+    let blended = |w: usize, mut p: Value<T, N>| -> Value<T, N> {
+        if let Some(i) = curves.vertex_index(w as u32) {
+            blend(&mut p, curve[i as usize], &curves.vertices()[i as usize]);
+        }
+        p
+    };
+    out.spare_capacity_mut()[..n]
+        .par_chunks_mut(4 * CHUNK)
+        .enumerate()
+        .for_each(|(chunk, faces)| {
+            for (i, quad) in faces.chunks_exact_mut(4).enumerate() {
+                let f = chunk * CHUNK + i;
+                let (mut p, mut m, mut centre) = nine(f);
+                if touched.get(f).copied().unwrap_or(false) {
+                    let q = &t.corner_verts[4 * f..4 * f + 4];
+                    for k in 0..4 {
+                        p[k] = blended(q[k] as usize, p[k]);
+                        let e = coarse.corner_edges()[4 * f + k] as usize;
+                        m[k] = blended(nv + e, m[k]);
+                    }
+                    centre = blended(nv + ne + f, centre);
+                }
+                for (k, out) in quad.iter_mut().enumerate() {
+                    let s = add(add(p[k], m[k]), add(centre, m[(k + 3) & 3]));
+                    out.write(scale(s, quarter));
+                }
+            }
+        });
+    // SAFETY: the loop above wrote every one of the first `n` items (`n` is four times the
+    // coarse faces; a panic would have unwound past here).
+    unsafe { out.set_len(n) };
 }
 
 /// The midpoint of coarse edge `e` from primal data `v` (its edge point after replication and
 /// one average).
 #[inline(always)]
 fn edge_midpoint<T: Scalar, const N: usize>(
-    coarse: &Level,
+    t: &Tables,
     v: &[Value<T, N>],
     e: usize,
 ) -> Value<T, N> {
-    let [a, b] = coarse.edge_verts()[e];
+    let [a, b] = t.edge_verts[e];
     scale(add(v[a as usize], v[b as usize]), T::from_f64(0.5))
 }
 
@@ -619,13 +758,13 @@ fn edge_midpoint<T: Scalar, const N: usize>(
 /// replication and one average).
 #[inline(always)]
 fn face_centroid<T: Scalar, const N: usize>(
-    coarse: &Level,
+    t: &Tables,
     v: &[Value<T, N>],
     f: usize,
 ) -> Value<T, N> {
-    let corners = coarse.face_corners(f);
+    let corners = t.face_corners(f);
     let k = corners.len();
-    let sum = corners.fold(zero(), |s, c| add(s, v[coarse.corner_verts[c] as usize]));
+    let sum = corners.fold(zero(), |s, c| add(s, v[t.corner_verts[c] as usize]));
     scale(sum, reciprocal(k))
 }
 
@@ -633,14 +772,14 @@ fn face_centroid<T: Scalar, const N: usize>(
 /// replication and one average).
 #[inline(always)]
 fn vertex_face_centroid<T: Scalar, const N: usize>(
-    coarse: &Level,
+    t: &Tables,
     f: &[Value<T, N>],
     w: usize,
 ) -> Value<T, N> {
-    let corners = coarse.corners_of_vertex(w);
+    let corners = t.corners_of_vertex(w);
     let sum = corners
         .iter()
-        .fold(zero(), |s, &c| add(s, f[coarse.face_of(c as usize)]));
+        .fold(zero(), |s, &c| add(s, f[t.face_of(c as usize)]));
     scale(sum, reciprocal(corners.len()))
 }
 
@@ -648,14 +787,14 @@ fn vertex_face_centroid<T: Scalar, const N: usize>(
 /// replication and one average).
 #[inline(always)]
 fn edge_face_mean<T: Scalar, const N: usize>(
-    coarse: &Level,
+    t: &Tables,
     f: &[Value<T, N>],
     e: usize,
 ) -> Value<T, N> {
-    match coarse.edge_corners()[e] {
-        [c, NONE] => f[coarse.face_of(c as usize)],
+    match t.edge_corners[e] {
+        [c, NONE] => f[t.face_of(c as usize)],
         [c, d] => scale(
-            add(f[coarse.face_of(c as usize)], f[coarse.face_of(d as usize)]),
+            add(f[t.face_of(c as usize)], f[t.face_of(d as usize)]),
             T::from_f64(0.5),
         ),
     }
