@@ -144,8 +144,11 @@ impl<'a> SectorGrid<'a> {
     }
 }
 
-/// A neighbourhood item: its label `(sector, i, j)` and its index in the level.
-pub(crate) type Labelled = ((usize, usize, usize), usize);
+/// A neighbourhood label `(sector, i, j)`.
+pub(crate) type Label = (usize, usize, usize);
+
+/// A neighbourhood item: its label and its index in the level.
+pub(crate) type Labelled = (Label, usize);
 
 /// The frames `(s, i, j)` of [`SectorGrid::frame`] for `0 <= i, j <= last`, sector by sector
 /// and row by row (index `s (last+1)^2 + i (last+1) + j`), walked incrementally (one step per
@@ -277,7 +280,7 @@ fn impulse_responses(
     degree: u32,
     valence: usize,
     wanted: impl Fn((usize, usize, usize)) -> bool,
-) -> Result<(Vec<(usize, usize, usize)>, Vec<Vec<f64>>)> {
+) -> Result<(Vec<Label>, Vec<Vec<f64>>)> {
     if valence < 3 {
         return Err(Error::InvalidInput(format!("valence {valence} is below 3")));
     }
