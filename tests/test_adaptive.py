@@ -207,7 +207,15 @@ def test_cli_adaptive_stays_under_the_budget(tmp_path: Path, tolerance: str, bud
 
     args = ["--adaptive", "--tolerance", tolerance, "--max-level", "16"]
     done = subprocess.run(
-        [sys.executable, "-m", "bidegree.cli", "subdivide", str(cage), "-o", str(tmp_path / "o.obj")]
+        [
+            sys.executable,
+            "-m",
+            "bidegree.cli",
+            "subdivide",
+            str(cage),
+            "-o",
+            str(tmp_path / "o.obj"),
+        ]
         + args
         + (["--memory-budget", budget] if budget else []),
         capture_output=True,
