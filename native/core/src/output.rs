@@ -60,6 +60,14 @@ impl OutputMesh {
             }
             return without_holes(refinement);
         }
+        if dual && refinement.levels_as_built()[0].is_non_manifold() {
+            // One dual face per fan is what OpenSubdiv's topology suggests, but the dual mesh
+            // walk does not follow fans across non-manifold edges yet.
+            return Err(Error::InvalidInput(
+                "the dual output of a non-manifold cage is not supported; use the primal output"
+                    .into(),
+            ));
+        }
         if dual && refinement.levels_as_built().len() > 1 {
             let origin = face_origin(refinement)?;
             let dual = dual_mesh(refinement, &origin)?;
