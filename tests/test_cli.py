@@ -212,8 +212,14 @@ def test_invalid_requests_exit_2(cube_obj: Path, tmp_path: Path) -> None:
     nonmanifold.write_text(
         "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n"
     )
-    assert_one_line_error(run_here("subdivide", nonmanifold, "-o", out), "2-manifold")
+    # A non-manifold cage subdivides (issue 13) but its dual output is refused, with no file.
+    assert_one_line_error(
+        run_here("subdivide", nonmanifold, "-o", out, "--output", "dual"), "non-manifold"
+    )
     assert not out.exists()
+    proc = run_here("subdivide", nonmanifold, "-o", out, "--levels", "1")
+    assert proc.returncode == 0, proc.stderr
+    assert out.exists()
 
 
 def test_isolated_vertex_warning_on_stderr(tmp_path: Path) -> None:

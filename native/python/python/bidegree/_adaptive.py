@@ -142,5 +142,5 @@ def subdivide_adaptive(
     )
     used = np.zeros(mesh.num_vertices, dtype=bool)
     used[mesh.face_indices] = True
-    convert.warn_isolated(np.flatnonzero(~used).astype(np.int32), stacklevel=2)
+    convert.warn_isolated(np.flatnonzero(~used).astype(np.int32))
     return AdaptiveResult(data, degree, max_level, tol)

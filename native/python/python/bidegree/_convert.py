@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import contextlib
 import operator
+import os
+import sys
 import warnings
 from collections.abc import Iterator
 from typing import Any, Literal
@@ -179,14 +181,27 @@ def tolerance(value: Any) -> float:
     return number
 
 
-def warn_isolated(isolated: NDArray[np.int32], stacklevel: int) -> None:
+def warn_at_caller(message: str, category: type[Warning]) -> None:
+    """``warnings.warn`` pointing at the first frame outside this package (and outside
+    ``contextlib``, whose decorator wraps the entry points), so the warning names the user's line
+    however deep inside the API it was raised."""
+    package = os.path.dirname(os.path.abspath(__file__))
+    skipped = (package + os.sep, os.path.abspath(contextlib.__file__))
+    frame = sys._getframe(1)
+    level = 2  # stacklevel 1 is this function, 2 its caller
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(skipped):
+        frame = frame.f_back
+        level += 1
+    warnings.warn(message, category, stacklevel=level)
+
+
+def warn_isolated(isolated: NDArray[np.int32]) -> None:
     """Warns that the cage vertices ``isolated`` (in no face) are dropped from the output."""
     if len(isolated):
         shown = ", ".join(str(v) for v in isolated[:10])
         more = ", ..." if len(isolated) > 10 else ""
-        warnings.warn(
+        warn_at_caller(
             f"{len(isolated)} isolated vertices (in no face) are dropped from the output: "
             f"[{shown}{more}]",
             IsolatedVerticesWarning,
-            stacklevel=stacklevel + 1,
         )

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import itertools
 import os
-import warnings
 from collections.abc import Sequence
 from typing import Any
 
@@ -267,7 +266,7 @@ class Mesh:
             convert.budget(memory_budget),
         )
         for message in data["warnings"]:
-            warnings.warn(message, ObjWarning, stacklevel=2)
+            convert.warn_at_caller(message, ObjWarning)
         uvs = None
         if data["face_uvs"] is not None:
             uvs = data["uvs"][data["face_uvs"]]

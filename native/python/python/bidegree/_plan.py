@@ -154,7 +154,7 @@ class Plan(_Output):
             _creasing(mesh, creasing),
         )
         self._init(mesh, native)
-        convert.warn_isolated(self.isolated_vertices, stacklevel=2)
+        convert.warn_isolated(self.isolated_vertices)
 
     @classmethod
     def _wrap(cls, mesh: Mesh, native: Any) -> Plan:
@@ -449,7 +449,7 @@ def subdivide(
         evaluate=not limit,
     )
     plan = Plan._wrap(mesh, native)
-    convert.warn_isolated(plan.isolated_vertices, stacklevel=2)
+    convert.warn_isolated(plan.isolated_vertices)
     return _result(plan, mesh.points, points, limit, normals, uv_mode)
 
 
