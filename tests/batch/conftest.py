@@ -31,8 +31,6 @@ CUBE_OBJ = (
     "v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\nv -1 1 1\n"
     "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n"
 )
-#: Three faces on the edge 1-2: not a 2-manifold (bidegree refuses it).
-NON_FINITE_OBJ = "v nan 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 4 3\n"
 
 
 def grid_obj(n: int = 3) -> str:
@@ -65,6 +63,14 @@ def _two_objects() -> None:
     bpy.context.active_object.name = "Prism"
 
 
+def _non_finite() -> None:
+    # A .blend, not an OBJ: Blender's OBJ importer reads nan and inf as 0.
+    mesh = bpy.data.meshes.new("nonfinite")
+    mesh.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0)], [], [(0, 1, 3, 2)])
+    mesh.vertices[0].co = (float("nan"), 0.0, 0.0)
+    bpy.context.scene.collection.objects.link(bpy.data.objects.new("nonfinite", mesh))
+
+
 def _monkeys(count: int) -> Any:
     def build() -> None:
         for i in range(count):
@@ -80,13 +86,12 @@ def inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     files = {
         "cube": folder / "cube.obj",
         "grid": folder / "grid.obj",
-        "nonfinite": folder / "nonfinite.obj",
         "garbage": folder / "garbage.blend",
     }
     files["cube"].write_text(CUBE_OBJ)
     files["grid"].write_text(grid_obj())
-    files["nonfinite"].write_text(NON_FINITE_OBJ)
     files["garbage"].write_bytes(b"BLENDER-v500 this is not a blend file\n" * 4)
+    files["nonfinite"] = save_scene(folder / "nonfinite.blend", _non_finite)
     files["scene"] = save_scene(folder / "scene.blend", _two_objects)
     files["monkey"] = save_scene(folder / "monkey.blend", _monkeys(1))
     # Three Suzannes at level 3: about a second of work, most of it writing its four outputs.

@@ -26,7 +26,7 @@ from conftest import (
 
 SIX = ["cube", "nonfinite", "grid", "scene", "garbage", "monkey"]
 FAILURES = {
-    "nonfinite.obj": "NonFiniteError: object 'nonfinite': vertex 0 has a non-finite position",
+    "nonfinite.blend": "NonFiniteError: object 'nonfinite': vertex 0 has a non-finite position",
     "garbage.blend": "RuntimeError: Error: Loading",
 }
 

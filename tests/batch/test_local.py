@@ -108,7 +108,7 @@ def test_the_batch_survives_any_single_file(inputs: dict[str, Path], tmp_path: P
     for line, path in zip(lines[:4], files[:4], strict=True):
         assert f"{path}: FAILED: " in line
     assert "garbage.blend: FAILED: RuntimeError" in lines[1]
-    assert "nonfinite.obj: FAILED: NonFiniteError" in lines[3]
+    assert "nonfinite.blend: FAILED: NonFiniteError" in lines[3]
     assert "cube.obj: ok" in lines[4]
     assert output_files(out) == {"cube.bidegree.blend", "cube.usda"}
     summary = proc.stdout.splitlines()[-5:]

@@ -431,9 +431,9 @@ def test_collections_hide_the_surface(scene: Any) -> None:
 # --------------------------------------------------------------------------- 8: refusals
 
 
-def _non_manifold(scene: Any) -> Any:
-    pts = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1)]
-    return make_object(scene, "Fan", pts, [(0, 1, 2), (1, 0, 3), (0, 1, 4)])
+def _nan_point(scene: Any) -> Any:
+    pts = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (float("nan"), 1, 0)]
+    return make_object(scene, "NaN", pts, [(0, 1, 2, 3)])
 
 
 def test_refusals_show_the_cage_and_a_message(scene: Any) -> None:
@@ -452,13 +452,13 @@ def test_refusals_show_the_cage_and_a_message(scene: Any) -> None:
     modifier.configure(mod, levels=1)
     assert len(evaluated(obj, update())[1]) == 24 and modifier.status(obj, mod).error == ""
 
-    # A refused mesh (non-manifold), on its own object.
-    fan = _non_manifold(scene)
-    fan_mod = bidegree_blender.add_modifier(fan)
-    before = snapshot(fan)
-    got = evaluated(fan, update())
-    assert "NonManifold" in modifier.status(fan, fan_mod).error
-    assert len(got[1]) == 3 and snapshot(fan) == before
+    # A refused mesh (a non-finite point: dirty topology is subdivided), on its own object.
+    bad = _nan_point(scene)
+    bad_mod = bidegree_blender.add_modifier(bad)
+    before = snapshot(bad)
+    got = evaluated(bad, update())
+    assert "NonFinite" in modifier.status(bad, bad_mod).error
+    assert len(got[1]) == 1 and snapshot(bad) == before
 
     # An empty mesh (no vertices at all).
     empty = make_object(scene, "Empty", [], [])
@@ -471,11 +471,10 @@ def test_a_good_surface_is_not_kept_after_a_refusal(scene: Any) -> None:
     obj = cube(scene)
     mod = bidegree_blender.add_modifier(obj, degree=3, levels=1)
     update()
-    obj.data.vertices[1].co = obj.data.vertices[0].co  # a zero-area face
-    obj.data.vertices[3].co = obj.data.vertices[0].co
+    obj.data.vertices[1].co = (float("nan"), 0.0, 0.0)  # zero-area faces would subdivide
     obj.data.update()
     got = evaluated(obj, update())
-    assert "DegenerateFace" in modifier.status(obj, mod).error
+    assert "NonFinite" in modifier.status(obj, mod).error
     np.testing.assert_array_equal(got[1], np.full(6, 4))
 
 
