@@ -221,3 +221,19 @@ def test_usd_writes_the_mode_and_every_uv_set(tmp_path: Path, mode: str) -> None
     assert usd.validate(path) == []
     with pytest.raises(bidegree.InvalidInputError, match="UV set"):
         usd.export(tmp_path / "bad.usda", mesh, result, uv_sets={"st": extra["flat"]})
+
+
+@pytest.mark.parametrize(("degree", "rules"), [(2, "averaging"), (3, "classic"), (4, "averaging")])
+def test_holes_leave_the_uvs_of_the_other_faces_as_they_are(degree: int, rules: str) -> None:
+    """A hole is refined with the rest and left out of the output (OpenSubdiv's ``holeIndices``):
+    the UVs of every kept face equal those of the cage without the hole, bitwise, in every mode."""
+    cage = cube_unwrap()
+    args = {"face_sizes": cage.face_sizes, "face_indices": cage.face_indices, "uvs": cage.uvs}
+    whole = bidegree.Mesh(cage.points, **args)
+    holed = bidegree.Mesh(cage.points, holes=[1], **args)
+    for mode in MODES:
+        full = bidegree.subdivide(whole, degree=degree, levels=2, rules=rules, uv_mode=mode)
+        cut = bidegree.subdivide(holed, degree=degree, levels=2, rules=rules, uv_mode=mode)
+        kept = full.face_origin != 1
+        assert 0 < len(cut.face_sizes) == kept.sum() < len(full.face_sizes)
+        np.testing.assert_array_equal(cut.uvs, full.uvs[np.repeat(kept, full.face_sizes)])

@@ -11,7 +11,8 @@
 //! for case in fresh-averaging-3 cached-averaging-3 fresh-classic-3 cached-classic-3 \
 //!             fresh-averaging-4 cached-averaging-4 fresh-averaging-9 cached-averaging-9 \
 //!             limit-surface-4 adaptive-4 limit-ico-4 limit-first-ico-4 limit-first-fan-400-9 \
-//!             limit-first-ngon-1000-9 limit-semisharp-4 limit-sharp-4; do
+//!             limit-first-ngon-1000-9 limit-semisharp-4 limit-sharp-4 \
+//!             uvs-classic-3 uvs-averaging-4; do
 //!   echo "$case $(( $(ir $case 2) - $(ir $case 1) ))"
 //! done
 //! ```
@@ -20,11 +21,15 @@
 //! "fresh" is `Plan::new` and one `evaluate`; "cached" one `evaluate` through a plan that has
 //! already evaluated once (its kept buffers warm); the limit case is `limit_surface` on a new
 //! plan (stencils built on the first call) and the adaptive case one `subdivide_adaptive` at
-//! tolerance 1e-4, max level 3.
+//! tolerance 1e-4, max level 3. "uvs" is a cached `evaluate_face_varying` of UVs with a seam
+//! around every base patch (mode `boundaries`), to compare with "cached" of the same scheme.
+//!
+//! Generic code is instantiated in this binary, so LLVM's inlining of the library's steps
+//! depends on every case here: an A/B of a change compares two builds of the same file.
 
 use std::hint::black_box;
 
-use bidegree::{subdivide_adaptive, AdaptiveOptions, Options, Plan, Rules};
+use bidegree::{subdivide_adaptive, AdaptiveOptions, FaceVaryingMode, Options, Plan, Rules};
 
 #[path = "../benches/cages/mod.rs"]
 mod cages;
@@ -44,7 +49,7 @@ fn main() {
             work();
         }
     };
-    let (cage, _, _, points) = cages::ico_quad_sphere(8);
+    let (cage, _, cage_indices, points) = cages::ico_quad_sphere(8);
     let options = |degree: u32, rules: Rules| Options {
         degree,
         levels: 3,
@@ -115,6 +120,28 @@ fn main() {
                 black_box(plan.limit_surface(&points).unwrap());
             });
         }
+    } else if let Some(o) = case.strip_prefix("uvs-").and_then(scheme) {
+        // Smooth UVs (mode `boundaries`) of the face-varying bench's layout: every base patch of
+        // the sphere its own island; cached (the face-varying topology built before).
+        let n = 8;
+        let uvs: Vec<f32> = cage_indices
+            .iter()
+            .enumerate()
+            .flat_map(|(k, &v)| {
+                let patch = (k / 4 / (n * n)) as f32;
+                let p = &points[3 * v as usize..][..3];
+                [
+                    p[0] + 3.0 * (patch % 8.0),
+                    p[1] + 3.0 * (patch / 8.0).floor(),
+                ]
+            })
+            .collect();
+        let plan = Plan::new(&cage, &o).unwrap();
+        let mode = FaceVaryingMode::Boundaries;
+        black_box(plan.evaluate_face_varying(&uvs, 2, mode, false).unwrap());
+        measured(&|| {
+            black_box(plan.evaluate_face_varying(&uvs, 2, mode, false).unwrap());
+        });
     } else if case == "adaptive-4" {
         let adaptive = AdaptiveOptions {
             degree: 4,

@@ -17,10 +17,11 @@ use std::sync::{Arc, Mutex};
 use crate::error::{Error, Result};
 use crate::evaluate;
 use crate::limit::{self, LimitCache};
+use crate::memory;
 use crate::mesh::{Cage, INFINITELY_SHARP};
 use crate::options::{Boundary, Options, OutputKind};
 use crate::output::OutputMesh;
-use crate::parallel::{fill_rows, in_pool};
+use crate::parallel::{fill_rows, gather_hinted, in_pool};
 use crate::refinement::Refinement;
 use crate::scalar::Scalar;
 use crate::scheme::{is_infinitely_sharp, is_semi_sharp, is_sharp};
@@ -339,13 +340,30 @@ impl FaceVarying {
             )?
         };
         let last = self.refinement.last_level();
-        let mut out = vec![T::default(); last.num_corners() * channels];
-        fill_rows(&mut out, channels, |c, row| {
-            let x = last.corner_verts[c] as usize;
-            row.copy_from_slice(&at_vertices[x * channels..][..channels]);
-        });
-        Ok(out)
+        match channels {
+            1 => per_corner::<T, 1>(last, &at_vertices),
+            2 => per_corner::<T, 2>(last, &at_vertices),
+            3 => per_corner::<T, 3>(last, &at_vertices),
+            4 => per_corner::<T, 4>(last, &at_vertices),
+            _ => {
+                let mut out = memory::filled(last.num_corners() * channels, T::default())?;
+                fill_rows(&mut out, channels, |c, row| {
+                    let x = last.corner_verts[c] as usize;
+                    row.copy_from_slice(&at_vertices[x * channels..][..channels]);
+                });
+                Ok(out)
+            }
+        }
     }
+}
+
+/// The values of `M^fv`'s vertices (`N` channels interleaved) at the corners of its last level
+/// `last`: one gather of fixed-size rows into an unfilled buffer (no per-row copy call, no
+/// zeroing: the row counts are the output's largest).
+fn per_corner<T: Scalar, const N: usize>(last: &Level, at_vertices: &[T]) -> Result<Vec<T>> {
+    let (rows, _) = at_vertices.as_chunks::<N>();
+    let out = gather_hinted(last.num_corners(), |c| rows[last.corner_verts[c] as usize])?;
+    Ok(out.into_flattened())
 }
 
 /// Face-varying topologies kept per plan (the most recent ones).

@@ -67,11 +67,7 @@ pub(crate) fn gather_hinted<V: Send>(
     f: impl Fn(usize) -> V + Sync + Send,
 ) -> Result<Vec<V>> {
     let mut v = with_capacity_hinted(n)?;
-    (0..n)
-        .into_par_iter()
-        .with_min_len(CHUNK)
-        .map(f)
-        .collect_into_vec(&mut v);
+    fill_spare(&mut v, n, f);
     Ok(v)
 }
 
@@ -180,6 +176,16 @@ pub(crate) fn gather_into<V: Send, F: Fn(usize) -> V + Sync + Send>(
         .with_min_len(CHUNK)
         .map(f)
         .collect_into_vec(out);
+}
+
+/// `out` (empty, with room for `n` items) becomes `f(0), ..., f(n - 1)`, written by [`fill`]:
+/// a plain loop per chunk (rayon's `collect_into_vec` goes through its generic per-item folder,
+/// about twice the instructions of a small gather).
+fn fill_spare<V: Send>(out: &mut Vec<V>, n: usize, f: impl Fn(usize) -> V + Sync + Send) {
+    debug_assert!(out.is_empty() && out.capacity() >= n);
+    fill(&mut out.spare_capacity_mut()[..n], f);
+    // SAFETY: `fill` initialised the first `n` items (a panic would have unwound past here).
+    unsafe { out.set_len(n) };
 }
 
 /// As [`gather_into`] for data on the vertices of a child level, whose three sections (old

@@ -79,13 +79,24 @@ pub(crate) fn step_into<T: Scalar, const N: usize>(
     if this.is_smooth() {
         fill(old, |v| smooth_vertex(coarse, v, values, faces));
     } else {
+        // Most vertices of a level with curves are smooth (a face-varying mesh has boundaries
+        // everywhere its seams run): their mask inline, the rule machinery for the rest.
         fill(old, |v| {
-            vertex_point(coarse, this, child, creasing, v, values, faces)
+            if this.rule(v).is_smooth() {
+                smooth_vertex(coarse, v, values, faces)
+            } else {
+                vertex_point(coarse, this, child, creasing, v, values, faces)
+            }
         });
     }
     if this.has_sharp_edges() {
+        // Likewise for edges: `smooth_edge` is `edge_point` at sharpness 0, in the same order.
         fill(edges, |e| {
-            edge_point(coarse, this, child, e, nv + e, values, faces)
+            if this.edge(e) <= 0.0 && coarse.edge_corners()[e][1] != NONE {
+                smooth_edge(coarse, e, values, faces)
+            } else {
+                edge_point(coarse, this, child, e, nv + e, values, faces)
+            }
         });
     } else {
         fill(edges, |e| smooth_edge(coarse, e, values, faces));
@@ -132,7 +143,7 @@ fn vertex_point<T: Scalar, const N: usize>(
 
 /// The smooth vertex mask `(k-2)/k v + 1/k^2 sum e_i + 1/k^2 sum f_i` (interior vertex of `k`
 /// faces; `e_i` the edge neighbours, `f_i` the face points).
-#[inline]
+#[inline(always)]
 fn smooth_vertex<T: Scalar, const N: usize>(
     coarse: &Level,
     v: usize,
@@ -140,11 +151,12 @@ fn smooth_vertex<T: Scalar, const N: usize>(
     faces: &[Value<T, N>],
 ) -> Value<T, N> {
     let corners = coarse.corners_of_vertex(v);
-    let sum = corners.iter().fold(zero(), |s, &c| {
+    let mut sum = zero();
+    for &c in corners {
         let c = c as usize;
         let neighbour = values[coarse.corner_verts[coarse.next(c)] as usize];
-        add(s, add(neighbour, faces[coarse.face_of(c)]))
-    });
+        sum = add(sum, add(neighbour, faces[coarse.face_of(c)]));
+    }
     let (vertex, ring) = smooth_vertex_weights(corners.len());
     mad(
         scale(values[v], T::from_f64(vertex)),
@@ -172,8 +184,9 @@ fn crease_vertex<T: Scalar, const N: usize>(
 }
 
 /// The smooth edge point `1/4 (a + b + f_0 + f_1)` of an interior edge `e` of a level without
-/// sharp edges (where every edge has two faces: boundaries are sharp).
-#[inline]
+/// sharp edges (where every edge has two faces: boundaries are sharp), or of a level with sharp
+/// edges where `e` is smooth and has two faces.
+#[inline(always)]
 fn smooth_edge<T: Scalar, const N: usize>(
     coarse: &Level,
     e: usize,
