@@ -42,8 +42,8 @@ struct PolygonMesh {
     /// Cage face of each face.
     face_origin: Vec<u32>,
     /// With holes: the point (a vertex of `M_L`, or a point of the dual mesh) of each output
-    /// vertex; empty when every point is an output vertex.
-    vertex_source: Vec<u32>,
+    /// vertex (none at all when every face is left out); `None` when every point is one.
+    vertex_source: Option<Vec<u32>>,
 }
 
 /// Output topology that is not a table of the last level itself.
@@ -195,7 +195,7 @@ impl OutputMesh {
                     let curves = refinement.curve_networks().last().expect("a step");
                     let num_faces = levels.last().expect("a level").num_faces() as u32;
                     let on_cage = |p: u32| {
-                        let p = d.vertex_source.get(p as usize).copied().unwrap_or(p);
+                        let p = d.vertex_source.as_ref().map_or(p, |s| s[p as usize]);
                         p.checked_sub(num_faces).map(|i| {
                             origin(curves.edges()[d.boundary_points[i as usize] as usize].edge)
                         })
@@ -278,9 +278,12 @@ impl OutputMesh {
     /// output vertices, which leave out the points that only holes use.
     pub(crate) fn vertex_values<V: Copy>(&self, values: Vec<V>, channels: usize) -> Result<Vec<V>> {
         match &self.polygons {
-            Some(d) if !d.vertex_source.is_empty() => {
-                let mut out = memory::with_capacity(d.vertex_source.len() * channels)?;
-                out.extend(d.vertex_source.iter().flat_map(|&v| {
+            Some(PolygonMesh {
+                vertex_source: Some(source),
+                ..
+            }) => {
+                let mut out = memory::with_capacity(source.len() * channels)?;
+                out.extend(source.iter().flat_map(|&v| {
                     values[v as usize * channels..(v as usize + 1) * channels]
                         .iter()
                         .copied()
@@ -398,7 +401,7 @@ fn keep_faces(
         level: Level::from_polygons(vertex_source.len(), offsets, verts)?,
         corner_source: sources,
         face_origin,
-        vertex_source,
+        vertex_source: Some(vertex_source),
         ..PolygonMesh::default()
     })
 }
@@ -513,6 +516,6 @@ fn dual_mesh(refinement: &Refinement, face_origin: &[u32]) -> Result<PolygonMesh
         boundary_points,
         corner_source: sources,
         face_origin: origin,
-        vertex_source: Vec::new(),
+        vertex_source: None,
     })
 }

@@ -8,7 +8,8 @@
 
 mod common;
 
-use bidegree::{subdivide, Boundary, Cage, Options, OutputKind, Plan, Rules};
+use bidegree::{subdivide, Boundary, Cage, Error, Options, OutputKind, Plan, Rules};
+use proptest::prelude::*;
 
 /// Sheet `i` of the book: a 2 x 2 grid of quads whose first column is the shared line
 /// (vertices 0, 1, 2) and whose other 6 vertices are its own, at angle `i` around the line.
@@ -192,8 +193,12 @@ fn holes_and_boundary_none_leave_faces_out() {
         boundary: Boundary::None,
         ..options(3, Rules::Classic)
     };
-    let (plan, _) = subdivide(&book, &points, 3, &none).unwrap();
+    let (plan, refined) = subdivide(&book, &points, 3, &none).unwrap();
     assert_eq!(plan.num_output_faces(), 0);
+    // ... and no vertex either (it once gave every vertex of M_L).
+    assert_eq!(plan.num_output_vertices(), 0);
+    assert!(refined.is_empty());
+    assert!(plan.limit_positions(&points, 3).unwrap().is_empty());
     assert!(book.clone().with_holes(&[8]).is_err());
 }
 
@@ -540,6 +545,59 @@ fn limits_and_dual_output_are_the_same_on_any_number_of_threads() {
                     "{name}, degree {degree}, {threads} threads"
                 );
             }
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    /// Polygon soups (non-manifold, flipped, repeated vertices) with holes: the dual output and
+    /// the limits either work or are refused with a typed error, and what they give has the
+    /// output's shape (the fuzz run found the dual output's panics on such cages).
+    #[test]
+    fn soups_with_holes_give_dual_outputs_and_limits_or_typed_errors(
+        faces in prop::collection::vec(prop::collection::vec(0u32..7, 3..6), 1..7),
+        holes in prop::collection::vec(0i64..7, 0..3),
+        points in prop::collection::vec(-5.0f64..5.0, 21),
+        degree in 1u32..6,
+        levels in 0u32..3,
+        classic in any::<bool>(),
+    ) {
+        let sizes: Vec<i64> = faces.iter().map(|f| f.len() as i64).collect();
+        let indices: Vec<i64> = faces.iter().flatten().map(|&v| v as i64).collect();
+        let holes: Vec<i64> = holes.into_iter().filter(|&h| (h as usize) < faces.len()).collect();
+        let Ok(cage) = Cage::from_indices(7, &sizes, &indices).and_then(|c| c.with_holes(&holes))
+        else {
+            return Ok(());
+        };
+        let rules = if classic { Rules::Classic } else { Rules::Averaging };
+        let base = Options { degree, levels, rules, ..Options::default() };
+        let typed = |e: &Error| !matches!(e, Error::Internal(_));
+        let dual = Options { output: OutputKind::Dual, ..base };
+        match subdivide(&cage, &points, 3, &dual) {
+            Ok((plan, out)) => {
+                let n = plan.num_output_vertices();
+                prop_assert_eq!(out.len(), 3 * n);
+                prop_assert!(out.iter().all(|x| x.is_finite()));
+                prop_assert!(plan.output_face_vertices().iter().all(|&v| (v as usize) < n));
+                prop_assert_eq!(plan.output_edge_origin().len(), plan.output_edges().len());
+            }
+            Err(e) => prop_assert!(typed(&e), "{e}"),
+        }
+        let Ok(plan) = Plan::new(&cage, &base) else {
+            return Ok(());
+        };
+        match plan.limit_positions(&points, 3) {
+            Ok(limit) => prop_assert_eq!(limit.len(), 3 * plan.num_output_vertices()),
+            Err(e) => prop_assert!(typed(&e), "{e}"),
+        }
+        match plan.limit_surface(&points) {
+            Ok((positions, normals)) => {
+                prop_assert_eq!(positions.len(), 3 * plan.num_output_vertices());
+                prop_assert_eq!(normals.len(), 3 * plan.output_face_vertices().len());
+            }
+            Err(e) => prop_assert!(typed(&e), "{e}"),
         }
     }
 }
