@@ -130,10 +130,7 @@ fn options(degree: u32, rules: Rules) -> Options {
 fn each_sheet_of_a_book_is_that_sheet_alone_at_every_degree() {
     for k in [2, 3, 4] {
         let (book, points) = book(k);
-        for (degree, rules) in (1..=9)
-            .map(|d| (d, Rules::Averaging))
-            .chain((1..=3).map(|d| (d, Rules::Classic)))
-        {
+        for (degree, rules) in schemes() {
             let (plan, refined) = subdivide(&book, &points, 3, &options(degree, rules)).unwrap();
             for i in 0..k {
                 let (alone, alone_points) = sheet_alone(i, k);
@@ -151,31 +148,6 @@ fn each_sheet_of_a_book_is_that_sheet_alone_at_every_degree() {
             for v in line {
                 assert!(plan.output_face_vertices().contains(&v));
             }
-        }
-    }
-}
-
-#[test]
-fn a_book_is_the_same_on_any_number_of_threads() {
-    let (book, points) = book(3);
-    for degree in [2, 3, 4, 7] {
-        let run = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| subdivide(&book, &points, 3, &options(degree, Rules::Averaging)))
-                .unwrap()
-                .1
-        };
-        let one = run(1);
-        for threads in [2, 3] {
-            assert!(
-                one.iter()
-                    .zip(run(threads))
-                    .all(|(a, b)| a.to_bits() == b.to_bits()),
-                "degree {degree}, {threads} threads"
-            );
         }
     }
 }
@@ -202,8 +174,8 @@ fn holes_and_boundary_none_leave_faces_out() {
     assert!(book.clone().with_holes(&[8]).is_err());
 }
 
-/// Every scheme the limits and the dual output cover: the averaging rules at every degree and
-/// the classic rules (limits: degree 3 only).
+/// Every scheme: the averaging rules at every degree and the classic rules (whose limits are
+/// degree 3's only).
 fn schemes() -> impl Iterator<Item = (u32, Rules)> {
     (1..=9)
         .map(|d| (d, Rules::Averaging))
@@ -505,19 +477,15 @@ fn the_dual_output_leaves_out_the_faces_that_reach_into_a_hole() {
     }
 }
 
-/// The limits and the dual output of a book and of cages with holes are the same bits on any
+/// Both outputs and the limits of a book and of cages with holes are the same bits on any
 /// number of threads.
 #[test]
-fn limits_and_dual_output_are_the_same_on_any_number_of_threads() {
+fn results_are_the_same_on_any_number_of_threads() {
     let mut cases = holed_cages();
     let (book, points) = book(3);
     cases.push(("book without holes", book, points, Vec::new()));
     for (name, cage, points, holes) in cases {
-        let cage = if holes.is_empty() {
-            cage
-        } else {
-            with_holes(&cage, &holes)
-        };
+        let cage = with_holes(&cage, &holes);
         for degree in [2, 3, 4, 7] {
             let run = |threads: usize| {
                 let pool = rayon::ThreadPoolBuilder::new()
@@ -527,10 +495,12 @@ fn limits_and_dual_output_are_the_same_on_any_number_of_threads() {
                 pool.install(|| {
                     let (dual, refined) =
                         subdivide(&cage, &points, 3, &dual(degree, Rules::Averaging)).unwrap();
-                    let plan = Plan::new(&cage, &options(degree, Rules::Averaging)).unwrap();
+                    let (plan, primal) =
+                        subdivide(&cage, &points, 3, &options(degree, Rules::Averaging)).unwrap();
                     let (positions, normals) = plan.limit_surface(&points).unwrap();
                     let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                     (
+                        bits(&primal),
                         bits(&refined),
                         dual.output_face_vertices().to_vec(),
                         bits(&positions),
