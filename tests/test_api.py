@@ -192,6 +192,41 @@ def test_limits_and_dual_output_with_holes_and_non_manifold_edges() -> None:
     assert np.isfinite(sheets.points).all()
 
 
+_THREADS_SCRIPT = """
+import hashlib, bidegree, numpy as np
+from cages import cube
+fin = bidegree.Mesh(
+    np.random.default_rng(2).normal(size=(5, 3)), [[0, 1, 2], [1, 0, 3], [0, 1, 4]]
+)
+h = hashlib.sha256()
+for degree in (2, 3, 4):
+    h.update(bidegree.subdivide(fin, degree=degree, levels=2, output="dual").points.tobytes())
+    holed = bidegree.subdivide(cube(holes=[0]), degree=degree, levels=2, limit=True, normals=True)
+    h.update(holed.points.tobytes())
+    h.update(holed.normals.tobytes())
+print(h.hexdigest())
+"""
+
+
+def test_dual_and_limits_do_not_depend_on_rayon_num_threads() -> None:
+    """The dual output of a non-manifold cage and the limits of a cage with holes are the same
+    bits with ``RAYON_NUM_THREADS`` 1 and 3 (issue 13)."""
+    import os
+    import subprocess
+
+    def digest(threads: int) -> str:
+        env = {**os.environ, "RAYON_NUM_THREADS": str(threads)}
+        tests = str(Path(__file__).parent)
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [tests, env.get("PYTHONPATH")]))
+        proc = subprocess.run(
+            [sys.executable, "-c", _THREADS_SCRIPT], env=env, capture_output=True, text=True
+        )
+        assert proc.returncode == 0, proc.stderr
+        return proc.stdout.strip()
+
+    assert digest(1) == digest(3)
+
+
 def test_crease_not_an_edge() -> None:
     mesh = cube(creases=([[0, 6]], [2.0]))  # a space diagonal
     with pytest.raises(bidegree.CreaseNotAnEdgeError) as info:
