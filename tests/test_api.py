@@ -168,6 +168,65 @@ def test_holes_are_left_out() -> None:
         cube(holes=[6])
 
 
+def test_limits_and_dual_output_with_holes_and_non_manifold_edges() -> None:
+    """Limits of a cage with holes are the whole surface's at the vertices and corners drawn;
+    the dual output leaves out the dual faces that reach into a hole and has one face per sheet
+    at a non-manifold edge (issue 13)."""
+    whole = bidegree.Plan(cube(), degree=4, levels=2)
+    holed = bidegree.Plan(cube(holes=[0]), degree=4, levels=2)
+    positions, normals = holed.limit_surface()
+    assert positions.shape == (holed.num_output_vertices, 3)
+    assert normals.shape == (len(holed.face_indices), 3)
+    drawn = {tuple(p) for p in holed.limit_positions()}
+    assert drawn < {tuple(p) for p in whole.limit_positions()}
+    dual = bidegree.subdivide(cube(holes=[0]), degree=3, levels=2, output="dual")
+    full = bidegree.subdivide(cube(), degree=3, levels=2, output="dual")
+    # Every vertex of M_2 whose faces touch the hole face loses its dual face: 5 x 5 of them.
+    assert len(dual.face_sizes) == len(full.face_sizes) - 25
+    fin = bidegree.Mesh(
+        np.random.default_rng(2).normal(size=(5, 3)), [[0, 1, 2], [1, 0, 3], [0, 1, 4]]
+    )
+    sheets = bidegree.subdivide(fin, degree=2, levels=1, output="dual")
+    # 3 sheets of 3 quads each: 3 x 7 vertices, the line's 3 vertices with a face per sheet.
+    assert len(sheets.face_sizes) == 3 * 7
+    assert np.isfinite(sheets.points).all()
+
+
+_THREADS_SCRIPT = """
+import hashlib, bidegree, numpy as np
+from cages import cube
+fin = bidegree.Mesh(
+    np.random.default_rng(2).normal(size=(5, 3)), [[0, 1, 2], [1, 0, 3], [0, 1, 4]]
+)
+h = hashlib.sha256()
+for degree in (2, 3, 4):
+    h.update(bidegree.subdivide(fin, degree=degree, levels=2, output="dual").points.tobytes())
+    holed = bidegree.subdivide(cube(holes=[0]), degree=degree, levels=2, limit=True, normals=True)
+    h.update(holed.points.tobytes())
+    h.update(holed.normals.tobytes())
+print(h.hexdigest())
+"""
+
+
+def test_dual_and_limits_do_not_depend_on_rayon_num_threads() -> None:
+    """The dual output of a non-manifold cage and the limits of a cage with holes are the same
+    bits with ``RAYON_NUM_THREADS`` 1 and 3 (issue 13)."""
+    import os
+    import subprocess
+
+    def digest(threads: int) -> str:
+        env = {**os.environ, "RAYON_NUM_THREADS": str(threads)}
+        tests = str(Path(__file__).parent)
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [tests, env.get("PYTHONPATH")]))
+        proc = subprocess.run(
+            [sys.executable, "-c", _THREADS_SCRIPT], env=env, capture_output=True, text=True
+        )
+        assert proc.returncode == 0, proc.stderr
+        return proc.stdout.strip()
+
+    assert digest(1) == digest(3)
+
+
 def test_crease_not_an_edge() -> None:
     mesh = cube(creases=([[0, 6]], [2.0]))  # a space diagonal
     with pytest.raises(bidegree.CreaseNotAnEdgeError) as info:

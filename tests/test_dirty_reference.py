@@ -192,6 +192,41 @@ def test_boundary_rule_does_not_reach_kept_faces() -> None:
     assert ref.point_gap(a.points, b.points, _diagonal(cage)) > 1e-3
 
 
+@pytest.mark.parametrize("name", sorted(DIRTY))
+def test_core_limit_matches_opensubdiv(name: str) -> None:
+    """Classic limit positions (``Plan.limit_positions``) at the vertices drawn match Blender's
+    *Use Limit Surface* (OpenSubdiv's limit, quality 10) at levels 1 to 3: non-manifold edges
+    and vertices are infinitely sharp in the limit too, and with holes the limit is that of
+    the whole surface at the vertices of the faces drawn.
+
+    Levels below a semi-sharp crease's sharpness are left out: there the classic limit masks
+    use the crease's rule at that level (as OpenSubdiv's ``PrimvarRefiner::Limit``), while
+    Blender's limit surface is the true limit (``test_classic_parity.py`` does the same)."""
+    cage = DIRTY[name]
+    explicit = ref.blender_semantics(cage)
+    mesh = _mesh(explicit)
+    diagonal = _diagonal(cage)
+    sharpness = [s for *_, s in explicit.sharp_edges] + [s for _, s in explicit.sharp_vertices]
+    semi_sharp = max((s for s in sharpness if s < cages_dirty.INF), default=0.0)
+    gaps, lines = [], []
+    for levels in (n for n in LEVELS if n >= semi_sharp):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", bidegree.IsolatedVerticesWarning)
+            plan = bidegree.Plan(mesh, degree=3, levels=levels, rules="classic")
+        ours = plan.limit_positions()
+        assert len(ours) == plan.num_output_vertices
+        theirs = compare.opensubdiv_surface(cage, levels, limit=True)
+        gap = ref.point_gap(
+            _drawn(ours, plan.face_indices), _drawn(theirs.points, theirs.face_indices), diagonal
+        )
+        if len(plan.face_sizes) != len(theirs.face_sizes):
+            gap = float("inf")
+        gaps.append(gap)
+        lines.append(f"level {levels}: {len(plan.face_sizes)} faces, limit gap {gap:.1e}")
+    print(f"{name} (limit): " + "; ".join(lines))
+    assert max(gaps) < TOLERANCE, lines
+
+
 # ------------------------------------------------------------------------------------------
 # issue 14: UVs in OpenSubdiv's six face-varying modes
 

@@ -33,6 +33,10 @@
 //! evaluation of the extended refinement plus one small gather per vertex.
 //!
 //! Classic Catmull-Clark limit positions use OpenSubdiv's limit masks (`catmark_limit`).
+//!
+//! Everything here is at the vertices and corners of the whole last level: holes change no rule
+//! (their points shape their neighbours), so the plan selects the drawing mesh's vertices and
+//! corners from these values ([`crate::output::OutputMesh::vertex_values`]).
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
@@ -409,11 +413,6 @@ fn check(refinement: &Refinement, normals: bool) -> Result<LimitMethod> {
             "limit positions and normals are given at the drawing mesh's vertices: use the \
              primal output"
                 .into(),
-        ));
-    }
-    if !refinement.features().holes.is_empty() {
-        return Err(Error::InvalidInput(
-            "limit positions and normals of a cage with holes are not supported yet".into(),
         ));
     }
     let rule = refinement.scheme().limit(normals)?;

@@ -19,8 +19,9 @@ pub enum OutputKind {
     /// average, the paper's drawing step). Every face is a quad when L >= 1.
     #[default]
     Primal,
-    /// The true dual mesh: one point per face of `M_L`, one face per vertex of `M_L` (closed
-    /// along boundaries by the boundary curve's 1-D points).
+    /// The true dual mesh: one point per face of `M_L`, one face per vertex of `M_L` (per fan
+    /// of faces around it at a non-manifold vertex; closed along boundaries and non-manifold
+    /// edges by the curve's 1-D points).
     Dual,
 }
 

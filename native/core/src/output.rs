@@ -1,8 +1,17 @@
-//! Output meshes: the drawing mesh (`M_L` itself) or the true dual mesh of `M_L` (one face per
-//! vertex, its corners the points of the faces around it, closed along boundaries by the 1-D
-//! points of the boundary curve), with edges, corner edges, the cage face of every face and the
-//! cage edge of every edge. Faces whose cage face is a hole are left out of the drawing mesh, and
-//! so are the vertices only they use.
+//! Output meshes: the drawing mesh (`M_L` itself) or the true dual mesh of `M_L`, with edges,
+//! corner edges, the cage face of every face and the cage edge of every edge.
+//!
+//! The dual mesh has one face per *fan* of each vertex of `M_L` (the faces around the vertex
+//! that are joined across manifold edges; a vertex has one fan, a non-manifold vertex one per
+//! sheet), its corners the points of the fan's faces, closed where the fan opens (a boundary
+//! or non-manifold edge: both are infinitely sharp curve edges) by the 1-D points of those
+//! curve edges. The sheets of a non-manifold edge share its 1-D points, so their dual faces meet
+//! there as their drawing meshes meet along the curve.
+//!
+//! Holes: a face of the drawing mesh is left out when its cage face is a hole; a face of the
+//! dual mesh when some face of its fan is (its corners would be points inside the hole), so the
+//! dual mesh never reaches into a hole, as the drawing mesh does not. Both then leave out the
+//! vertices only left-out faces use, and keep the others in their order.
 
 use std::sync::OnceLock;
 
@@ -16,18 +25,25 @@ use crate::scheme::decrement;
 use crate::step::Final;
 use crate::topology::{Level, NONE};
 
-/// The dual mesh of the last level, as a polygon level plus where its data comes from.
+/// An output mesh that is not `M_L` itself (the dual mesh, or the drawing mesh without its
+/// holes), as a polygon level plus where its data comes from.
 #[derive(Debug, Default)]
-struct DualMesh {
+struct PolygonMesh {
     /// Its polygons, edges and adjacency.
     level: Level,
-    /// Indices (among the last step's curve edges) of the boundary curve edges whose 1-D points
-    /// follow the face points among the output vertices.
+    /// True for the dual mesh, whose points are the face points of `M_L`, then the 1-D points
+    /// of `boundary_points`; false for the drawing mesh without its holes.
+    dual: bool,
+    /// Indices (among the last step's curve edges) of the curve edges where fans open (boundary
+    /// and non-manifold edges) whose 1-D points follow the face points among the dual's points.
     boundary_points: Vec<u32>,
-    /// For each corner of the dual mesh, the corner of `M_L` whose face-varying value it takes.
+    /// For each corner, the corner of `M_L` whose face-varying value it takes.
     corner_source: Vec<u32>,
-    /// Cage face of each dual face.
+    /// Cage face of each face.
     face_origin: Vec<u32>,
+    /// With holes: the point (a vertex of `M_L`, or a point of the dual mesh) of each output
+    /// vertex (none at all when every face is left out); `None` when every point is one.
+    vertex_source: Option<Vec<u32>>,
 }
 
 /// Output topology that is not a table of the last level itself.
@@ -39,50 +55,43 @@ pub(crate) struct OutputMesh {
     face_origin: OnceLock<Vec<u32>>,
     /// Cage edge of each output edge (`NONE` inside a cage face), built on first use.
     edge_origin: OnceLock<Vec<u32>>,
-    /// The dual mesh, when asked for, or the drawing mesh without its holes (a polygon level
-    /// like the dual's; `corner_source` then maps its corners to those of `M_L`).
-    dual: Option<DualMesh>,
-    /// With holes: the vertex of `M_L` of each output vertex.
-    vertex_source: Vec<u32>,
+    /// The dual mesh, when asked for, or the drawing mesh without its holes.
+    polygons: Option<PolygonMesh>,
 }
 
 impl OutputMesh {
     /// Builds the output topology of a refinement (the drawing mesh's own tables wait for their
     /// first use: evaluation does not need them).
     pub(crate) fn build(refinement: &Refinement) -> Result<OutputMesh> {
-        let dual = refinement.options().output == OutputKind::Dual;
-        if !refinement.features().holes.is_empty() {
-            if dual {
-                return Err(Error::InvalidInput(
-                    "the dual output of a cage with holes is not supported; use the primal output"
-                        .into(),
-                ));
-            }
-            return without_holes(refinement);
-        }
-        if dual && refinement.levels_as_built()[0].is_non_manifold() {
-            // One dual face per fan is what OpenSubdiv's topology suggests, but the dual mesh
-            // walk does not follow fans across non-manifold edges yet.
-            return Err(Error::InvalidInput(
-                "the dual output of a non-manifold cage is not supported; use the primal output"
-                    .into(),
-            ));
-        }
-        if dual && refinement.levels_as_built().len() > 1 {
+        let holes = !refinement.features().holes.is_empty();
+        // Without a step there is no dual data: the dual output of 0 levels is the cage.
+        if refinement.options().output == OutputKind::Dual && refinement.levels_as_built().len() > 1
+        {
             let origin = face_origin(refinement)?;
-            let dual = dual_mesh(refinement, &origin)?;
+            let mut dual = dual_mesh(refinement, &origin)?;
+            if holes {
+                dual = dual_without_holes(refinement, dual, &origin)?;
+            }
             return Ok(OutputMesh {
                 face_origin: OnceLock::from(origin),
-                dual: Some(dual),
+                polygons: Some(dual),
                 ..OutputMesh::default()
             });
+        }
+        if holes {
+            return without_holes(refinement);
         }
         Ok(OutputMesh::default())
     }
 
+    /// The dual mesh, when it is the output.
+    fn dual(&self) -> Option<&PolygonMesh> {
+        self.polygons.as_ref().filter(|p| p.dual)
+    }
+
     /// Number of output vertices.
     pub(crate) fn num_vertices(&self, refinement: &Refinement) -> usize {
-        match &self.dual {
+        match &self.polygons {
             Some(d) => d.level.num_vertices,
             None => refinement.last_level().num_vertices,
         }
@@ -90,7 +99,7 @@ impl OutputMesh {
 
     /// Number of output faces.
     pub(crate) fn num_faces(&self, refinement: &Refinement) -> usize {
-        match &self.dual {
+        match &self.polygons {
             Some(d) => d.level.num_faces(),
             None => refinement.last_level().num_faces(),
         }
@@ -98,7 +107,7 @@ impl OutputMesh {
 
     /// The output mesh as a level; `with_edges` completes the drawing mesh's edge tables.
     fn level<'a>(&'a self, refinement: &'a Refinement, with_edges: bool) -> &'a Level {
-        match &self.dual {
+        match &self.polygons {
             Some(d) => &d.level,
             None if with_edges => refinement.levels().last().expect("a level"),
             None => refinement.last_level(),
@@ -109,7 +118,7 @@ impl OutputMesh {
     /// level's edges), so that a refused allocation is an error here rather than a panic in an
     /// accessor.
     pub(crate) fn complete(&self, refinement: &Refinement) -> Result<()> {
-        if self.dual.is_none() {
+        if self.polygons.is_none() {
             if self.face_offsets.get().is_none() {
                 let last = refinement.last_level();
                 let offsets = if last.is_quads() {
@@ -137,7 +146,7 @@ impl OutputMesh {
 
     /// Offsets of each output face's vertices in [`OutputMesh::face_vertices`] (faces + 1).
     pub(crate) fn face_offsets<'a>(&'a self, refinement: &'a Refinement) -> &'a [u32] {
-        match &self.dual {
+        match &self.polygons {
             Some(d) => &d.level.face_offsets,
             None => self.completed(&self.face_offsets, refinement),
         }
@@ -150,7 +159,7 @@ impl OutputMesh {
 
     /// The cage face each output face comes from.
     pub(crate) fn face_origin<'a>(&'a self, refinement: &'a Refinement) -> &'a [u32] {
-        match &self.dual {
+        match &self.polygons {
             Some(d) => &d.face_origin,
             None => self.completed(&self.face_origin, refinement),
         }
@@ -169,25 +178,24 @@ impl OutputMesh {
     /// The cage edge (an edge of `M_0`) each output edge lies on, [`NONE`] for an edge inside a
     /// cage face. Drawing mesh: the halves of edge `e` are edges `2e` and `2e + 1` of the next
     /// level ([`Level::refine`]), every other edge is inside a face. Dual mesh: only the edges
-    /// that close a boundary face (between the boundary points of two halves of one cage edge)
-    /// lie on a cage edge; every other dual edge crosses the edges of `M_L`.
+    /// that close a fan where it opens (between the boundary points of two halves of one cage
+    /// edge) lie on a cage edge; every other dual edge crosses the edges of `M_L`.
     pub(crate) fn edge_origin<'a>(&'a self, refinement: &'a Refinement) -> &'a [u32] {
         self.edge_origin.get_or_init(|| {
             let levels = refinement.levels();
             let origin = |e: u32| primal_edge_origin(levels, e);
-            let table = match &self.dual {
+            let table = match &self.polygons {
                 None => gather_hinted(levels.last().expect("a level").num_edges(), |e| {
                     origin(e as u32)
                 }),
-                Some(d) if refinement.options().output == OutputKind::Primal => {
-                    gather_hinted(d.level.num_edges(), |e| {
-                        origin(self.level_edge(refinement, e))
-                    })
-                }
+                Some(d) if !d.dual => gather_hinted(d.level.num_edges(), |e| {
+                    origin(self.level_edge(refinement, e))
+                }),
                 Some(d) => {
                     let curves = refinement.curve_networks().last().expect("a step");
                     let num_faces = levels.last().expect("a level").num_faces() as u32;
                     let on_cage = |p: u32| {
+                        let p = d.vertex_source.as_ref().map_or(p, |s| s[p as usize]);
                         p.checked_sub(num_faces).map(|i| {
                             origin(curves.edges()[d.boundary_points[i as usize] as usize].edge)
                         })
@@ -209,8 +217,8 @@ impl OutputMesh {
     /// The edge of `M_L` that edge `e` of the drawing mesh is: itself, or, when holes are left
     /// out, the edge leaving the `M_L` corner of one of its corners.
     fn level_edge(&self, refinement: &Refinement, e: usize) -> u32 {
-        match &self.dual {
-            Some(d) if refinement.options().output == OutputKind::Primal => {
+        match &self.polygons {
+            Some(d) if !d.dual => {
                 let c = d.level.edge_slots(e).next().expect("an edge has a corner");
                 let last = refinement.levels().last().expect("a level");
                 last.corner_edges()[d.corner_source[c as usize] as usize]
@@ -226,7 +234,7 @@ impl OutputMesh {
     pub(crate) fn edge_sharpness(&self, refinement: &Refinement) -> Result<Vec<f32>> {
         let depth = refinement.levels_as_built().len() - 1;
         let origin = self.edge_origin(refinement);
-        let primal = refinement.options().output == OutputKind::Primal;
+        let primal = self.dual().is_none();
         match refinement.sharpness(depth) {
             Some(level) if primal => gather_hinted(origin.len(), |e| {
                 level.edge(self.level_edge(refinement, e) as usize)
@@ -246,34 +254,54 @@ impl OutputMesh {
         &self,
         result: Final<T, N>,
     ) -> Result<Vec<Value<T, N>>> {
-        match result {
-            Final::Primal(points) if self.vertex_source.is_empty() => Ok(points),
-            Final::Primal(points) => {
-                memory::collect(self.vertex_source.iter().map(|&v| points[v as usize]))
-            }
+        let points = match result {
+            Final::Primal(points) => points,
             Final::Dual {
                 mut faces,
                 curve_edges,
             } => {
-                let dual = self.dual.as_ref().expect("dual output has a dual mesh");
+                let dual = self.dual().expect("dual output has a dual mesh");
                 memory::reserve(&mut faces, dual.boundary_points.len())?;
                 faces.extend(
                     dual.boundary_points
                         .iter()
                         .map(|&i| curve_edges[i as usize]),
                 );
-                Ok(faces)
+                faces
             }
+        };
+        self.vertex_values(points, 1)
+    }
+
+    /// Turns values at the points of the output mesh (the vertices of `M_L`, or the dual's
+    /// points; `channels` interleaved per point, or one item per point) into values at the
+    /// output vertices, which leave out the points that only holes use.
+    pub(crate) fn vertex_values<V: Copy>(&self, values: Vec<V>, channels: usize) -> Result<Vec<V>> {
+        match &self.polygons {
+            Some(PolygonMesh {
+                vertex_source: Some(source),
+                ..
+            }) => {
+                let mut out = memory::with_capacity(source.len() * channels)?;
+                out.extend(source.iter().flat_map(|&v| {
+                    values[v as usize * channels..(v as usize + 1) * channels]
+                        .iter()
+                        .copied()
+                }));
+                Ok(out)
+            }
+            _ => Ok(values),
         }
     }
 
-    /// Turns face-varying values at the corners of `M_L` into values at the output corners.
+    /// Turns face-varying values at the corners of `M_L` (`channels` interleaved per corner:
+    /// UVs, limit normals) into values at the output corners.
     pub(crate) fn face_varying<T: Scalar>(
         &self,
         values: Vec<T>,
         channels: usize,
     ) -> Result<Vec<T>> {
-        match &self.dual {
+        match &self.polygons {
             None => Ok(values),
             Some(d) => {
                 let mut out = memory::with_capacity(d.corner_source.len() * channels)?;
@@ -288,23 +316,69 @@ impl OutputMesh {
     }
 }
 
-/// The drawing mesh without the faces whose cage face is a hole, and without the vertices only
-/// they use (numbered in the order of `M_L`).
+/// The drawing mesh without the faces whose cage face is a hole.
 fn without_holes(refinement: &Refinement) -> Result<OutputMesh> {
-    let holes = &refinement.features().holes;
     let origin = face_origin(refinement)?;
     let last = refinement.last_level();
-    let mut kept: Vec<u32> = memory::with_capacity(last.num_faces())?;
-    kept.extend(
-        (0..last.num_faces() as u32).filter(|&f| holes.binary_search(&origin[f as usize]).is_err()),
-    );
-    let mut used = memory::filled(last.num_vertices, NONE)?;
+    let drawn = keep_faces(
+        last,
+        |c| c as u32,
+        |f| origin[f],
+        |f| !is_hole(refinement, origin[f]),
+    )?;
+    Ok(OutputMesh {
+        polygons: Some(drawn),
+        ..OutputMesh::default()
+    })
+}
+
+/// The dual mesh without the faces whose fan has a face from a hole.
+fn dual_without_holes(
+    refinement: &Refinement,
+    dual: PolygonMesh,
+    origin: &[u32],
+) -> Result<PolygonMesh> {
+    let last = refinement.last_level();
+    let from_hole = |c: u32| is_hole(refinement, origin[last.face_of(c as usize)]);
+    let mut drawn = keep_faces(
+        &dual.level,
+        |c| dual.corner_source[c],
+        |f| dual.face_origin[f],
+        |f| {
+            !dual
+                .level
+                .face_corners(f)
+                .any(|c| from_hole(dual.corner_source[c]))
+        },
+    )?;
+    drawn.dual = true;
+    drawn.boundary_points = dual.boundary_points;
+    Ok(drawn)
+}
+
+/// True if cage face `f` is a hole.
+fn is_hole(refinement: &Refinement, f: u32) -> bool {
+    refinement.features().holes.binary_search(&f).is_ok()
+}
+
+/// The faces of the polygon mesh `level` for which `keep` holds, with the `M_L` corner of each
+/// corner (`corner_source`) and the cage face of each face (`origin`), without the points only
+/// the other faces use (the rest numbered in their order: `vertex_source`).
+fn keep_faces(
+    level: &Level,
+    corner_source: impl Fn(usize) -> u32,
+    origin: impl Fn(usize) -> u32,
+    keep: impl Fn(usize) -> bool,
+) -> Result<PolygonMesh> {
+    let mut kept: Vec<u32> = memory::with_capacity(level.num_faces())?;
+    kept.extend((0..level.num_faces() as u32).filter(|&f| keep(f as usize)));
+    let mut used = memory::filled(level.num_vertices, NONE)?;
     for &f in &kept {
-        for c in last.face_corners(f as usize) {
-            used[last.corner_verts[c] as usize] = 0;
+        for c in level.face_corners(f as usize) {
+            used[level.corner_verts[c] as usize] = 0;
         }
     }
-    let mut vertex_source = memory::with_capacity(last.num_vertices)?;
+    let mut vertex_source = memory::with_capacity(level.num_vertices)?;
     for (v, slot) in used.iter_mut().enumerate() {
         if *slot == 0 {
             *slot = vertex_source.len() as u32;
@@ -313,26 +387,22 @@ fn without_holes(refinement: &Refinement) -> Result<OutputMesh> {
     }
     let mut offsets = memory::with_capacity(kept.len() + 1)?;
     offsets.push(0u32);
-    let mut verts = memory::with_capacity(last.num_corners())?;
-    let mut sources = memory::with_capacity(last.num_corners())?;
+    let mut verts = memory::with_capacity(level.num_corners())?;
+    let mut sources = memory::with_capacity(level.num_corners())?;
     for &f in &kept {
-        for c in last.face_corners(f as usize) {
-            verts.push(used[last.corner_verts[c] as usize]);
-            sources.push(c as u32);
+        for c in level.face_corners(f as usize) {
+            verts.push(used[level.corner_verts[c] as usize]);
+            sources.push(corner_source(c));
         }
         offsets.push(verts.len() as u32);
     }
-    let face_origin = memory::collect(kept.iter().map(|&f| origin[f as usize]))?;
-    let level = Level::from_polygons(vertex_source.len(), offsets, verts)?;
-    Ok(OutputMesh {
-        dual: Some(DualMesh {
-            level,
-            corner_source: sources,
-            face_origin,
-            ..DualMesh::default()
-        }),
-        vertex_source,
-        ..OutputMesh::default()
+    let face_origin = memory::collect(kept.iter().map(|&f| origin(f as usize)))?;
+    Ok(PolygonMesh {
+        level: Level::from_polygons(vertex_source.len(), offsets, verts)?,
+        corner_source: sources,
+        face_origin,
+        vertex_source: Some(vertex_source),
+        ..PolygonMesh::default()
     })
 }
 
@@ -362,24 +432,27 @@ fn primal_edge_origin(levels: &[Level], mut e: u32) -> u32 {
     e
 }
 
-/// The dual of `M_L`: the faces around each vertex, walked from face to face across edges and
-/// reversed so that the dual faces keep the orientation of the surface.
-fn dual_mesh(refinement: &Refinement, face_origin: &[u32]) -> Result<DualMesh> {
+/// The dual of `M_L`: the faces of each fan around each vertex, walked from face to face
+/// across manifold edges and reversed so that the dual faces keep the orientation of the
+/// surface; a fan that opens at boundary or non-manifold edges is closed by their 1-D points.
+fn dual_mesh(refinement: &Refinement, face_origin: &[u32]) -> Result<PolygonMesh> {
     let last = refinement.levels().last().expect("a refined level");
     let curves = refinement.curve_networks().last().expect("a step");
     let num_faces = last.num_faces() as u32;
+    // No face across (`Level::opposite` is `None`): a fan opens there. Boundary and
+    // non-manifold edges are infinitely sharp, so they are curve edges of every step.
+    let opens = |e: u32| last.is_boundary_edge(e as usize) || last.is_non_manifold_edge(e as usize);
     let mut boundary_points: Vec<u32> = memory::with_capacity(curves.edges().len())?;
     boundary_points.extend(
-        (0..curves.edges().len() as u32)
-            .filter(|&i| last.is_boundary_edge(curves.edges()[i as usize].edge as usize)),
+        (0..curves.edges().len() as u32).filter(|&i| opens(curves.edges()[i as usize].edge)),
     );
     let point_of_edge = |e: u32| -> u32 {
         let at = boundary_points
             .binary_search_by_key(&e, |&i| curves.edges()[i as usize].edge)
-            .expect("boundary edges are curve edges of the last step");
+            .expect("boundary and non-manifold edges are curve edges of the last step");
         num_faces + at as u32
     };
-    // A vertex has one dual face per fan: at most its corners, and one per vertex mostly.
+    // A vertex has one dual face per fan: at most its corners, one per vertex mostly.
     let mut offsets = memory::with_capacity(last.num_vertices + 1)?;
     offsets.push(0u32);
     let mut verts = memory::with_capacity(last.num_corners() + 2 * boundary_points.len())?;
@@ -389,10 +462,10 @@ fn dual_mesh(refinement: &Refinement, face_origin: &[u32]) -> Result<DualMesh> {
     let mut centre = memory::with_capacity(last.num_vertices)?;
     for v in 0..last.num_vertices {
         let corners = last.corners_of_vertex(v);
-        // Fans that start at a boundary come first; closed fans start anywhere.
-        let starts = corners.iter().copied().filter(|&c| {
-            last.is_boundary_edge(last.corner_edges()[last.prev(c as usize)] as usize)
-        });
+        // Fans that open (at a boundary or non-manifold edge) come first, from the corner
+        // after the opening; closed fans start anywhere.
+        let incoming = |c: usize| last.corner_edges()[last.prev(c)];
+        let starts = (corners.iter().copied()).filter(|&c| opens(incoming(c as usize)));
         let closed = corners.iter().copied();
         for start in starts.chain(closed) {
             if visited[start as usize] {
@@ -412,8 +485,7 @@ fn dual_mesh(refinement: &Refinement, face_origin: &[u32]) -> Result<DualMesh> {
                 }
             }
             let end = *fan.last().expect("a fan has a corner") as usize;
-            let open = last.is_boundary_edge(last.corner_edges()[end] as usize);
-            if open {
+            if opens(last.corner_edges()[end]) {
                 verts.push(point_of_edge(last.corner_edges()[end]));
                 sources.push(end as u32);
             }
@@ -421,10 +493,8 @@ fn dual_mesh(refinement: &Refinement, face_origin: &[u32]) -> Result<DualMesh> {
                 verts.push(c >> 2);
                 sources.push(c);
             }
-            if open {
-                verts.push(point_of_edge(
-                    last.corner_edges()[last.prev(fan[0] as usize)],
-                ));
+            if opens(incoming(fan[0] as usize)) {
+                verts.push(point_of_edge(incoming(fan[0] as usize)));
                 sources.push(fan[0]);
             }
             offsets.push(verts.len() as u32);
@@ -440,10 +510,12 @@ fn dual_mesh(refinement: &Refinement, face_origin: &[u32]) -> Result<DualMesh> {
         )));
     }
     let level = Level::from_polygons(num_points, offsets, verts)?;
-    Ok(DualMesh {
+    Ok(PolygonMesh {
         level,
+        dual: true,
         boundary_points,
         corner_source: sources,
         face_origin: origin,
+        vertex_source: None,
     })
 }

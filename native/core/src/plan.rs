@@ -202,18 +202,20 @@ impl Plan {
 
     /// Limit positions at the output vertices (the drawing mesh's), for any per-vertex data of
     /// the cage (`channels` interleaved values per cage vertex, as [`Plan::evaluate`]). Old
-    /// vertices keep their ids, so the first values are the limits at the cage vertices.
-    /// Averaging rules: every degree ([`crate::analysis`]'s eigenvector masks, the curves'
-    /// B-splines); classic rules: degree 3 (OpenSubdiv's limit masks).
+    /// vertices keep their ids, so the first values are the limits at the cage vertices (those
+    /// that some face drawn uses, when the cage has holes). Averaging rules: every degree
+    /// ([`crate::analysis`]'s eigenvector masks, the curves' B-splines); classic rules:
+    /// degree 3 (OpenSubdiv's limit masks).
     pub fn limit_positions<T: Scalar>(&self, values: &[T], channels: usize) -> Result<Vec<T>> {
         check_values(values, channels, self.num_input_vertices())?;
-        limit::positions(
+        let at_level = limit::positions(
             &self.refinement,
             &self.scratch,
             &self.limit,
             values,
             channels,
-        )
+        )?;
+        self.output.vertex_values(at_level, channels)
     }
 
     /// Limit positions (3 channels) and unit limit normals of the surface of `points` (3 per
@@ -223,7 +225,12 @@ impl Plan {
     /// vectors. Averaging rules only.
     pub fn limit_surface<T: Scalar>(&self, points: &[T]) -> Result<(Vec<T>, Vec<T>)> {
         check_values(points, 3, self.num_input_vertices())?;
-        limit::surface(&self.refinement, &self.scratch, &self.limit, points)
+        let (positions, normals) =
+            limit::surface(&self.refinement, &self.scratch, &self.limit, points)?;
+        Ok((
+            self.output.vertex_values(positions, 3)?,
+            self.output.face_varying(normals, 3)?,
+        ))
     }
 
     /// Levels the limit evaluation adds to this plan (built on first use, kept in the plan).

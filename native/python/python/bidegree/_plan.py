@@ -182,8 +182,9 @@ class Plan(_Output):
     @convert.memory_errors()
     def limit_positions(self, points: ArrayLike | None = None) -> FloatArray:
         """Exact limit positions at the output vertices: (V, C) -> (N, C) for any per-vertex
-        attribute; the first V' rows (V' cage vertices in faces) are the limits of the cage
-        vertices. Default: the cage's own points.
+        attribute; the first V' rows (V' cage vertices in faces drawn) are the limits of the
+        cage vertices. Default: the cage's own points. Holes change no rule: the limit is the
+        whole surface's, at the vertices drawn.
 
         Every degree of the averaging rules (eigenvector masks of the paper's §4 at interior
         vertices, the B-spline of the curve on boundaries and creases; vertices near irregular
