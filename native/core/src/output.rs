@@ -247,7 +247,7 @@ impl OutputMesh {
         result: Final<T, N>,
     ) -> Result<Vec<Value<T, N>>> {
         match result {
-            Final::Primal(points) if self.vertex_source.is_empty() => Ok(points),
+            Final::Primal(points) if self.dual.is_none() => Ok(points),
             Final::Primal(points) => {
                 memory::collect(self.vertex_source.iter().map(|&v| points[v as usize]))
             }
