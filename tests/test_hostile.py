@@ -573,9 +573,9 @@ def test_adaptive_refusals_say_when_they_came() -> None:
 
 
 def test_analysis_of_a_huge_valence_is_a_memory_budget_error() -> None:
-    # The dense subdivision matrix of degree 9 at valence 1000 has about 30,000^2 entries (14
-    # GB with its columns): refused before it is made, not an abort (the address-space limit of the child
-    # makes sure nothing of that size is asked for).
+    # The dense subdivision matrix of degree 9 at valence 1000 has about 30,000^2 entries (14 GB
+    # with its columns): refused before it is made, not an abort (the child's address-space
+    # limit makes sure nothing of that size is asked for).
     name, message, figures, peak = child_report(
         "import bidegree.analyze\nreport(lambda: bidegree.analyze.analyze(9, 1000, steps=0))",
         limits={resource.RLIMIT_AS: 3 << 30},
