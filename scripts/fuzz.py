@@ -3,14 +3,18 @@
 Two kinds of case, each run in its own child process under an address-space and CPU limit, so
 that an abort, a crash, an out-of-memory kill or a hang is caught and counted:
 
-- ``api``: a random polygon soup or a damaged well-formed cage (creases, corners, isolated
-  vertices, extreme or non-finite coordinates, UVs) through the Python API with random options
-  (degree, levels, output, rules, creasing, boundary, limit, normals, adaptive, memory budget,
-  plan evaluation of other channels, OBJ writing). The child is forked from this process, which
+- ``api``: a random polygon soup or a damaged well-formed cage (non-manifold edges of 3+
+  faces, books of sheets, bowties, flipped faces, repeated vertices, zero-area faces, creases
+  on loose vertex pairs, holes, corners, isolated vertices, extreme or non-finite coordinates,
+  UVs) through the Python API with random options (degree, levels, output, rules, creasing,
+  boundary including ``none``, limit, normals, adaptive, memory budget, plan evaluation of
+  other channels, OBJ writing). The child is forked from this process, which
   never calls the core itself (so no thread pool exists at the fork).
 - ``cli``: a mutated OBJ file (bytes flipped, inserted, deleted; lines swapped, duplicated,
-  truncated; numbers replaced by huge, negative, NaN or garbage values; tags added; BOM, NUL, line
-  ends) through ``bidegree subdivide`` with random options.
+  truncated; numbers replaced by huge, negative, NaN or garbage values; tags added (holes,
+  ``interpolateboundary 0``); non-manifold fins, flipped faces, loose edges (``l``) and
+  zero-area faces in the cage; BOM, NUL, line ends) through ``bidegree subdivide`` with random
+  options.
 
 Each case ends as *success* (a result, consistent and finite; the caller's arrays unchanged; for
 the CLI exit 0 and an output file), *typed error* (a ``BidegreeError`` other than
@@ -117,10 +121,69 @@ def _soup(rng: np.random.Generator) -> tuple[np.ndarray, list[list[int]]]:
     return points, faces
 
 
+def _book(rng: np.random.Generator) -> tuple[np.ndarray, list[list[int]]]:
+    """2-4 sheets of quads (or triangles) on one line: every edge of the line has 3+ faces
+    (non-manifold); some sheets run the line the other way."""
+    sheets, length = int(rng.integers(2, 5)), int(rng.integers(2, 5))
+    line = np.stack([np.arange(length), np.zeros(length), np.zeros(length)], axis=-1)
+    points = [line]
+    faces: list[list[int]] = []
+    for s in range(sheets):
+        angle = 2 * np.pi * s / sheets + rng.normal(0, 0.1)
+        offset = np.array([0.0, np.cos(angle), np.sin(angle)])
+        points.append(line + offset)
+        base = length * (s + 1)
+        for i in range(length - 1):
+            quad = [i, i + 1, base + i + 1, base + i]
+            sheet = [quad] if rng.random() < 0.7 else [quad[:3], [quad[0], quad[2], quad[3]]]
+            faces += [f[::-1] for f in sheet] if rng.random() < 0.4 else sheet
+    return np.vstack(points).astype(float), faces
+
+
+def _non_manifold(rng: np.random.Generator, points: np.ndarray, faces: list[list[int]]) -> tuple:
+    """Some of: a fin (a new face on an existing edge: 3+ faces there), a bowtie (a second fan
+    glued at one vertex), a face with a repeated vertex, a zero-area face (on three points of a
+    line, or with all its points equal), several flipped faces."""
+    faces = [list(f) for f in faces]
+    if not faces:
+        return points, faces
+    if rng.random() < 0.3:
+        f = faces[int(rng.integers(len(faces)))]
+        i = int(rng.integers(len(f)))
+        a, b = f[i], f[(i + 1) % len(f)]
+        points = np.vstack([points, points[a] + rng.normal(0, 1, 3)])
+        fin = [a, b, len(points) - 1]
+        faces.append(fin if rng.random() < 0.5 else fin[::-1])
+    if rng.random() < 0.15:
+        v = int(rng.choice(faces[int(rng.integers(len(faces)))]))
+        start = len(points)
+        points = np.vstack([points, points[v] + rng.normal(0, 1, (3, 3))])
+        faces += [[v, start, start + 1], [v, start + 1, start + 2]]
+    if rng.random() < 0.15:
+        f = faces[int(rng.integers(len(faces)))]
+        if len(f) >= 3:
+            f.insert(int(rng.integers(1, len(f))), f[0] if rng.random() < 0.5 else f[1])
+    if rng.random() < 0.15:
+        a, b = points[int(rng.integers(len(points)))], points[int(rng.integers(len(points)))]
+        start = len(points)
+        points = np.vstack([points, a, (a + b) / 2, b])
+        faces.append([start, start + 1, start + 2])
+    if rng.random() < 0.1:
+        for v in faces[int(rng.integers(len(faces)))]:
+            points[v] = points[faces[0][0]]
+    if rng.random() < 0.15:
+        for f in faces:
+            if rng.random() < 0.3:
+                f.reverse()
+    return points, faces
+
+
 def _damage(rng: np.random.Generator, points: np.ndarray, faces: list[list[int]]) -> tuple:
     """Some of: flipped, duplicated or dropped faces, isolated vertices, extreme coordinates,
-    degenerate faces, non-finite values, bad indices."""
+    degenerate faces, non-finite values, bad indices; non-manifold damage (``_non_manifold``)."""
     faces = [list(f) for f in faces]
+    if rng.random() < 0.35:
+        points, faces = _non_manifold(rng, points, faces)
     if rng.random() < 0.1 and faces:
         faces[int(rng.integers(len(faces)))].reverse()
     if rng.random() < 0.05 and faces:
@@ -152,7 +215,8 @@ def _sharpness(rng: np.random.Generator) -> float:
 
 def gen_api(rng: np.random.Generator) -> Spec:
     """A random API case."""
-    make = [_grid, _cube, _fan, _soup][int(rng.choice(4, p=[0.35, 0.25, 0.25, 0.15]))]
+    makers = [_grid, _cube, _fan, _soup, _book]
+    make = makers[int(rng.choice(5, p=[0.3, 0.2, 0.2, 0.15, 0.15]))]
     points, faces = _damage(rng, *make(rng))
     edges = [(f[i], f[(i + 1) % len(f)]) for f in faces for i in range(len(f))]
     creases = []
@@ -163,6 +227,17 @@ def gen_api(rng: np.random.Generator) -> Spec:
             else tuple(int(x) for x in rng.integers(-1, len(points) + 1, 2))
         )
         creases.append([int(a), int(b), _sharpness(rng)])
+    if rng.random() < 0.05:
+        # A loose edge: two new vertices joined by a crease only (no face has that edge).
+        points = np.vstack([points, rng.normal(0, 1, (2, 3))])
+        creases.append([len(points) - 2, len(points) - 1, _sharpness(rng)])
+    holes = []
+    if rng.random() < 0.2 and faces:
+        holes = [int(rng.integers(len(faces))) for _ in range(int(rng.integers(1, 3)))]
+        if rng.random() < 0.1:
+            holes.append(int(rng.choice([-1, len(faces), 2**40])))
+        if rng.random() < 0.05:
+            holes = list(range(len(faces)))
     corners = []
     for _ in range(int(rng.integers(0, 4)) if rng.random() < 0.4 else 0):
         vertex = int(rng.integers(len(points)) if rng.random() < 0.9 else rng.integers(-1, 2**33))
@@ -195,8 +270,9 @@ def gen_api(rng: np.random.Generator) -> Spec:
         "faces": faces,
         "creases": creases,
         "corners": corners,
+        "holes": holes,
         "uvs": uvs,
-        "boundary": str(rng.choice(["edge-only", "edge-and-corner"])),
+        "boundary": str(rng.choice(["edge-only", "edge-and-corner", "none"], p=[0.4, 0.4, 0.2])),
         "creasing": str(rng.choice(["uniform", "chaikin"])),
         "degree": degree,
         "levels": int(rng.integers(10, 17)) if big_request else int(rng.integers(0, 4)),
@@ -222,8 +298,10 @@ def gen_api(rng: np.random.Generator) -> Spec:
 
 
 def _obj_text(rng: np.random.Generator) -> str:
-    make = [_grid, _cube, _fan][int(rng.integers(3))]
+    make = [_grid, _cube, _fan, _book][int(rng.choice(4, p=[0.3, 0.3, 0.2, 0.2]))]
     points, faces = make(rng)
+    if rng.random() < 0.3:
+        points, faces = _non_manifold(rng, points, faces)
     lines = ["# fuzz cage", "o cage"] + [f"v {x!r} {y!r} {z!r}" for x, y, z in points]
     with_uvs = rng.random() < 0.4
     if with_uvs:
@@ -240,7 +318,15 @@ def _obj_text(rng: np.random.Generator) -> str:
     if rng.random() < 0.3:
         lines.append(f"t corner 1/1/0 {int(rng.integers(len(points)))} 10")
     if rng.random() < 0.3:
-        lines.append(f"t interpolateboundary 1/0/0 {int(rng.choice([1, 2]))}")
+        lines.append(f"t interpolateboundary 1/0/0 {int(rng.choice([0, 1, 2]))}")
+    if rng.random() < 0.2:
+        holes = " ".join(str(int(f)) for f in rng.integers(0, len(faces), int(rng.integers(1, 3))))
+        lines.append(f"t hole {holes.count(' ') + 1}/0/0 {holes}")
+    if rng.random() < 0.15:
+        # Loose edges: `l` lines (between face vertices, or vertices no face uses).
+        points_used = len(points)
+        lines.append(f"v {rng.normal():.3f} {rng.normal():.3f} {rng.normal():.3f}")
+        lines.append(f"l {int(rng.integers(1, points_used + 1))} {points_used + 1}")
     if rng.random() < 0.3:
         lines.append(f"t creasemethod 0/0/1 {rng.choice(['normal', 'chaikin'])}")
     return "\n".join(lines) + "\n"
@@ -343,7 +429,7 @@ def gen_cli(rng: np.random.Generator) -> Spec:
     if rng.random() < 0.2:
         args += ["--creasing", str(rng.choice(["uniform", "chaikin"]))]
     if rng.random() < 0.2:
-        args += ["--boundary", str(rng.choice(["edge-only", "edge-and-corner"]))]
+        args += ["--boundary", str(rng.choice(["edge-only", "edge-and-corner", "none"]))]
     if rng.random() < 0.15:
         args += ["--limit"]
     if rng.random() < 0.15:
@@ -400,6 +486,9 @@ def _run_api(spec: Spec) -> Outcome:
         inputs["corner_vertices"] = np.array([v for v, _ in spec["corners"]], dtype=np.int64)
         inputs["corner_sharpness"] = np.array([s for _, s in spec["corners"]], dtype=np.float32)
         kwargs["corners"] = (inputs["corner_vertices"], inputs["corner_sharpness"])
+    if spec.get("holes"):
+        inputs["holes"] = np.array(spec["holes"], dtype=np.int64)
+        kwargs["holes"] = inputs["holes"]
     if spec["uvs"] is not None:
         with np.errstate(over="ignore"):
             inputs["uvs"] = np.array(spec["uvs"], dtype=spec["dtype"]).reshape(-1, 2)
@@ -669,11 +758,12 @@ def shrink(spec: Spec, label: str, fresh: bool, budget: int = 40) -> Spec:
         ("uvs", None),
         ("creases", []),
         ("corners", []),
+        ("holes", []),
         ("levels", 1),
         ("degree", 3),
         ("dtype", "float64"),
     ):
-        if best[key] != simpler:
+        if best.get(key, simpler) != simpler:
             attempt({**best, key: simpler})
     i = 0
     while i < len(best["faces"]) and tries < budget:

@@ -546,6 +546,47 @@ report(lambda: bidegree.Mesh(np.zeros((4, 3)), faces))
     assert message.startswith("out of memory: Unable to allocate"), message
 
 
+def test_adaptive_refusals_say_when_they_came() -> None:
+    # Issue 18 item 2: tolerance 0 knows the result's size, so it is refused before any work; a
+    # tiny tolerance under a small budget stops before making the level whose estimate passes
+    # it, and says which (``level``).
+    points = CUBE_POINTS.astype(np.float64).copy()
+    points[6] += 0.8
+    bumped = bidegree.Mesh(points, CUBE_FACES)
+    with pytest.raises(bidegree.MemoryBudgetError) as before:
+        bidegree.subdivide_adaptive(bumped, degree=4, tolerance=0, max_level=16)
+    assert str(before.value).startswith("adaptive subdivision refused before any work: "), str(
+        before.value
+    )
+    assert before.value.required > before.value.budget
+    assert getattr(before.value, "level", None) is None
+    with pytest.raises(bidegree.MemoryBudgetError) as stopped:
+        bidegree.subdivide_adaptive(
+            bumped, degree=4, tolerance=1e-14, max_level=16, memory_budget=32 << 20
+        )
+    level = stopped.value.level
+    assert level > 1, str(stopped.value)
+    assert str(stopped.value).startswith(
+        f"adaptive subdivision stopped before making level {level} (levels 1..={level - 1} "
+    ), str(stopped.value)
+    assert stopped.value.budget == 32 << 20
+
+
+def test_analysis_of_a_huge_valence_is_a_memory_budget_error() -> None:
+    # The dense subdivision matrix of degree 9 at valence 1000 has about 30,000^2 entries (14 GB
+    # with its columns): refused before it is made, not an abort (the child's address-space
+    # limit makes sure nothing of that size is asked for).
+    name, message, figures, peak = child_report(
+        "import bidegree.analyze\nreport(lambda: bidegree.analyze.analyze(9, 1000, steps=0))",
+        limits={resource.RLIMIT_AS: 3 << 30},
+    )
+    assert name == "MemoryBudgetError", (name, message)
+    assert "over the memory budget" in message, message
+    required, budget = (int(x) for x in figures.split())
+    assert required > 8 << 30 and budget == bidegree.DEFAULT_MEMORY_BUDGET
+    assert peak < 1 << 20  # KiB: under 1 GiB
+
+
 def test_adaptive_request_above_the_address_space_limit_is_a_memory_budget_error() -> None:
     # The issue's reproducer: tolerance 0 refines everywhere to level 16 (refused, or stopped
     # cleanly, within the default budget); the process may map 2 GiB.

@@ -32,6 +32,19 @@ def test_regression_ends_as_a_result_or_a_typed_error(path: Path) -> None:
     assert outcome["outcome"] in ("success", "typed"), outcome
 
 
+def test_a_deep_limit_under_a_tighter_address_space_is_a_memory_error(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # The seed-1202 case (limit positions of degree 5 at 10 levels) fits the fuzzer's 3 GiB;
+    # under 2 GiB its limit stencils or their extended refinement cannot be had: a typed
+    # MemoryBudgetError (it was a SIGABRT before the limit's allocations were fallible).
+    monkeypatch.setattr(fuzz, "ADDRESS_SPACE", 2 << 30)
+    path = ROOT / "tests" / "fuzz_regressions" / "api-signal-sigabrt-fuzz1202-1.json"
+    outcome = fuzz.replay(path)
+    assert (outcome["outcome"], outcome["label"]) == ("typed", "MemoryBudgetError"), outcome
+    assert outcome["detail"].startswith("out of memory: "), outcome
+
+
 CUBE = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]]
 CUBE_FACES = [[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]]
 

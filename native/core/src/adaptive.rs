@@ -80,14 +80,14 @@ use std::collections::{HashMap, HashSet};
 use std::hash::{BuildHasherDefault, Hasher};
 
 use crate::curves::{CageFeatures, Curve, CurveNetwork};
-use crate::error::{Error, Result};
+use crate::error::{AdaptiveStage, Error, Result};
 use crate::memory;
 use crate::mesh::{validate_geometry, Cage};
 use crate::options::{check_degree, check_levels, Boundary, Options};
 use crate::refinement::Refinement;
 use crate::scalar::Scalar;
 use crate::scheme::Scheme;
-use crate::step::{LevelData, Step};
+use crate::step::{LevelData, Scratch, Step};
 use crate::topology::{Edges, Level, NONE};
 
 /// Hasher of uniform ids (u64 keys): one multiply and a fold, plenty for ids that are spread
@@ -235,14 +235,18 @@ struct Context<T> {
 }
 
 impl<T> Context<T> {
-    /// Refuses, before the work, what is estimated at more than the budget or the machine's
-    /// memory ([`memory::check_request`]).
-    fn check(&self, required: f64, faces: f64) -> Result<()> {
+    /// Refuses, before the work of `stage`, what is estimated at more than the budget or the
+    /// machine's memory ([`memory::check_request`]), saying when ([`Error::AdaptiveStopped`]).
+    fn check(&self, stage: AdaptiveStage, required: f64, faces: f64) -> Result<()> {
         memory::check_request(
             required.min(u64::MAX as f64) as u64,
             faces.min(u64::MAX as f64) as u64,
             self.budget,
         )
+        .map_err(|error| Error::AdaptiveStopped {
+            stage,
+            error: Box::new(error),
+        })
     }
 }
 
@@ -333,7 +337,7 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
         // The result is uniform level `max_level`: its size is known before any work.
         let leaves = roots as f64 * 4f64.powi(max_level as i32 - 1);
         let required = leaves * (BYTES_PER_NODE + BYTES_PER_LEAF + 4.0 / 3.0 * BYTES_PER_FACE);
-        ctx.check(required, leaves)?;
+        ctx.check(AdaptiveStage::BeforeTheWork, required, leaves)?;
     }
     // Uniform ids held by the bookkeeping (nodes, refined sets, seeds), in nodes.
     let mut held = roots;
@@ -346,6 +350,7 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
         };
         held += count;
         ctx.check(
+            AdaptiveStage::Level(j as u32),
             retained(&parts) + BYTES_PER_NODE * held as f64 + 4.0 * BYTES_PER_FACE * count as f64,
             4.0 * count as f64,
         )?;
@@ -413,6 +418,7 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
     extend_pass(&ctx, &mut parts, &seeds, held)?;
     let num_leaves: u64 = leaves.iter().map(|l| l.len() as u64).sum();
     ctx.check(
+        AdaptiveStage::Output,
         retained(&parts) + BYTES_PER_NODE * held as f64 + BYTES_PER_LEAF * num_leaves as f64,
         num_leaves as f64,
     )?;
@@ -527,6 +533,7 @@ fn extend_pass<T: Scalar>(
             )));
         }
         ctx.check(
+            AdaptiveStage::Level(t as u32 + 1),
             retained + BYTES_PER_CORNER as f64 * fine_corners as f64,
             fine_corners as f64 / 4.0,
         )?;
@@ -642,14 +649,19 @@ fn refine_part<T: Scalar>(
         curves: &network,
         sharpness: None,
     };
+    let scratch = Scratch::default();
     let mut data = if t == 0 {
         LevelData::new(&ctx.cage)
     } else {
         LevelData::on_level(&ctx.cage, odd, &coarse.data, coarse.curve.clone())
-    };
+    }
+    .with_scratch_for(&scratch, &step)?;
     data.step(&step);
     // The drawing points: the primal data, or one more dual -> primal average.
-    let drawing = (!odd).then(|| data.drawing_points(&step));
+    let drawing = match odd {
+        true => None,
+        false => Some(data.drawing_points(&step)?),
+    };
     let (data, curve) = data.into_parts();
     let points = drawing.as_deref().unwrap_or(&data);
 

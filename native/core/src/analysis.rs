@@ -36,10 +36,11 @@ use std::sync::{Arc, Mutex, OnceLock};
 use nalgebra::{Complex, DMatrix, DVector, Schur};
 
 use crate::error::{Error, Result};
+use crate::memory;
 use crate::mesh::Cage;
 use crate::options::Options;
 use crate::refinement::Refinement;
-use crate::step::LevelData;
+use crate::step::{LevelData, Scratch};
 use crate::topology::Level;
 
 pub use crate::scheme::{cardinal_bspline, cardinal_bspline_derivative};
@@ -81,7 +82,7 @@ pub fn polar_cage(valence: usize, rings: usize) -> Result<Cage> {
         };
         v as i64
     };
-    let mut faces = Vec::with_capacity(4 * valence * r * r);
+    let mut faces = memory::with_capacity(4 * valence * r * r)?;
     for s in 0..valence {
         for i in 0..r {
             for j in 0..r {
@@ -94,7 +95,8 @@ pub fn polar_cage(valence: usize, rings: usize) -> Result<Cage> {
             }
         }
     }
-    Cage::from_indices(1 + valence * r * (r + 1), &vec![4; valence * r * r], &faces)
+    let sizes = memory::filled(valence * r * r, 4)?;
+    Cage::from_indices(1 + valence * r * (r + 1), &sizes, &faces)
 }
 
 /// Walks the quad grid around a vertex of a quad level: `frame(s, i, j)` is the corner at grid
@@ -243,7 +245,8 @@ fn complete_neighbourhood(level: &Level, first: usize, degree: u32) -> Vec<Label
 /// `valence`, built by running unit impulses through one step of the engine (level 1 to 2 of
 /// a polar cage, far from its boundary).
 pub fn subdivision_matrix(degree: u32, valence: usize) -> Result<SubdivisionMatrix> {
-    let (labels, columns) = impulse_responses(degree, valence, |_| true)?;
+    // The columns and the dense matrix: 16 bytes per entry.
+    let (labels, columns) = impulse_responses(degree, valence, |_| true, 16)?;
     let mut matrix = DMatrix::zeros(labels.len(), labels.len());
     for (col, column) in columns.iter().enumerate() {
         matrix.set_column(col, &DVector::from_column_slice(column));
@@ -276,10 +279,14 @@ const IMPULSES_PER_STEP: usize = 8;
 /// subdivision matrix alike) and the columns of the matrix for the labels `wanted` picks, in
 /// label order: each the response of one step of the engine (level 1 to 2 of a polar cage, far
 /// from its boundary) to a unit impulse, [`IMPULSES_PER_STEP`] impulses per evaluation.
+/// `bytes_per_entry` (8 for the columns alone) is what the caller holds per entry of the
+/// columns: the request is refused over the default memory budget before they are made (a
+/// dense matrix grows with the square of the valence).
 fn impulse_responses(
     degree: u32,
     valence: usize,
     wanted: impl Fn((usize, usize, usize)) -> bool,
+    bytes_per_entry: u64,
 ) -> Result<(Vec<Label>, Vec<Vec<f64>>)> {
     if valence < 3 {
         return Err(Error::InvalidInput(format!("valence {valence} is below 3")));
@@ -293,6 +300,7 @@ fn impulse_responses(
             ..Options::default()
         },
     )?;
+    plan.complete_levels()?;
     let (coarse, fine) = (&plan.levels()[1], &plan.levels()[2]);
     // The centre keeps id 0 at every level; its child corners are 4c for its coarse corners c.
     let first = coarse.corners_of_vertex(0)[0] as usize;
@@ -308,16 +316,24 @@ fn impulse_responses(
         .filter(|(label, _)| wanted(*label))
         .map(|&(_, item)| item)
         .collect();
-    let mut out = Vec::with_capacity(picked.len());
+    let entries = picked.len() as u64 * rows.len() as u64;
+    memory::check_request(
+        entries.saturating_mul(bytes_per_entry),
+        fine.num_faces() as u64,
+        memory::default_memory_budget(),
+    )?;
+    let mut out = memory::with_capacity(picked.len())?;
     let mut impulses = vec![[0.0; IMPULSES_PER_STEP]; size];
     for group in picked.chunks(IMPULSES_PER_STEP) {
         for (c, &item) in group.iter().enumerate() {
             impulses[item][c] = 1.0;
         }
-        let response = step_values(&plan, 1, &impulses);
+        let response = step_values(&plan, 1, &impulses)?;
         for (c, &item) in group.iter().enumerate() {
             impulses[item][c] = 0.0;
-            out.push(rows.iter().map(|&(_, at)| response[at][c]).collect());
+            out.push(memory::collect(
+                rows.iter().map(|&(_, at)| response[at][c]),
+            )?);
         }
     }
     Ok((rows.into_iter().map(|r| r.0).collect(), out))
@@ -332,7 +348,7 @@ fn step_values<const C: usize>(
     refinement: &Refinement,
     j: usize,
     values: &[[f64; C]],
-) -> Vec<[f64; C]> {
+) -> Result<Vec<[f64; C]>> {
     let (levels, networks) = (refinement.levels(), refinement.curve_networks());
     assert!(
         j >= 1 && j < networks.len(),
@@ -351,18 +367,21 @@ fn step_values<const C: usize>(
             .map(|ce| values[face_of_edge(ce.edge)])
             .collect()
     };
-    let mut data = LevelData::on_level(&cage, primal, values, curve);
-    data.step(&refinement.step(j));
-    data.into_parts().0
+    let step = refinement.step(j);
+    let scratch = Scratch::default();
+    let mut data =
+        LevelData::on_level(&cage, primal, values, curve).with_scratch_for(&scratch, &step)?;
+    data.step(&step);
+    Ok(data.into_parts().0)
 }
 
 /// [`step_values`] of one channel.
-fn step_scalar(refinement: &Refinement, j: usize, data: &[f64]) -> Vec<f64> {
+fn step_scalar(refinement: &Refinement, j: usize, data: &[f64]) -> Result<Vec<f64>> {
     let values: Vec<[f64; 1]> = data.iter().map(|&x| [x]).collect();
-    step_values(refinement, j, &values)
+    Ok(step_values(refinement, j, &values)?
         .into_iter()
         .map(|[x]| x)
-        .collect()
+        .collect())
 }
 
 /// The columns of a subdivision matrix for the centre and sector 0 only: by the rotational
@@ -381,7 +400,7 @@ struct SectorColumns {
 
 impl SectorColumns {
     fn new(degree: u32, valence: usize) -> Result<SectorColumns> {
-        let (labels, columns) = impulse_responses(degree, valence, |(s, _, _)| s == 0)?;
+        let (labels, columns) = impulse_responses(degree, valence, |(s, _, _)| s == 0, 8)?;
         let primal = degree % 2 == 1;
         let sector_size = (labels.len() - usize::from(primal)) / valence;
         Ok(SectorColumns {
@@ -1107,13 +1126,14 @@ pub fn refine(
                 data[item] = x;
             }
             for j in 1..=steps {
-                data = step_scalar(&plan, j, &data);
+                data = step_scalar(&plan, j, &data)?;
             }
-            at.iter()
+            Ok(at
+                .iter()
                 .map(|at| at.iter().map(|&i| data[i]).collect())
-                .collect()
+                .collect())
         })
-        .collect();
+        .collect::<Result<_>>()?;
     Ok(RefinedNet {
         steps,
         spacing,

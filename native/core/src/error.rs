@@ -87,6 +87,14 @@ pub enum Error {
     /// The work was stopped by its caller (a signal such as Ctrl-C); nothing was written.
     #[error("interrupted: {0}")]
     Interrupted(String),
+    /// Adaptive subdivision refused over its memory ([`Error::MemoryBudget`] or
+    /// [`Error::OutOfMemory`], the `error`), saying when: before any work, before making a
+    /// level (the coarser levels were made and are dropped), or before the output.
+    #[error("adaptive subdivision {stage}: {error}")]
+    AdaptiveStopped {
+        stage: AdaptiveStage,
+        error: Box<Error>,
+    },
     /// An error restated in the terms of the file the mesh came from: `message` names the file,
     /// the line (when the error has one) and the file's own indices (1-based OBJ vertices);
     /// `error` is the same error in the mesh's 0-based terms, with its kind and details.
@@ -99,11 +107,41 @@ pub enum Error {
 }
 
 impl Error {
-    /// The error itself, without the file context of [`Error::InFile`].
+    /// The error itself, without the context of [`Error::InFile`] and
+    /// [`Error::AdaptiveStopped`].
     pub fn kind(&self) -> &Error {
         match self {
-            Error::InFile { error, .. } => error.kind(),
+            Error::InFile { error, .. } | Error::AdaptiveStopped { error, .. } => error.kind(),
             other => other,
+        }
+    }
+}
+
+/// When adaptive subdivision refused a request over its memory ([`Error::AdaptiveStopped`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AdaptiveStage {
+    /// Before any work: the result's size was known (tolerance 0 refines uniformly).
+    BeforeTheWork,
+    /// Before making this level (`1..=max_level`): the coarser levels were made (they are
+    /// dropped), and the estimate with this one passed the budget.
+    Level(u32),
+    /// After every level, before the output mesh was made.
+    Output,
+}
+
+impl std::fmt::Display for AdaptiveStage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            AdaptiveStage::BeforeTheWork => f.write_str("refused before any work"),
+            AdaptiveStage::Level(1) => f.write_str("refused before making level 1"),
+            AdaptiveStage::Level(level) => write!(
+                f,
+                "stopped before making level {level} (levels 1..={} were made, and are dropped)",
+                level - 1
+            ),
+            AdaptiveStage::Output => {
+                f.write_str("stopped before the output (every level was refined)")
+            }
         }
     }
 }

@@ -12,24 +12,31 @@ use crate::scalar::{reciprocal, Scalar, Value};
 use crate::step::{Final, LevelData, Scratch};
 
 /// Runs `cage` (one value per vertex of `M_0`) through every step of `refinement`, taking and
-/// giving back buffers in `scratch` when given. `want_dual` selects the final kind: the drawing
-/// mesh wants primal data, the true dual mesh dual data.
+/// giving back buffers in `scratch`. `want_dual` selects the final kind: the drawing mesh wants
+/// primal data, the true dual mesh dual data.
+///
+/// Every level-sized buffer of the run comes from `scratch`, which is provisioned here first
+/// (fallibly: a refusal is [`crate::Error::OutOfMemory`] before any step runs) with the two
+/// buffers of the largest level that a run takes at most; the steps then only reuse them (the
+/// gathers' `hinted_or_abort` is not reached on this path).
 pub(crate) fn run<T: Scalar, const N: usize>(
     refinement: &Refinement,
-    scratch: Option<&Scratch>,
+    scratch: &Scratch,
     cage: &[Value<T, N>],
     want_dual: bool,
-) -> Final<T, N> {
+) -> Result<Final<T, N>> {
     let steps = refinement.curve_networks().len();
     let mut data = LevelData::new(cage);
-    if let Some(scratch) = scratch.filter(|_| steps > 0) {
-        data = data.with_scratch(scratch, scratch_capacity(refinement));
+    if steps > 0 {
+        let capacity = scratch_capacity(refinement);
+        scratch.provision::<Value<T, N>>(capacity, 2)?;
+        data = data.with_scratch(scratch, capacity);
     }
     for j in 0..steps {
         data.step(&refinement.step(j));
     }
     let last = steps.checked_sub(1).map(|j| refinement.step(j));
-    data.finish(last.as_ref(), want_dual)
+    Ok(data.finish(last.as_ref(), want_dual))
 }
 
 /// Values a run's buffers hold at most: the largest level's data (and the last step's 1-D
@@ -77,10 +84,7 @@ fn evaluate_n<T: Scalar, const N: usize>(
 ) -> Result<Vec<T>> {
     let (points, _) = values.as_chunks::<N>();
     let compact = refinement.compact(points);
-    if !refinement.curve_networks().is_empty() {
-        scratch.provision::<Value<T, N>>(scratch_capacity(refinement), 2)?;
-    }
-    let result = run(refinement, Some(scratch), &compact, refinement.wants_dual());
+    let result = run(refinement, scratch, &compact, refinement.wants_dual())?;
     Ok(output.finish(result)?.into_flattened())
 }
 

@@ -61,7 +61,7 @@ pub use adaptive::{
     AdaptiveMesh, AdaptiveOptions,
 };
 pub use curves::CurveNetwork;
-pub use error::{Error, Result};
+pub use error::{AdaptiveStage, Error, Result};
 pub use face_varying::FaceVaryingMode;
 pub use mesh::{validate_geometry, Cage, Corner, Crease, INFINITELY_SHARP};
 pub use options::{

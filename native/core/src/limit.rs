@@ -49,8 +49,9 @@ use crate::analysis::{
 use crate::curves::LevelSharpness;
 use crate::error::{Error, Result};
 use crate::evaluate::{in_groups_of_four, run};
+use crate::memory;
 use crate::options::{Options, OutputKind};
-use crate::parallel::gather;
+use crate::parallel::gather_hinted;
 use crate::refinement::Refinement;
 use crate::scalar::{add, mad, scale, zero, Scalar, Value};
 use crate::scheme::catmark::{
@@ -116,6 +117,8 @@ fn build_stencils(
     let degree = refinement.options().degree;
     let primal = degree % 2 == 1;
     let n = neighbourhood_size(degree);
+    // The last level's edge and vertex -> corner tables, fallibly (`levels()` would panic).
+    refinement.complete_levels()?;
     let last = refinement.levels().last().expect("a level");
     let curves = refinement.curve_networks().last().expect("a step");
     let nf = last.num_faces();
@@ -145,7 +148,7 @@ fn build_stencils(
 
     let mut valences: Vec<usize> = Vec::new();
     // Per vertex: rule and items, or None when not clean.
-    let per_vertex: Vec<Option<(LimitMask, Vec<u32>)>> = gather(outputs, |v| {
+    let stencil_of = |v: usize| -> Option<(LimitMask, Vec<u32>)> {
         if let Some(i) = curve_of(v) {
             let cv = &curves.vertices()[i];
             let Some([a, _]) = cv.edges else {
@@ -221,31 +224,44 @@ fn build_stencils(
             LimitMask::Interior(valence as u32),
             items.iter().map(|&(_, i)| i as u32).collect(),
         ))
-    });
-    if per_vertex.iter().any(Option::is_none) {
-        return Ok(None);
-    }
-    let mut masks_of = Vec::with_capacity(outputs);
-    let mut offsets = Vec::with_capacity(outputs + 1);
-    let mut items = Vec::new();
+    };
+    // The tables are allocated fallibly; the per-vertex stencils are gathered a block of
+    // vertices at a time, so that what is held besides the tables stays small.
+    const BLOCK: usize = 1 << 16;
+    let mut masks_of = memory::with_capacity(outputs)?;
+    let mut offsets = memory::with_capacity(outputs + 1)?;
+    let mut items: Vec<u32> = Vec::new();
     offsets.push(0u32);
-    for (mask, its) in per_vertex.into_iter().flatten() {
-        let mask = match mask {
-            LimitMask::Interior(k) => {
-                let at = match valences.iter().position(|&x| x == k as usize) {
-                    Some(at) => at,
-                    None => {
-                        valences.push(k as usize);
-                        valences.len() - 1
-                    }
-                };
-                LimitMask::Interior(at as u32)
-            }
-            m => m,
-        };
-        masks_of.push(mask);
-        items.extend(its);
-        offsets.push(items.len() as u32);
+    for start in (0..outputs).step_by(BLOCK) {
+        let end = (start + BLOCK).min(outputs);
+        let block = gather_hinted(end - start, |i| stencil_of(start + i))?;
+        if block.iter().any(Option::is_none) {
+            return Ok(None);
+        }
+        let size: usize = block.iter().flatten().map(|(_, its)| its.len()).sum();
+        if items.capacity() - items.len() < size {
+            // Doubling, as `extend` would grow it.
+            let more = size.max(items.len());
+            memory::reserve(&mut items, more)?;
+        }
+        for (mask, its) in block.into_iter().flatten() {
+            let mask = match mask {
+                LimitMask::Interior(k) => {
+                    let at = match valences.iter().position(|&x| x == k as usize) {
+                        Some(at) => at,
+                        None => {
+                            valences.push(k as usize);
+                            valences.len() - 1
+                        }
+                    };
+                    LimitMask::Interior(at as u32)
+                }
+                m => m,
+            };
+            masks_of.push(mask);
+            items.extend(its);
+            offsets.push(items.len() as u32);
+        }
     }
     let masks = valences
         .iter()
@@ -254,18 +270,30 @@ fn build_stencils(
 
     // Fans at curve vertices and corners, one per output corner there.
     let spread = 4usize.pow(extra);
-    let mut corner_fan = vec![NONE; output_corners];
-    let mut fan_offsets = vec![0u32];
-    let mut fan_closed = Vec::new();
-    let mut fan_vertex = Vec::new();
-    let mut fan_items = Vec::new();
+    let on_curve = |c: usize| {
+        let v = last.corner_verts[c * spread] as usize;
+        (v < outputs && matches!(masks_of[v], LimitMask::Curve | LimitMask::Corner)).then_some(v)
+    };
+    // At most one fan per such corner, and at most three items per corner of a fan (its
+    // outline, or its faces and two curve edges).
+    let fan_corners = (0..output_corners)
+        .filter(|&c| on_curve(c).is_some())
+        .count();
+    let mut corner_fan = memory::filled(output_corners, NONE)?;
+    let mut fan_offsets = memory::with_capacity(fan_corners + 1)?;
+    fan_offsets.push(0u32);
+    let mut fan_closed = memory::with_capacity(fan_corners)?;
+    let mut fan_vertex = memory::with_capacity(fan_corners)?;
+    let mut fan_items = memory::with_capacity(3 * fan_corners)?;
     let mut fan_of_start: HashMap<usize, u32> = HashMap::new();
+    fan_of_start
+        .try_reserve(fan_corners)
+        .map_err(|_| memory::refused_bytes(16 * fan_corners as u64))?;
     for (c, fan) in corner_fan.iter_mut().enumerate() {
         let d = c * spread;
-        let v = last.corner_verts[d] as usize;
-        if v >= outputs || !matches!(masks_of[v], LimitMask::Curve | LimitMask::Corner) {
+        let Some(v) = on_curve(c) else {
             continue;
-        }
+        };
         // Clockwise to the fan's start: across outgoing edges until a curve edge.
         let mut start = d;
         let mut closed = false;
@@ -504,27 +532,31 @@ impl Limit<'_> {
         let compact = r.compact(points);
         match self.rule {
             LimitMethod::CatmullClark => {
-                let Final::Primal(last) = run(r, Some(self.scratch), &compact, false) else {
+                let Final::Primal(last) = run(r, self.scratch, &compact, false)? else {
                     unreachable!("primal classic run")
                 };
+                r.complete_levels()?;
                 let j = r.levels().len() - 1;
                 let sharpness = r.sharpness(j).expect("Catmull-Clark levels have sharpness");
-                let out = catmark_limit(&r.levels()[j], sharpness, &last);
+                let out = catmark_limit(&r.levels()[j], sharpness, &last)?;
                 Ok((out.into_flattened(), None))
             }
             LimitMethod::Interpolating => {
                 // Bilinear: the surface interpolates the refined points; each face's patch has
                 // its own normal at its corners.
-                let Final::Primal(last) = run(r, Some(self.scratch), &compact, false) else {
+                let Final::Primal(last) = run(r, self.scratch, &compact, false)? else {
                     unreachable!("degree 1 is primal")
                 };
-                let normals = normals.then(|| face_corner_normals(r.last_level(), &last));
+                let normals = match normals {
+                    true => Some(face_corner_normals(r.last_level(), &last)?),
+                    false => None,
+                };
                 Ok((last.into_flattened(), normals))
             }
             LimitMethod::Eigen => {
                 let st = stencils(r, self.cache)?;
-                let data = self.limit_data(&st, &compact);
-                let positions: Vec<[T; N]> = gather(st.masks_of.len(), |v| {
+                let data = self.limit_data(&st, &compact)?;
+                let positions: Vec<[T; N]> = gather_hinted(st.masks_of.len(), |v| {
                     let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
                     let weights: &[f64] = match st.masks_of[v] {
                         LimitMask::Interior(m) => &st.masks[m as usize].position,
@@ -532,8 +564,11 @@ impl Limit<'_> {
                         LimitMask::Corner => return data[items[0] as usize],
                     };
                     combine(&data, items, weights)
-                });
-                let normals = normals.then(|| self.stencil_normals(&st, &data, &positions));
+                })?;
+                let normals = match normals {
+                    true => Some(self.stencil_normals(&st, &data, &positions)?),
+                    false => None,
+                };
                 Ok((positions.into_flattened(), normals))
             }
         }
@@ -545,23 +580,24 @@ impl Limit<'_> {
         &self,
         st: &Stencils,
         compact: &[[T; N]],
-    ) -> Vec<[T; N]> {
+    ) -> Result<Vec<[T; N]>> {
         let (refinement, scratch) = match &st.extended {
             Some((r, s)) => (r, s),
             None => (self.refinement, self.scratch),
         };
         let even = self.refinement.options().degree.is_multiple_of(2);
-        match run(refinement, Some(scratch), compact, even) {
+        Ok(match run(refinement, scratch, compact, even)? {
             Final::Primal(vertices) => vertices,
             Final::Dual {
                 mut faces,
                 curve_edges,
             } => {
+                memory::reserve(&mut faces, curve_edges.len() + compact.len())?;
                 faces.extend(curve_edges);
                 faces.extend_from_slice(compact);
                 faces
             }
-        }
+        })
     }
 
     /// Unit normals per output corner from the stencils (see [`surface`]).
@@ -570,9 +606,9 @@ impl Limit<'_> {
         st: &Stencils,
         data: &[[T; N]],
         positions: &[[T; N]],
-    ) -> Vec<T> {
+    ) -> Result<Vec<T>> {
         let at = |x: &[T; N]| DVec3::new(x[0].to_f64(), x[1].to_f64(), x[2].to_f64());
-        let vertex_normals: Vec<DVec3> = gather(st.masks_of.len(), |v| {
+        let vertex_normals: Vec<DVec3> = gather_hinted(st.masks_of.len(), |v| {
             let LimitMask::Interior(m) = st.masks_of[v] else {
                 return DVec3::ZERO;
             };
@@ -580,8 +616,8 @@ impl Limit<'_> {
             let [a, b] = &st.masks[m as usize].tangents;
             let (a, b) = (at(&combine(data, items, a)), at(&combine(data, items, b)));
             a.cross(b).normalize_or_zero()
-        });
-        let fan_normals: Vec<DVec3> = gather(st.fan_closed.len(), |f| {
+        })?;
+        let fan_normals: Vec<DVec3> = gather_hinted(st.fan_closed.len(), |f| {
             let items = &st.fan_items[st.fan_offsets[f] as usize..st.fan_offsets[f + 1] as usize];
             let centre = at(&positions[st.fan_vertex[f] as usize]);
             let q: Vec<DVec3> = items
@@ -593,9 +629,9 @@ impl Limit<'_> {
                 .map(|i| q[i].cross(q[(i + 1) % q.len()]))
                 .sum::<DVec3>()
                 .normalize_or_zero()
-        });
+        })?;
         let corners = &self.refinement.last_level().corner_verts;
-        let mut out = Vec::with_capacity(3 * corners.len());
+        let mut out = memory::with_capacity(3 * corners.len())?;
         for (c, &v) in corners.iter().enumerate() {
             let n = match st.corner_fan[c] {
                 NONE => vertex_normals[v as usize],
@@ -603,17 +639,20 @@ impl Limit<'_> {
             };
             out.extend(n.to_array().map(T::from_f64));
         }
-        out
+        Ok(out)
     }
 }
 
 /// Unit normals of each face's bilinear patch at its corners, face after face.
-fn face_corner_normals<T: Scalar, const N: usize>(level: &Level, points: &[[T; N]]) -> Vec<T> {
+fn face_corner_normals<T: Scalar, const N: usize>(
+    level: &Level,
+    points: &[[T; N]],
+) -> Result<Vec<T>> {
     let at = |v: u32| {
         let x = &points[v as usize];
         DVec3::new(x[0].to_f64(), x[1].to_f64(), x[2].to_f64())
     };
-    let mut out = Vec::with_capacity(3 * level.num_corners());
+    let mut out = memory::with_capacity(3 * level.num_corners())?;
     for f in 0..level.num_faces() {
         let face = &level.corner_verts[level.face_corners(f)];
         let k = face.len();
@@ -628,7 +667,7 @@ fn face_corner_normals<T: Scalar, const N: usize>(level: &Level, points: &[[T; N
             );
         }
     }
-    out
+    Ok(out)
 }
 
 /// Classic Catmull-Clark limit positions at the vertices of `level`, which must be a quad level
@@ -643,9 +682,9 @@ fn catmark_limit<T: Scalar, const N: usize>(
     level: &Level,
     this: &LevelSharpness,
     values: &[Value<T, N>],
-) -> Vec<Value<T, N>> {
+) -> Result<Vec<Value<T, N>>> {
     assert!(level.is_quads(), "limit positions need a quad level");
-    gather(level.num_vertices, |v| match this.rule(v) {
+    gather_hinted(level.num_vertices, |v| match this.rule(v) {
         VertexRule::Dart
             if level
                 .vertex_edges(v)

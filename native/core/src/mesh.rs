@@ -4,6 +4,7 @@
 //! oriented, degenerate or zero-area faces are subdivided as OpenSubdiv does.
 
 use crate::error::{Error, Result};
+use crate::memory;
 use crate::scalar::Scalar;
 
 /// Sharpness at or above which a crease or corner is infinitely sharp (as in OpenSubdiv); the
@@ -86,7 +87,9 @@ impl Cage {
                 "{num_vertices} vertices is more than supported"
             )));
         }
-        let mut face_offsets = Vec::with_capacity(face_sizes.len() + 1);
+        // The tables take about as much as the input; `num_vertices` is the caller's word, so
+        // they are allocated fallibly.
+        let mut face_offsets = memory::with_capacity(face_sizes.len() + 1)?;
         face_offsets.push(0u32);
         let mut total: u64 = 0;
         for (face, &size) in face_sizes.iter().enumerate() {
@@ -108,9 +111,9 @@ impl Cage {
                 face_vertices.len()
             )));
         }
-        let mut verts = Vec::with_capacity(face_vertices.len());
+        let mut verts = memory::with_capacity(face_vertices.len())?;
         // The last face each vertex was seen in (linear in the corners, whatever the face sizes).
-        let mut seen_in = vec![u32::MAX; num_vertices];
+        let mut seen_in = memory::filled(num_vertices, u32::MAX)?;
         for face in 0..face_sizes.len() {
             let range = face_offsets[face] as usize..face_offsets[face + 1] as usize;
             let (mut distinct, mut repeated) = (0, None);
@@ -143,6 +146,7 @@ impl Cage {
 
     /// Adds edge creases `(a, b, sharpness)`. Whether `a-b` is an edge is checked by the plan.
     pub fn with_creases(mut self, creases: &[(i64, i64, f32)]) -> Result<Cage> {
+        memory::reserve(&mut self.creases, creases.len())?;
         for (i, &(a, b, s)) in creases.iter().enumerate() {
             let a = check_index(|| format!("crease {i}"), a, self.num_vertices)?;
             let b = check_index(|| format!("crease {i}"), b, self.num_vertices)?;
@@ -165,6 +169,7 @@ impl Cage {
 
     /// Adds corner vertices `(vertex, sharpness)`.
     pub fn with_corners(mut self, corners: &[(i64, f32)]) -> Result<Cage> {
+        memory::reserve(&mut self.corners, corners.len())?;
         for (i, &(v, s)) in corners.iter().enumerate() {
             let vertex = check_index(|| format!("corner {i}"), v, self.num_vertices)?;
             check_sharpness("corner", i, s)?;
@@ -180,6 +185,7 @@ impl Cage {
     /// shape their neighbours, but are left out of the output.
     pub fn with_holes(mut self, holes: &[i64]) -> Result<Cage> {
         let faces = self.num_faces();
+        memory::reserve(&mut self.holes, holes.len())?;
         for (i, &f) in holes.iter().enumerate() {
             if f < 0 || f as u64 >= faces as u64 {
                 return Err(Error::InvalidInput(format!(

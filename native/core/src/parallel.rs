@@ -83,9 +83,13 @@ pub(crate) fn zeroed_hinted<T: Default + Copy + Send + Sync>(n: usize) -> Result
 }
 
 /// [`with_capacity_hinted`] for the gathers that fill a buffer they are given
-/// ([`gather_into`], [`gather_sections`]): evaluation provisions those buffers fallibly
-/// beforehand (`Scratch::provision`), so this allocates only for small data (curve networks,
-/// limit stencils) and aborts, as `Vec::with_capacity` does, if even that fails.
+/// ([`gather_into`], [`gather_sections`]) and the scratch buffers of a run, where a result
+/// cannot be returned; it aborts, as `Vec::with_capacity` does, if the allocation fails. No
+/// request reaches it with a buffer to allocate: every run of steps gets its level-sized
+/// buffers from a [`crate::step::Scratch`] provisioned fallibly first (`evaluate::run` for the
+/// plans and the limits, `LevelData::with_scratch_for` for the adaptive partial levels and the
+/// analysis), and a step takes at most the two buffers provisioned, each with room for the
+/// largest level; the gathers then find room in the buffer they are given.
 pub(crate) fn hinted_or_abort<T>(n: usize) -> Vec<T> {
     let v = Vec::with_capacity(n);
     advise_huge_pages(v.as_ptr() as usize, v.capacity() * std::mem::size_of::<T>());
@@ -155,14 +159,7 @@ pub(crate) fn fill_rows<T: Send>(out: &mut [T], row: usize, fill: impl Fn(usize,
         });
 }
 
-/// `out[i] = f(i)` for `i < n`, in parallel chunks.
-pub(crate) fn gather<V: Send, F: Fn(usize) -> V + Sync + Send>(n: usize, f: F) -> Vec<V> {
-    let mut out = Vec::new();
-    gather_into(&mut out, n, f);
-    out
-}
-
-/// As [`gather`], reusing the allocation of `out`.
+/// `out[i] = f(i)` for `i < n`, in parallel chunks, reusing the allocation of `out`.
 pub(crate) fn gather_into<V: Send, F: Fn(usize) -> V + Sync + Send>(
     out: &mut Vec<V>,
     n: usize,

@@ -270,7 +270,11 @@ impl Level {
     #[inline]
     pub(crate) fn vertex_corner_table(&self) -> (&[u32], &[u32]) {
         if self.vert_corner_offsets.is_empty() {
-            // Only levels built without the table get here (plans index theirs when built).
+            // Only levels built without the table get here, and on every request's path the
+            // table is already built, fallibly: a plan's last level is completed by
+            // `Refinement::complete_levels` (the binding's `complete_output`, the limits)
+            // before anything reads it, and a step reads only coarse levels, which have it.
+            // So the panic below is for a refused allocation on a path that skipped that.
             let (o, c) = self.lazy_vertex_corners.get_or_init(|| {
                 vertex_corners(self.num_vertices, &self.corner_verts)
                     .unwrap_or_else(|e| panic!("vertex -> corner table: {e}"))

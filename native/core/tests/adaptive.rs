@@ -7,7 +7,7 @@ use std::collections::HashMap;
 
 use bidegree::{
     margin_rings, subdivide_adaptive, subdivide_adaptive_with_margin, triangle_template,
-    AdaptiveMesh, AdaptiveOptions, Boundary, Cage, Error, Options, Plan, Scalar,
+    AdaptiveMesh, AdaptiveOptions, AdaptiveStage, Boundary, Cage, Error, Options, Plan, Scalar,
 };
 use common::{cage, grid, Random};
 
@@ -463,7 +463,8 @@ fn invalid_requests_are_typed_errors() {
         run(AdaptiveOptions {
             memory_budget: 10_000,
             ..options(4, 6, 0.0)
-        }),
+        })
+        .kind(),
         Error::MemoryBudget { .. }
     ));
     let short = &points[..points.len() - 3];
@@ -538,7 +539,11 @@ fn adaptive_memory_budget_is_checked_before_the_work() {
             memory_budget: budget,
             ..options(4, 16, tolerance)
         };
-        match subdivide_adaptive(&cage, &points, &o).unwrap_err() {
+        let e = subdivide_adaptive(&cage, &points, &o).unwrap_err();
+        let Error::AdaptiveStopped { stage, error } = &e else {
+            panic!("not an adaptive refusal: {e}");
+        };
+        match **error {
             Error::MemoryBudget {
                 required,
                 budget: b,
@@ -546,15 +551,32 @@ fn adaptive_memory_budget_is_checked_before_the_work() {
             } => {
                 assert_eq!(b, budget);
                 assert!(required > budget);
-                required
+                (*stage, e.to_string())
             }
-            other => panic!("not a budget error: {other}"),
+            ref other => panic!("not a budget error: {other}"),
         }
     };
-    // Uniform level 16 of 24 roots: 24 * 4^15 leaves, far above the default 4 GiB.
-    assert!(refused(0.0, bidegree::DEFAULT_MEMORY_BUDGET) > 1 << 40);
-    // A tiny tolerance under 32 MiB: refused at the first level whose estimate passes it.
-    refused(1e-14, 32 << 20);
+    // Uniform level 16 of 24 roots: 24 * 4^15 leaves, far above the default 4 GiB: refused
+    // before any work, and the message says so.
+    let (stage, message) = refused(0.0, bidegree::DEFAULT_MEMORY_BUDGET);
+    assert_eq!(stage, AdaptiveStage::BeforeTheWork, "{message}");
+    assert!(
+        message.starts_with(
+            "adaptive subdivision refused before any work: the result would need about"
+        ),
+        "{message}"
+    );
+    // A tiny tolerance under 32 MiB: stopped at the first level whose estimate passes it,
+    // after the coarser ones were made.
+    let (stage, message) = refused(1e-14, 32 << 20);
+    let AdaptiveStage::Level(level) = stage else {
+        panic!("{message}");
+    };
+    assert!(level > 1, "{message}");
+    assert!(
+        message.contains(&format!("stopped before making level {level}")),
+        "{message}"
+    );
     // The same request under a budget that holds it succeeds (the checks refuse nothing that
     // fits).
     let o = AdaptiveOptions {

@@ -1,5 +1,7 @@
-//! Arbitrary input never panics: any polygon soup, crease list, degree and level count either
-//! subdivides or is refused with a typed error.
+//! Arbitrary input never panics: any polygon soup (non-manifold edges, flipped faces, repeated
+//! vertices, zero-area faces, holes, isolated vertices), crease and corner list, degree, level
+//! count and boundary rule either subdivides or is refused with a typed error, through the plan,
+//! the limits and adaptive subdivision.
 
 use bidegree::{
     subdivide, subdivide_adaptive, AdaptiveOptions, Boundary, Cage, Options, OutputKind, Plan,
@@ -23,6 +25,46 @@ fn soup() -> impl Strategy<Value = Soup> {
         let points = prop::collection::vec(-5.0f64..5.0, 3 * n);
         (Just(n), faces, creases, points)
     })
+}
+
+/// Books: `sheets` strips of quads on one line of `len` vertices (3+ faces on each of its
+/// edges, a non-manifold edge), some sheets flipped, maybe a zero-area sheet (its points on
+/// the line) and a triangle with a repeated vertex hung on the line.
+fn book() -> impl Strategy<Value = Soup> {
+    (2usize..5, 2usize..5, any::<u8>(), any::<bool>()).prop_flat_map(
+        |(sheets, len, flips, flat)| {
+            let n = len * (sheets + 1);
+            let mut faces = Vec::new();
+            for s in 0..sheets {
+                let off = |i: usize| (len * (s + 1) + i) as i64;
+                for i in 0..len - 1 {
+                    let mut f = vec![i as i64, (i + 1) as i64, off(i + 1), off(i)];
+                    if flips >> s & 1 == 1 {
+                        f.reverse();
+                    }
+                    faces.push(f);
+                }
+            }
+            if flat {
+                faces.push(vec![0, 1, 1, len as i64]);
+            }
+            let index = 0i64..n as i64;
+            let creases = prop::collection::vec((index.clone(), index, 0.0f32..12.0), 0..3);
+            let points = prop::collection::vec(-5.0f64..5.0, 3 * n).prop_map(move |mut p| {
+                if flat {
+                    // The last sheet's far row on the line: zero-area faces.
+                    let last = len * sheets;
+                    for i in 0..len {
+                        for k in 0..3 {
+                            p[3 * (last + i) + k] = p[3 * i + k];
+                        }
+                    }
+                }
+                p
+            });
+            (Just(n), Just(faces), creases, points)
+        },
+    )
 }
 
 /// Valid closed meshes: an m x n torus with random creases and corners.
@@ -52,29 +94,62 @@ proptest! {
 
     #[test]
     fn arbitrary_input_is_subdivided_or_refused(
-        (n, faces, creases, points) in prop_oneof![soup(), torus()],
+        (n, faces, creases, points) in prop_oneof![2 => soup(), 2 => book(), 1 => torus()],
         degree in 0u32..12,
         levels in 0u32..4,
         dual in any::<bool>(),
-        corners in any::<bool>(),
+        boundary in 0u8..3,
+        classic in prop::bool::weighted(0.2),
+        holes in prop::collection::vec(-1i64..8, 0..3),
+        corners in prop::collection::vec((-1i64..12, 0.0f32..12.0), 0..3),
+        limit in prop::bool::weighted(0.3),
+        adaptive in prop::bool::weighted(0.1),
     ) {
         let sizes: Vec<i64> = faces.iter().map(|f| f.len() as i64).collect();
         let indices: Vec<i64> = faces.iter().flatten().copied().collect();
+        let boundary = [Boundary::EdgeOnly, Boundary::EdgeAndCorner, Boundary::None][boundary as usize];
         let options = Options {
             degree,
             levels,
             output: if dual { OutputKind::Dual } else { OutputKind::Primal },
-            boundary: if corners { Boundary::EdgeAndCorner } else { Boundary::EdgeOnly },
+            boundary,
+            rules: if classic { Rules::Classic } else { Rules::Averaging },
             ..Options::default()
         };
-        let outcome = Cage::from_indices(n, &sizes, &indices)
+        let cage = Cage::from_indices(n, &sizes, &indices)
             .and_then(|cage| cage.with_creases(&creases))
-            .and_then(|cage| subdivide(&cage, &points, 3, &options));
-        if let Ok((plan, out)) = outcome {
+            .and_then(|cage| cage.with_corners(&corners))
+            .and_then(|cage| cage.with_holes(&holes));
+        let Ok(cage) = cage else {
+            return Ok(());
+        };
+        if let Ok((plan, out)) = subdivide(&cage, &points, 3, &options) {
             prop_assert_eq!(out.len(), 3 * plan.num_output_vertices());
             prop_assert!(out.iter().all(|x| x.is_finite()));
-            let max = *plan.output_face_vertices().iter().max().unwrap_or(&0) as usize;
-            prop_assert!(max < plan.num_output_vertices());
+            // (Every face may be a hole: then there are no output vertices and no faces.)
+            let vertices = plan.num_output_vertices();
+            prop_assert!(plan.output_face_vertices().iter().all(|&v| (v as usize) < vertices));
+            if limit {
+                if let Ok(at) = plan.limit_positions(&points, 3) {
+                    prop_assert_eq!(at.len(), 3 * plan.num_output_vertices());
+                }
+                if let Ok((at, normals)) = plan.limit_surface(&points) {
+                    prop_assert_eq!(at.len(), 3 * plan.num_output_vertices());
+                    prop_assert_eq!(normals.len(), 3 * plan.output_face_vertices().len());
+                }
+            }
+        }
+        if adaptive {
+            let options = AdaptiveOptions {
+                degree,
+                max_level: levels.max(1),
+                tolerance: 0.01,
+                boundary,
+                ..AdaptiveOptions::default()
+            };
+            if let Ok(mesh) = subdivide_adaptive(&cage, &points, &options) {
+                prop_assert!(mesh.points.iter().all(|x| x.is_finite()));
+            }
         }
     }
 }

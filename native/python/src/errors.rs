@@ -109,6 +109,14 @@ fn error_class(error: &Error) -> (&'static str, Vec<(&'static str, i64)>) {
         Error::NonFiniteOutput { vertex, .. } => ("NonFiniteError", vec![("vertex", n(*vertex))]),
         // Only when a signal handler's exception was lost; nothing was written.
         Error::Interrupted(_) => ("BidegreeIOError", vec![]),
+        // The refusal's own class (MemoryBudgetError); `level` when it stopped at a level.
+        Error::AdaptiveStopped { stage, error } => {
+            let (class, mut details) = error_class(error);
+            if let bidegree::AdaptiveStage::Level(level) = stage {
+                details.push(("level", i64::from(*level)));
+            }
+            (class, details)
+        }
         Error::InFile { error, line, .. } => {
             let (class, mut details) = error_class(error);
             if let Some(line) = line {

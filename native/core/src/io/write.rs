@@ -13,6 +13,7 @@ use rayon::prelude::*;
 
 use super::Interrupt;
 use crate::error::{Error, Result};
+use crate::memory;
 
 /// Floating-point types [`write_obj`] prints, in their shortest form that reads back to the same
 /// value (`0.1f32` as `0.1`): `f32` and `f64`.
@@ -115,7 +116,8 @@ fn write_text<T: ObjFloat>(
         None => None,
     };
     if let Some(values) = uv_values {
-        write_parallel(file, values.len() / 2, interrupt, |range, out| {
+        let bound = |range: Range<usize>| range.len() * UV_LINE_BYTES;
+        write_parallel(file, values.len() / 2, interrupt, bound, |range, out| {
             let mut buffer = ryu::Buffer::new();
             for t in range {
                 out.extend_from_slice(b"vt ");
@@ -133,7 +135,11 @@ fn write_text<T: ObjFloat>(
     let (offsets, vertices) = (mesh.face_offsets, mesh.face_vertices);
     let num_faces = offsets.len().saturating_sub(1);
     let with_normals = mesh.normals.is_some();
-    write_parallel(file, num_faces, interrupt, |range, out| {
+    let bound = |faces: Range<usize>| {
+        let corners = (offsets[faces.end] - offsets[faces.start]) as usize;
+        2 * faces.len() + corners * CORNER_BYTES
+    };
+    write_parallel(file, num_faces, interrupt, bound, |range, out| {
         let mut buffer = itoa::Buffer::new();
         for f in range {
             out.push(b'f');
@@ -166,6 +172,15 @@ pub(super) const CHUNK_ITEMS: usize = if cfg!(test) { 64 } else { 1 << 15 };
 /// Tasks per batch: the formatted text of one batch is held in memory at once.
 pub(super) const CHUNKS_PER_BATCH: usize = 16;
 
+/// Bytes a float takes at most in its shortest form (`-1.2345678901234567e-308`).
+const FLOAT_BYTES: usize = 24;
+/// Bytes a line `<tag>x y z` takes at most (tags of up to 3 bytes).
+const VECTOR_LINE_BYTES: usize = 3 + 3 * FLOAT_BYTES + 3;
+/// Bytes a line `vt u v` takes at most.
+const UV_LINE_BYTES: usize = 3 + 2 * FLOAT_BYTES + 2;
+/// Bytes a face corner ` v/t/n` takes at most (three 64-bit indices).
+const CORNER_BYTES: usize = 3 * 21;
+
 /// Writes `values` as lines `<tag>x y z`, three values per line.
 fn write_vectors<W: Write, T: ObjFloat>(
     out: &mut W,
@@ -173,7 +188,8 @@ fn write_vectors<W: Write, T: ObjFloat>(
     values: &[T],
     interrupt: Interrupt<'_>,
 ) -> std::result::Result<(), Written> {
-    write_parallel(out, values.len() / 3, interrupt, |range, out| {
+    let bound = |range: Range<usize>| range.len() * VECTOR_LINE_BYTES;
+    write_parallel(out, values.len() / 3, interrupt, bound, |range, out| {
         let mut buffer = ryu::Buffer::new();
         for v in range {
             out.extend_from_slice(tag);
@@ -195,11 +211,14 @@ fn push_float<T: ObjFloat>(out: &mut Vec<u8>, buffer: &mut ryu::Buffer, x: T) {
 }
 
 /// Formats `count` items in parallel chunks (in a bounded number of buffers at a time) and
-/// writes them in order, asking `interrupt` after every chunk.
+/// writes them in order, asking `interrupt` after every chunk. `bound(items)` is the most bytes
+/// those items' text can take: each chunk's buffer is allocated at that size, fallibly (a face
+/// of a million corners is one long line), so formatting never grows it.
 fn write_parallel<W: Write>(
     out: &mut W,
     count: usize,
     interrupt: Interrupt<'_>,
+    bound: impl Fn(Range<usize>) -> usize + Sync,
     format: impl Fn(Range<usize>, &mut Vec<u8>) + Sync,
 ) -> std::result::Result<(), Written> {
     let batch = CHUNK_ITEMS * CHUNKS_PER_BATCH;
@@ -211,14 +230,13 @@ fn write_parallel<W: Write>(
             .collect::<Vec<_>>()
             .into_par_iter()
             .map(|chunk_start| {
-                let mut buffer = Vec::with_capacity(CHUNK_ITEMS * 48);
-                format(
-                    chunk_start..(chunk_start + CHUNK_ITEMS).min(end),
-                    &mut buffer,
-                );
-                buffer
+                let items = chunk_start..(chunk_start + CHUNK_ITEMS).min(end);
+                let mut buffer = memory::with_capacity(bound(items.clone()))?;
+                format(items, &mut buffer);
+                Ok(buffer)
             })
-            .collect();
+            .collect::<Result<_>>()
+            .map_err(Written::Stopped)?;
         for buffer in &buffers {
             out.write_all(buffer)?;
             interrupt().map_err(Written::Stopped)?;

@@ -289,6 +289,16 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         self
     }
 
+    /// For a step run outside a plan (the adaptive partial levels, the analysis): new buffers
+    /// come from `scratch`, first provisioned (fallibly) with the two buffers of the fine
+    /// level's size that a step takes at most, so that the step's gathers never allocate.
+    pub(crate) fn with_scratch_for(self, scratch: &'a Scratch, step: &Step) -> Result<Self> {
+        let fine = step.fine;
+        let capacity = fine.num_vertices.max(fine.num_faces());
+        scratch.provision::<Value<T, N>>(capacity, 2)?;
+        Ok(self.with_scratch(scratch, capacity))
+    }
+
     /// The 2-D data (per vertex or per face) and the 1-D data (per curve vertex or curve edge).
     pub(crate) fn into_parts(self) -> (Vec<Value<T, N>>, Vec<Value<T, N>>) {
         let curve = match self.curve {
@@ -370,11 +380,11 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
 
     /// The drawing points of dual data (one more dual -> primal average with the 1-D values),
     /// leaving the data as it is.
-    pub(crate) fn drawing_points(&self, step: &Step) -> Vec<Value<T, N>> {
-        let mut out = Vec::new();
+    pub(crate) fn drawing_points(&self, step: &Step) -> Result<Vec<Value<T, N>>> {
+        let mut out = with_capacity_hinted(step.fine.num_vertices)?;
         self.gather_primal(step, &mut out);
         self.blend_curves(step.curves, &mut out);
-        out
+        Ok(out)
     }
 
     /// A buffer for a new array of values.

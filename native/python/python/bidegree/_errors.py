@@ -92,7 +92,9 @@ class MemoryBudgetError(BidegreeError):
     """The request would need more memory than its budget (attributes ``required``, ``budget``,
     ``faces``), or more than this process can have (the machine's memory, a cgroup or
     address-space limit: ``required`` and ``budget``, the memory available, when the core knows
-    it), or an allocation was refused while working; nothing is kept of the request."""
+    it), or an allocation was refused while working; nothing is kept of the request. Adaptive
+    subdivision says in the message when it refused (before any work, before making a level,
+    before the output) and sets ``level`` when it stopped before making that level."""
 
 
 class InvalidInputError(BidegreeError, ValueError):
