@@ -167,6 +167,8 @@ class _AdaptiveData(TypedDict):
     vertex_id: NDArray[np.int64]
     leaves_per_level: NDArray[np.int64]
     max_error: float | None
+    vertex_values: _Float | None
+    face_varying: list[_Float]
 
 def subdivide_adaptive(
     cage: Cage,
@@ -177,4 +179,6 @@ def subdivide_adaptive(
     boundary: str,
     memory_budget: int | None = None,
     measure_leaves: bool = False,
+    vertex_values: _Float | None = None,
+    face_varying: list[tuple[_Float, str]] | None = None,
 ) -> _AdaptiveData: ...

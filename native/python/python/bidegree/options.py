@@ -215,6 +215,7 @@ class Options:
             max_level=self.levels,
             tolerance=self.tolerance,
             memory_budget=self.memory_budget,
+            uv_mode=self.uv_mode,  # type: ignore[arg-type]
         )
 
     def estimate(self, mesh: bidegree.Mesh) -> dict[str, int]:
