@@ -313,6 +313,72 @@ def test_custom_normals_match_subsurf(scene: Any) -> None:
     bpy.data.meshes.remove(result)
 
 
+# --------------------------------------------------------------------------- adaptive output
+
+
+def test_adaptive_output_carries_point_corner_face_attributes(scene: Any) -> None:
+    obj = grid(scene, 4)
+    me = obj.data
+    me.vertices[12].co.z = 1.5  # a bump in the middle: uneven refinement
+    nv, nc, nf = len(me.vertices), len(me.loops), len(me.polygons)
+    rng = np.random.default_rng(4)
+    weight = rng.random(nv).astype(np.float32)
+    colours = rng.random((nc, 4)).astype(np.float32)
+    put(me, "weight", "FLOAT", "POINT", weight)
+    put(me, "corner_paint", "FLOAT_COLOR", "CORNER", colours)
+    put(me, "face_weight", "FLOAT", "FACE", np.arange(nf) / nf)
+    me.uv_layers.new(name="UVMap")
+    uvs = rng.random((nc, 2)).astype(np.float32)
+    for d, uv in zip(me.uv_layers["UVMap"].data, uvs, strict=True):
+        d.uv = uv.tolist()
+    normals = rng.normal(size=(nc, 3))
+    normals[:, 2] += 3.0
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    me.normals_split_custom_set(normals.astype(np.float32).tolist())
+    # The corner normals Blender has for them (its normal-space encoding moves them a little).
+    normals = np.zeros(3 * nc, dtype=np.float32)
+    me.corner_normals.foreach_get("vector", normals)
+    normals = normals.reshape(-1, 3)
+    group = obj.vertex_groups.new(name="group")
+    for v in range(nv):
+        group.add([v], float(weight[nv - 1 - v]), "REPLACE")
+    from bidegree.options import Options
+
+    options = Options(degree=3, levels=3, adaptive=True, tolerance=0.01, uv_mode="corners-plus1")
+    result = subdivided(obj, options=options)
+    cage = plain_cage(me)
+    ref = bidegree.subdivide_adaptive(
+        cage,
+        degree=3,
+        max_level=3,
+        tolerance=0.01,
+        uv_mode="corners-plus1",
+        vertex_values=np.stack([weight, weight[::-1]], axis=1).astype(np.float64),
+        face_varying={
+            "uv": uvs.astype(np.float64),
+            "paint": colours.astype(np.float64),
+            "normals": (normals.astype(np.float32).astype(np.float64), "all"),
+        },
+    )
+    assert len(set(ref.triangle_level.tolist())) >= 2
+    assert len(result.polygons) == ref.num_triangles
+    np.testing.assert_allclose(get(result, "weight"), ref.vertex_values[:, 0], atol=1e-6)
+    np.testing.assert_allclose(get(result, "corner_paint"), ref.face_varying["paint"], atol=1e-6)
+    np.testing.assert_allclose(get(result, "UVMap"), ref.face_varying["uv"], atol=1e-6)
+    np.testing.assert_allclose(get(result, "face_weight"), ref.face_origin / nf, atol=1e-7)
+    got = np.zeros(3 * len(result.loops), dtype=np.float32)
+    result.corner_normals.foreach_get("vector", got)
+    want = ref.face_varying["normals"]
+    want /= np.linalg.norm(want, axis=1, keepdims=True)
+    np.testing.assert_allclose(got.reshape(-1, 3), want, atol=1e-5)
+    bpy.data.meshes.remove(result)
+    # Vertex groups: the weights through the same levels (the surface's holder has them).
+    from bidegree_blender import pipeline
+
+    surface, _ = pipeline.adaptive_surface(pipeline.evaluated_cage(obj), options)
+    np.testing.assert_allclose(surface.vertex_groups["group"], ref.vertex_values[:, 1], atol=1e-6)
+
+
 # --------------------------------------------------------------------------- the modifier
 
 

@@ -118,7 +118,7 @@ def subdivide_adaptive(
     *,
     uv_mode: UvMode = "boundaries",
     vertex_values: ArrayLike | None = None,
-    face_varying: Mapping[str, ArrayLike] | None = None,
+    face_varying: Mapping[str, ArrayLike | tuple[ArrayLike, UvMode]] | None = None,
 ) -> AdaptiveResult:
     """Subdivides ``mesh`` adaptively (the paper's §3): a quadtree per quad of level 1, refined
     while a node is not flat enough, up to ``max_level``, with neighbouring leaves (sharing an
@@ -139,7 +139,8 @@ def subdivide_adaptive(
         vertex_values: (cage vertices, C) any per-vertex attribute, carried through the same
             levels as the points (``AdaptiveResult.vertex_values``).
         face_varying: name -> (cage corners, C) further face-varying sets (each welded on its
-            own), at the triangle corners (``AdaptiveResult.face_varying``).
+            own), at the triangle corners (``AdaptiveResult.face_varying``); a set given as
+            ``(values, mode)`` has its own mode instead of ``uv_mode``.
 
     Every vertex is bit for bit the vertex of the uniform result at its level, and so are its
     values; face-varying values are those of the uniform result at the vertex's level. Holes
@@ -183,10 +184,14 @@ def subdivide_adaptive(
         raise InvalidInputError(
             f"face_varying must be a mapping of name -> values, not {type(face_varying).__name__}"
         )
-    for name, array in (face_varying or {}).items():
-        corners, _ = convert.values_2d(array, mesh.num_corners, f"face_varying[{name!r}]", "face corners")
+    for name, given in (face_varying or {}).items():
+        array, mode = given if isinstance(given, tuple) else (given, uv_mode)
+        mode = convert.choice(mode, convert.UV_MODES, "uv_mode")
+        corners, _ = convert.values_2d(
+            array, mesh.num_corners, f"face_varying[{name!r}]", "face corners"
+        )
         names.append(str(name))
-        sets.append((np.ascontiguousarray(corners, dtype=dtype), uv_mode))
+        sets.append((np.ascontiguousarray(corners, dtype=dtype), mode))
     data = _native.subdivide_adaptive(
         mesh._cage,
         mesh.points,

@@ -31,7 +31,13 @@ What each domain does (Blender's Subdivision Surface, ``subdiv_mesh.cc``, is the
 
 Dual output: edges lie on cage edges only along the boundary (``Plan.edge_origin``) and no
 output vertex is a cage vertex, so interior edge attributes and vertex creases stay at their
-defaults. Adaptive output keeps face attributes only (the core evaluates no data on it).
+defaults.
+
+Adaptive output (:func:`adaptive_request`, :func:`adaptive_attributes`): point floats, vertex
+groups, corner floats (UV maps included, in the UV mode), custom normals and face attributes
+come through the adaptive forest as on uniform output (each at its vertex's level); edge
+attributes, integer and boolean point and corner attributes and vertex creases are not carried
+(the core gives adaptive triangles no map to cage edges and no quadrant).
 """
 
 from __future__ import annotations
@@ -260,12 +266,60 @@ def transfer(
     return SurfaceAttributes(out, cage_attributes.colors)
 
 
-def face_attributes(cage_attributes: CageAttributes, face_origin: np.ndarray) -> SurfaceAttributes:
-    """Only the face attributes of the cage, through ``face_origin`` (adaptive output)."""
-    origin = np.asarray(face_origin, dtype=np.int64)
-    return SurfaceAttributes(
-        [_like(a, a.values[origin]) for a in cage_attributes.attributes if a.domain == "FACE"]
-    )
+#: Name of the face-varying set that carries the custom normals through adaptive output.
+_NORMALS_SET = "\0custom normals"
+
+
+def adaptive_request(
+    cage_attributes: CageAttributes, uv_mode: str
+) -> tuple[list[Attribute], dict[str, tuple[np.ndarray, str]]]:
+    """What adaptive output carries of the cage's attributes, as the arguments of
+    :func:`bidegree.subdivide_adaptive`: the averaged point attributes (stacked as its
+    ``vertex_values``) and the averaged corner attributes and custom normals (its
+    ``face_varying``, corner values in ``uv_mode``, custom normals linear)."""
+    attrs = cage_attributes.attributes
+    points = [
+        a
+        for a in attrs
+        if a.domain == "POINT" and a.data_type in _AVERAGED and a.name != CREASE_VERT
+    ]
+    sets = {
+        f"{a.domain}:{a.name}": (a.values.astype(np.float64), uv_mode)
+        for a in attrs
+        if a.domain == "CORNER" and a.data_type in _AVERAGED
+    }
+    if cage_attributes.custom_normals is not None:
+        sets[_NORMALS_SET] = (np.asarray(cage_attributes.custom_normals, np.float64), "all")
+    return points, sets
+
+
+def adaptive_attributes(
+    result: bidegree.AdaptiveResult,
+    cage_attributes: CageAttributes,
+    points: list[Attribute],
+    point_values: np.ndarray | None,
+) -> tuple[SurfaceAttributes, np.ndarray | None]:
+    """The attributes adaptive output carries (see :func:`adaptive_request`; ``point_values``
+    are the columns of ``points`` in ``result.vertex_values``), with the face attributes
+    through ``face_origin``, and the custom normals per triangle corner (renormalized) or
+    ``None``. Not carried (no plan: the core gives no edge map or quadrant for adaptive
+    triangles): edge attributes, integer and boolean point and corner attributes, vertex
+    creases."""
+    origin = np.asarray(result.face_origin, dtype=np.int64)
+    out = [_like(a, a.values[origin]) for a in cage_attributes.attributes if a.domain == "FACE"]
+    if points and point_values is not None:
+        out += _split(points, point_values)
+    for a in cage_attributes.attributes:
+        values = result.face_varying.get(f"{a.domain}:{a.name}")
+        if values is not None:
+            out += _split([a], values.reshape(len(values), -1))
+    normals = result.face_varying.get(_NORMALS_SET)
+    if normals is not None:
+        length = np.linalg.norm(normals, axis=1, keepdims=True)
+        normals = (normals / np.where(length > 0, length, 1.0)).astype(np.float32)
+    order = {(a.domain, a.name): i for i, a in enumerate(cage_attributes.attributes)}
+    out.sort(key=lambda a: order[(a.domain, a.name)])
+    return SurfaceAttributes(out, cage_attributes.colors), normals
 
 
 def custom_normals(plan: bidegree.Plan, normals: np.ndarray) -> np.ndarray:
