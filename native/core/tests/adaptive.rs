@@ -68,6 +68,20 @@ fn options(degree: u32, max_level: u32, tolerance: f64) -> AdaptiveOptions {
     }
 }
 
+/// The uniform plan of `cage` at `levels` (averaging rules, primal output).
+fn uniform_plan(cage: &Cage, degree: u32, levels: u32, boundary: Boundary) -> Plan {
+    Plan::new(
+        cage,
+        &Options {
+            degree,
+            levels,
+            boundary,
+            ..Options::default()
+        },
+    )
+    .unwrap()
+}
+
 /// Every vertex of the adaptive mesh is, bit for bit, the vertex of the same id of the uniform
 /// drawing mesh at its level.
 fn assert_uniform_points<T: Scalar>(
@@ -85,16 +99,7 @@ fn assert_uniform_points<T: Scalar>(
         if at.is_empty() {
             continue;
         }
-        let plan = Plan::new(
-            cage,
-            &Options {
-                degree,
-                levels: level,
-                boundary,
-                ..Options::default()
-            },
-        )
-        .unwrap();
+        let plan = uniform_plan(cage, degree, level, boundary);
         let uniform = plan.evaluate(points, 3).unwrap();
         for i in at {
             let u = mesh.vertex_id[i] as usize;
@@ -657,8 +662,9 @@ fn uniform_face_varying_by_vertex(
     out
 }
 
-/// Adaptive points, per-vertex values and face-varying values against the uniform plans at
-/// every level the mesh uses (holes left out there as here).
+/// Adaptive points, per-vertex values (when carried: those of `x * x - 0.5 * x` per point
+/// coordinate) and face-varying values against the uniform plans at every level the mesh uses
+/// (holes left out there as here).
 fn assert_uniform_data(
     cage: &Cage,
     points: &[f64],
@@ -673,16 +679,7 @@ fn assert_uniform_data(
         if !mesh.vertex_level.contains(&level) {
             continue;
         }
-        let plan = Plan::new(
-            cage,
-            &Options {
-                degree,
-                levels: level,
-                boundary,
-                ..Options::default()
-            },
-        )
-        .unwrap();
+        let plan = uniform_plan(cage, degree, level, boundary);
         let faces: std::collections::HashSet<u32> =
             plan.output_face_origin().iter().copied().collect();
         assert!(drawn.is_subset(&faces), "adaptive draws a hole");
