@@ -87,7 +87,7 @@ use crate::mesh::{check_values, validate_geometry, Cage};
 use crate::options::{check_degree, check_levels, Boundary, Options};
 use crate::refinement::Refinement;
 use crate::scalar::{reciprocal, Scalar};
-use crate::scheme::Scheme;
+use crate::scheme::{decrement, Scheme};
 use crate::step::{LevelData, Step};
 use crate::topology::{Edges, Level, NONE};
 
@@ -172,6 +172,20 @@ pub struct AdaptiveMesh<T> {
     /// channels, interleaved), each at its vertex's level, bit for bit the uniform
     /// [`crate::Plan::evaluate`] there; empty otherwise.
     pub vertex_values: Vec<T>,
+    /// Per triangle corner `3t + i`: the cage edge (index into `cage_edges`) that the
+    /// triangle's edge from corner `i` to corner `i + 1` lies on, [`crate::Level::NONE`] inside
+    /// a cage face (for edge attributes, as [`crate::Plan::output_edge_origin`]).
+    pub edge_origin: Vec<u32>,
+    /// Per triangle corner: the level of that edge (a leaf's edge, or half of it where the
+    /// finer neighbour's midpoint is inserted).
+    pub edge_level: Vec<u32>,
+    /// Per triangle corner: the sharpness that edge keeps at its level (the cage edge's,
+    /// lowered once per level, as [`crate::Plan::output_edge_sharpness`] with the averaging
+    /// rules; 0 inside cage faces, 10 on boundaries).
+    pub edge_sharpness: Vec<f32>,
+    /// The edges of the cage as pairs of cage vertices (the user's numbering, smaller first),
+    /// ordered by pair, as [`crate::Plan::cage_edges`].
+    pub cage_edges: Vec<[u32; 2]>,
     /// One entry per [`AdaptiveData::face_varying`] set: its values at the triangle corners
     /// (3 per triangle, its channels interleaved), each at its vertex's level, bit for bit the
     /// uniform [`crate::Plan::evaluate_face_varying`] at that level on the same side of a seam.
@@ -469,6 +483,12 @@ fn adaptive<T: Scalar>(
     let drawn = triangulate(&ctx, &parts, &refined, &leaves)?;
     let mut mesh = drawn.mesh;
     mesh.max_error = max_error;
+    mesh.cage_edges = (ctx.level0.edge_verts().iter())
+        .map(|&[a, b]| {
+            let (a, b) = (base.cage_vertex(a), base.cage_vertex(b));
+            [a.min(b), a.max(b)]
+        })
+        .collect();
     let held = retained(&parts) + BYTES_PER_NODE * held as f64;
     if let Some((values, channels)) = extra.vertex_values {
         mesh.vertex_values = carry_vertex_values(
@@ -1276,6 +1296,19 @@ pub fn triangle_template(mask: u8) -> Vec<[u8; 3]> {
         .collect()
 }
 
+/// The cage edge that edge `uid` of the uniform level `t` lies on (its parents' halves down
+/// to `M_0`: edge `e` of `M_j` has the halves `2e`, `2e + 1` in `M_{j+1}`, the edges after
+/// them are inside faces), or `NONE`.
+fn cage_edge_of<T>(parts: &[Part<T>], t: usize, mut uid: u64) -> u32 {
+    for j in (1..=t).rev() {
+        if uid >= 2 * parts[j - 1].counts[1] {
+            return NONE;
+        }
+        uid >>= 1;
+    }
+    uid as u32
+}
+
 /// The output mesh and where its vertices and triangle corners are in the partial levels.
 struct Drawn<T> {
     mesh: AdaptiveMesh<T>,
@@ -1330,6 +1363,8 @@ fn triangulate<T: Scalar>(
     let mut face_origin = Vec::new();
     let mut triangle_level = Vec::new();
     let mut corner_at = Vec::new();
+    let (mut edge_origin, mut edge_level, mut edge_sharpness) =
+        (Vec::new(), Vec::new(), Vec::new());
     for t in 1..=max_level {
         let part = &parts[t];
         let level = &part.level;
@@ -1363,9 +1398,35 @@ fn triangulate<T: Scalar>(
                 }
             }
             let origin = ctx.level0.corner_faces[(part.face_uid[f] >> (2 * (t - 1))) as usize];
+            // The cage edge under each side of the leaf.
+            let sides: [u32; 4] = std::array::from_fn(|k| {
+                cage_edge_of(
+                    parts,
+                    t,
+                    part.edge_uid[level.corner_edges()[4 * f + k] as usize],
+                )
+            });
             for tri in &templates[mask as usize] {
                 triangles.push(tri.map(|p| slots[p as usize]));
                 corner_at.extend(tri.map(|p| (t as u32, f as u32, p)));
+                for i in 0..3 {
+                    let (p, q) = (tri[i], tri[(i + 1) % 3]);
+                    // On side k when both slots are among its corners and midpoint.
+                    let side = (0..4u8).find(|&k| {
+                        let on = |x: u8| (x + 8 - 2 * k) % 8 <= 2;
+                        on(p) && on(q)
+                    });
+                    let origin = side.map_or(NONE, |k| sides[k as usize]);
+                    let depth = t as u32 + (p % 2 == 1 || q % 2 == 1) as u32;
+                    edge_origin.push(origin);
+                    edge_level.push(depth);
+                    edge_sharpness.push(if origin == NONE {
+                        0.0
+                    } else {
+                        let cage = ctx.features.edge_sharpness[origin as usize];
+                        (0..depth).fold(cage, |s, _| decrement(s))
+                    });
+                }
                 face_origin.push(origin);
                 triangle_level.push(t as u32);
             }
@@ -1386,6 +1447,10 @@ fn triangulate<T: Scalar>(
         vertex_id,
         leaves_per_level,
         max_error: None,
+        edge_origin,
+        edge_level,
+        edge_sharpness,
+        cage_edges: Vec::new(),
         vertex_values: Vec::new(),
         face_varying: Vec::new(),
     };

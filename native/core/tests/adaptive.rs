@@ -8,7 +8,7 @@ use std::collections::HashMap;
 use bidegree::{
     margin_rings, subdivide_adaptive, subdivide_adaptive_with_data, subdivide_adaptive_with_margin,
     triangle_template, AdaptiveData, AdaptiveMesh, AdaptiveOptions, Boundary, Cage, Error,
-    FaceVaryingMode, Options, Plan, Scalar,
+    FaceVaryingMode, Level, Options, Plan, Scalar,
 };
 use common::{cage, grid, Random};
 
@@ -886,4 +886,47 @@ fn adaptive_face_varying_values_equal_uniform_ones_bitwise() {
         subdivide_adaptive_with_data(&grid, &points, &options(3, 3, 3e-3), &nan),
         Err(Error::NonFinite { .. })
     ));
+}
+
+#[test]
+fn triangle_edges_know_their_cage_edge_and_sharpness() {
+    let (finned, points) = finned_grid(6);
+    let creased = finned
+        .with_creases(&[(8, 9, 2.5), (9, 10, 10.0), (22, 23, 1.5)])
+        .unwrap();
+    for degree in [2, 3, 4] {
+        let mesh = subdivide_adaptive(&creased, &points, &options(degree, 3, 3e-3)).unwrap();
+        assert!(levels_used(&mesh) >= 2);
+        assert_eq!(mesh.edge_origin.len(), 3 * mesh.triangles.len());
+        let mut checked = 0;
+        for level in 1..=3 {
+            let plan = uniform_plan(&creased, degree, level, Boundary::EdgeOnly);
+            assert_eq!(plan.cage_edges(), mesh.cage_edges);
+            let sharpness = plan.output_edge_sharpness().unwrap();
+            let uniform: HashMap<(u64, u64), usize> = (plan.output_edges().iter().enumerate())
+                .map(|(e, &[a, b])| ((a.min(b) as u64, a.max(b) as u64), e))
+                .collect();
+            for (c, &v) in mesh.triangles.as_flattened().iter().enumerate() {
+                if mesh.edge_level[c] != level {
+                    continue;
+                }
+                let next = mesh.triangles[c / 3][(c % 3 + 1) % 3];
+                let (a, b) = (mesh.vertex_id[v as usize], mesh.vertex_id[next as usize]);
+                let Some(&e) = uniform.get(&(a.min(b), a.max(b))) else {
+                    // A fan diagonal: no edge of the uniform level, inside a cage face.
+                    assert_eq!(mesh.edge_origin[c], Level::NONE);
+                    continue;
+                };
+                assert_eq!(
+                    mesh.edge_origin[c],
+                    plan.output_edge_origin()[e],
+                    "corner {c}"
+                );
+                assert_eq!(mesh.edge_sharpness[c], sharpness[e], "corner {c}");
+                checked += (mesh.edge_origin[c] != Level::NONE) as usize;
+            }
+        }
+        assert!(checked > 100, "{checked}");
+        assert!(mesh.edge_sharpness.iter().any(|&s| s > 0.0 && s < 10.0));
+    }
 }

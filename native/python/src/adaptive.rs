@@ -42,7 +42,9 @@ fn adaptive_options(
 /// Adaptive subdivision of a cage with 3-D points: a dict with `points` (N, 3) of the points'
 /// dtype, `triangles` int32 (T, 3), `face_origin` and `triangle_level` int32 (T,),
 /// `vertex_level` int32 (N,), `vertex_id` int64 (N,), `leaves_per_level` int64 (max_level + 1,),
-/// `max_error` (a float with `measure_leaves`, else None), `vertex_values` ((N, C) for
+/// `max_error` (a float with `measure_leaves`, else None), `edge_origin` (int32 (3 T,), -1
+/// inside cage faces), `edge_level` (int32 (3 T,)), `edge_sharpness` (float32 (3 T,)),
+/// `cage_edges` (int32 (E0, 2)), `vertex_values` ((N, C) for
 /// `vertex_values` (cage vertices, C) in the points' dtype, else None) and `face_varying` (a
 /// list: for each `(values (cage corners, C), mode)` of `face_varying`, (3 T, C) at the
 /// triangle corners).
@@ -172,8 +174,28 @@ fn adaptive<'py, T: Scalar + Element>(
     let AdaptiveMesh {
         vertex_values,
         face_varying,
+        edge_origin,
+        edge_level,
+        edge_sharpness,
+        cage_edges,
         ..
     } = mesh;
+    let edge_origin: Vec<i32> = (edge_origin.iter())
+        .map(|&e| {
+            if e == bidegree::Level::NONE {
+                Ok(-1)
+            } else {
+                to_i32(&[e]).map(|x| x[0])
+            }
+        })
+        .collect::<bidegree::Result<_>>()
+        .map_err(|e| to_py_err(py, e))?;
+    out.set_item("edge_origin", PyArray1::from_vec(py, edge_origin))?;
+    let edge_level = to_i32(&edge_level).map_err(|e| to_py_err(py, e))?;
+    out.set_item("edge_level", PyArray1::from_vec(py, edge_level))?;
+    out.set_item("edge_sharpness", PyArray1::from_vec(py, edge_sharpness))?;
+    let cage_edges = to_i32(cage_edges.as_flattened()).map_err(|e| to_py_err(py, e))?;
+    out.set_item("cage_edges", array2(py, cage_edges, 2)?)?;
     if extra.vertex_values.is_some() {
         out.set_item("vertex_values", array2(py, vertex_values, vertex_channels)?)?;
     } else {

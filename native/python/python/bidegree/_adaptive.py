@@ -40,6 +40,14 @@ class AdaptiveResult:
         vertex_values: (N, C) the ``vertex_values`` given, at the output vertices (each at
             its level, as the points), or None.
         face_varying: name -> (3 T, C) for each set of ``face_varying`` given, as ``uvs``.
+        edge_origin: int32 (3 T,), per triangle corner ``3 t + k``: the cage edge (row of
+            ``cage_edges``) under the triangle's edge from corner ``k`` to ``k + 1``, -1 inside
+            a cage face (as ``Plan.edge_origin``).
+        edge_level: int32 (3 T,), the level of that edge.
+        edge_sharpness: float32 (3 T,), the sharpness it keeps at its level (as
+            ``Plan.edge_sharpness`` with the averaging rules).
+        cage_edges: int32 (E0, 2), the cage's edges as vertex pairs (smaller first), ordered by
+            pair.
     """
 
     def __init__(
@@ -64,6 +72,10 @@ class AdaptiveResult:
         self.tolerance = tolerance
         self.uv_mode: UvMode = uv_mode
         self.vertex_values: FloatArray | None = data["vertex_values"]
+        self.edge_origin: NDArray[np.int32] = convert.readonly(data["edge_origin"])
+        self.edge_level: NDArray[np.int32] = convert.readonly(data["edge_level"])
+        self.edge_sharpness: NDArray[np.float32] = convert.readonly(data["edge_sharpness"])
+        self.cage_edges: NDArray[np.int32] = convert.readonly(data["cage_edges"])
         sets = dict(zip(names, data["face_varying"], strict=True))
         self.uvs: FloatArray | None = sets.pop(None, None)
         self.face_varying: dict[str, FloatArray] = {

@@ -169,6 +169,10 @@ class _AdaptiveData(TypedDict):
     max_error: float | None
     vertex_values: _Float | None
     face_varying: list[_Float]
+    edge_origin: NDArray[np.int32]
+    edge_level: NDArray[np.int32]
+    edge_sharpness: NDArray[np.float32]
+    cage_edges: NDArray[np.int32]
 
 def subdivide_adaptive(
     cage: Cage,
