@@ -383,6 +383,12 @@ def test_uvs_of_a_non_manifold_cage_and_the_obj_output(tmp_path: Path) -> None:
     assert sum(line.startswith("vt ") for line in lines) == 3 * result.num_triangles
     faces = [line for line in lines if line.startswith("f ")]
     assert len(faces) == result.num_triangles and "/" in faces[0]
+    # Triangle edges along cage edges know them (checked against the uniform plans in Rust).
+    assert result.edge_origin.shape == result.edge_level.shape == (3 * result.num_triangles,)
+    np.testing.assert_array_equal(result.cage_edges, bidegree.Plan(mesh, levels=1).cage_edges)
+    on = result.edge_origin >= 0
+    assert on.any() and (~on).any()
+    assert (result.edge_sharpness[~on] == 0).all() and (result.edge_sharpness[on] == 10).any()
     plain = bidegree.subdivide_adaptive(finned, degree=3, max_level=3, tolerance=3e-3)
     assert plain.uvs is None and plain.vertex_values is None and plain.face_varying == {}
     np.testing.assert_array_equal(plain.points, result.points)

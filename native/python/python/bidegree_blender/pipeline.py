@@ -232,11 +232,11 @@ def adaptive_surface(cage: mesh_io.CageArrays, options: Options) -> tuple[Surfac
     """The adaptive :class:`Surface` of ``cage`` (triangles): UV maps and corner floats in the
     options' UV mode, vertex group weights and point floats through the same levels as the
     points, custom normals (linear, renormalized; the limit normals of ``options.normals``
-    are not available on adaptive output), face data through ``face_origin``. Edge
-    attributes, integer and boolean attributes and vertex creases are not carried
-    (:func:`attributes.adaptive_attributes`)."""
+    are not available on adaptive output), face data through ``face_origin``, edge data on
+    the triangle edges along their cage edge, integers and booleans from the quadrant's cage
+    corner. Vertex creases are not carried (:func:`attributes.adaptive_attributes`)."""
     bmesh = cage_mesh(cage, options)
-    points, sets = attributes.adaptive_request(cage.attributes, options.uv_mode)
+    points, sets = attributes.adaptive_request(cage, options.uv_mode)
     for name, uv in cage.uv_maps.items():
         sets[f"uv:{name}"] = (uv, options.uv_mode)
     groups = list(cage.vertex_groups)
@@ -250,7 +250,7 @@ def adaptive_surface(cage: mesh_io.CageArrays, options: Options) -> tuple[Surfac
     values = result.vertex_values
     point_values = values[:, len(groups) :] if values is not None else None
     surface_attributes, normals = attributes.adaptive_attributes(
-        result, cage.attributes, points, point_values
+        result, cage, points, point_values, corner_edges, use_creases=options.use_creases
     )
     surface = Surface(
         points=result.points,
