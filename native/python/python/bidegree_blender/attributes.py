@@ -453,28 +453,6 @@ def _vertex_crease(
     return _like(attr, values)
 
 
-def _lowered(sharpness: np.ndarray, levels: int | np.ndarray) -> np.ndarray:
-    """OpenSubdiv's uniform decrement, ``levels`` times: minus one per level, 10 stays."""
-    return np.where(sharpness >= _CREASE_SCALE, _CREASE_SCALE, np.maximum(sharpness - levels, 0))
-
-
-def _to_crease(sharpness: np.ndarray) -> np.ndarray:
-    return np.sqrt(np.clip(sharpness, 0.0, _CREASE_SCALE) / _CREASE_SCALE).astype(np.float32)
-
-
-def _vertex_crease(
-    attr: Attribute, plan: bidegree.Plan, corners: _Corners, use_creases: bool
-) -> Attribute:
-    """The crease of each cage vertex on its own output vertex (lowered per level), 0 elsewhere."""
-    values = np.zeros(int(plan.num_output_vertices), dtype=np.float32)
-    crease = attr.values[corners.corner_verts[corners.quadrant[corners.exact]]]
-    if use_creases:
-        sharpness = _CREASE_SCALE * np.clip(crease, 0.0, 1.0) ** 2
-        crease = _to_crease(_lowered(sharpness, int(plan.levels)))
-    values[corners.face_indices[corners.exact]] = crease
-    return _like(attr, values)
-
-
 def _edge_attributes(
     attrs: list[Attribute],
     on: _OutputEdges,
