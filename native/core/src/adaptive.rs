@@ -1131,7 +1131,20 @@ fn restrict(fine: &Level, keep: &[bool]) -> Sub {
         .collect();
     let mut edge_corners = Vec::with_capacity(edges.len());
     let mut more = Vec::new();
+    let manifold = fine.edges().more.is_empty();
     for (i, &e) in edges.iter().enumerate() {
+        if manifold {
+            // Two slots at most: the common case, without the slot iterator.
+            let [a, b] = fine.edge_corners()[e as usize].map(|c| {
+                if c == NONE {
+                    NONE
+                } else {
+                    corner_map[c as usize]
+                }
+            });
+            edge_corners.push(if a == NONE { [b, NONE] } else { [a, b] });
+            continue;
+        }
         let mut slots = (fine.edge_slots(e as usize))
             .map(|c| corner_map[c as usize])
             .filter(|&c| c != NONE);
