@@ -227,3 +227,178 @@ def test_cli_adaptive_stays_under_the_budget(tmp_path: Path, tolerance: str, bud
     assert done.returncode == 2, (done.returncode, done.stderr)
     assert "memory budget" in done.stderr, done.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cube.obj"]
+
+
+def bumped_grid(n: int = 6, **kwargs: object) -> bidegree.Mesh:
+    """An open n x n grid in z = 0 with its middle vertex lifted (uneven refinement)."""
+    a, b = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
+    points = np.stack([a, b, np.zeros_like(a)], axis=-1).reshape(-1, 3).astype(np.float64)
+    points[(n // 2) * (n + 1) + n // 2, 2] = 2.0
+    ids = a[:-1, :-1] * (n + 1) + b[:-1, :-1]
+    faces = np.stack([ids, ids + n + 1, ids + n + 2, ids + 1], axis=-1).reshape(-1, 4)
+    return bidegree.Mesh(points, faces.tolist(), **kwargs)
+
+
+def finned_grid(n: int = 6, **kwargs: object) -> bidegree.Mesh:
+    """The bumped grid with a fin of 2 quads on two interior edges (edges of 3 faces, the fin's
+    second face against the first) and a triangle hanging from a corner (a bowtie vertex)."""
+    grid = bumped_grid(n)
+    faces = np.asarray(grid.face_indices).reshape(-1, 4).tolist()
+    points = grid.points.tolist()
+    base = len(points)
+    line = [2 * (n + 1) + 1, 2 * (n + 1) + 2, 2 * (n + 1) + 3]
+    for k, v in enumerate(line):
+        x, y, _ = points[v]
+        points.append([x + 0.2 * k, y, 1.0 + 0.4 * (k % 2)])
+    points += [[-1.0, -0.5, 0.3], [-0.5, -1.0, -0.3]]
+    faces += [[line[0], line[1], base + 1, base], [base + 2, base + 1, line[1], line[2]]]
+    faces += [[0, base + 4, base + 3]]
+    return bidegree.Mesh(np.array(points), faces, **kwargs)
+
+
+def seamed_uvs(mesh: bidegree.Mesh, n: int = 6) -> np.ndarray:
+    """Per-corner uvs of a grid cage with a seam down the middle (right half shifted) and one
+    across the right half (its top shifted too): a vertex with 3 values; the fin and the
+    hanging triangle (if any) get uvs of their own."""
+    corner_verts = np.asarray(mesh.face_indices)
+    face = np.repeat(np.arange(mesh.num_faces), mesh.face_sizes)
+    p = mesh.points[corner_verts]
+    row, col = face // n, face % n
+    grid = face < n * n
+    right = (grid & (col >= n // 2)).astype(np.float64)
+    top = (grid & (col >= n // 2) & (row >= n // 2)).astype(np.float64)
+    extra = (~grid) * (0.3 * p[:, 2] + 0.05 * face)
+    u = 0.1 * p[:, 0] + 0.7 * right + 0.01 * p[:, 1] ** 2 + extra
+    v = 0.1 * p[:, 1] + 0.4 * top - extra
+    return np.stack([u, v], axis=1)
+
+
+def uniform_by_vertex_and_face(
+    values: np.ndarray, face_indices: np.ndarray, face_origin: np.ndarray, sizes: np.ndarray
+) -> dict[tuple[int, int], bytes]:
+    """The uniform face-varying value at each (output vertex, cage face): checked to be one
+    value (one side of a seam)."""
+    origin = np.repeat(face_origin, sizes)
+    out: dict[tuple[int, int], bytes] = {}
+    for v, o, row in zip(face_indices.tolist(), origin.tolist(), values, strict=True):
+        bits = row.tobytes()
+        assert out.setdefault((v, o), bits) == bits, f"uniform corners at {(v, o)} differ"
+    return out
+
+
+UV_MODES = ["none", "corners-only", "corners-plus1", "corners-plus2", "boundaries", "all"]
+
+
+@pytest.mark.parametrize("degree", range(1, 10))
+def test_non_manifold_and_holed_cages_are_uniform_at_every_level(degree: int) -> None:
+    tolerance = 3e-3 if degree < 6 else 5e-4
+    finned = finned_grid()
+    weights = finned.points[:, :2] ** 2 - finned.points[:, 1:]
+    result = bidegree.subdivide_adaptive(
+        finned, degree=degree, max_level=3, tolerance=tolerance, vertex_values=weights
+    )
+    levels = np.unique(result.vertex_level)
+    assert len(levels) >= 2 or degree == 1
+    for level in levels:
+        plan = bidegree.Plan(finned, degree=degree, levels=int(level))
+        at = result.vertex_level == level
+        ids = result.vertex_id[at]
+        np.testing.assert_array_equal(
+            result.points[at].view(np.uint8), plan.result().points[ids].view(np.uint8)
+        )
+        np.testing.assert_array_equal(
+            result.vertex_values[at].view(np.uint8), plan.evaluate(weights)[ids].view(np.uint8)
+        )
+    # Holes (given, or boundary "none"): those faces are left out, the other vertices are the
+    # uniform ones (a hole shapes its neighbours: the cage without holes has the same points).
+    holed = bidegree.Mesh(
+        finned.points,
+        face_sizes=finned.face_sizes,
+        face_indices=finned.face_indices,
+        holes=[7, 20, 36],
+    )
+    none = bumped_grid(boundary="none")
+    for mesh, plain, holes in ((holed, finned, {7, 20, 36}), (none, bumped_grid(), None)):
+        result = bidegree.subdivide_adaptive(mesh, degree=degree, max_level=3, tolerance=tolerance)
+        drawn = set(result.face_origin.tolist())
+        uniform_drawn = set(bidegree.subdivide(mesh, degree=degree, levels=1).face_origin.tolist())
+        assert drawn <= uniform_drawn
+        if holes is not None:
+            assert not drawn & holes
+        for level in np.unique(result.vertex_level):
+            at = result.vertex_level == level
+            uniform = bidegree.subdivide(plain, degree=degree, levels=int(level)).points
+            np.testing.assert_array_equal(result.points[at], uniform[result.vertex_id[at]])
+
+
+@pytest.mark.parametrize("degree", range(1, 10))
+def test_uvs_equal_uniform_uvs_at_their_level(degree: int) -> None:
+    tolerance = 3e-3 if degree < 6 else 5e-4
+    base = bumped_grid()
+    uvs = seamed_uvs(base)
+    mesh = bidegree.Mesh(
+        base.points, face_sizes=base.face_sizes, face_indices=base.face_indices, uvs=uvs
+    )
+    for mode in UV_MODES:
+        result = bidegree.subdivide_adaptive(
+            mesh,
+            degree=degree,
+            max_level=3,
+            tolerance=tolerance,
+            uv_mode=mode,
+            face_varying={"twice": 2 * uvs},
+        )
+        assert result.uv_mode == mode and result.uvs is not None
+        assert result.uvs.shape == (3 * result.num_triangles, 2)
+        assert set(result.face_varying) == {"twice"}
+        corner_vertex = result.triangles.reshape(-1)
+        corner_face = np.repeat(result.face_origin, 3)
+        for level in np.unique(result.vertex_level):
+            uniform = bidegree.subdivide(mesh, degree=degree, levels=int(level), uv_mode=mode)
+            twice = bidegree.Plan(mesh, degree=degree, levels=int(level)).evaluate_face_varying(
+                2 * uvs, mode
+            )
+            for values, got in ((uniform.uvs, result.uvs), (twice, result.face_varying["twice"])):
+                want = uniform_by_vertex_and_face(
+                    values, uniform.face_indices, uniform.face_origin, uniform.face_sizes
+                )
+                for c in np.flatnonzero(result.vertex_level[corner_vertex] == level):
+                    key = (int(result.vertex_id[corner_vertex[c]]), int(corner_face[c]))
+                    assert got[c].tobytes() == want[key], (mode, level, key)
+
+
+def test_uvs_of_a_non_manifold_cage_and_the_obj_output(tmp_path: Path) -> None:
+    finned = finned_grid()
+    mesh = bidegree.Mesh(
+        finned.points,
+        face_sizes=finned.face_sizes,
+        face_indices=finned.face_indices,
+        uvs=seamed_uvs(finned),
+    )
+    result = bidegree.subdivide_adaptive(mesh, degree=3, max_level=3, tolerance=3e-3)
+    assert result.uv_mode == "boundaries" and np.isfinite(result.uvs).all()
+    path = tmp_path / "adaptive.obj"
+    result.write_obj(path)
+    lines = path.read_text().splitlines()
+    assert sum(line.startswith("vt ") for line in lines) == 3 * result.num_triangles
+    faces = [line for line in lines if line.startswith("f ")]
+    assert len(faces) == result.num_triangles and "/" in faces[0]
+    # Triangle edges along cage edges know them (checked against the uniform plans in Rust).
+    assert result.edge_origin.shape == result.edge_level.shape == (3 * result.num_triangles,)
+    np.testing.assert_array_equal(result.cage_edges, bidegree.Plan(mesh, levels=1).cage_edges)
+    on = result.edge_origin >= 0
+    assert on.any() and (~on).any()
+    assert (result.edge_sharpness[~on] == 0).all() and (result.edge_sharpness[on] == 10).any()
+    plain = bidegree.subdivide_adaptive(finned, degree=3, max_level=3, tolerance=3e-3)
+    assert plain.uvs is None and plain.vertex_values is None and plain.face_varying == {}
+    np.testing.assert_array_equal(plain.points, result.points)
+    with pytest.raises(bidegree.InvalidInputError):
+        bidegree.subdivide_adaptive(mesh, uv_mode="smooth")
+    with pytest.raises(bidegree.InvalidInputError):
+        bidegree.subdivide_adaptive(mesh, vertex_values=np.zeros((3, 2)))
+    with pytest.raises(bidegree.InvalidInputError):
+        bidegree.subdivide_adaptive(mesh, face_varying={"uv": np.zeros((5, 2))})
+    with pytest.raises(bidegree.NonFiniteError):
+        bidegree.subdivide_adaptive(
+            mesh, face_varying={"uv": np.full((mesh.num_corners, 2), np.nan)}
+        )

@@ -313,6 +313,100 @@ def test_custom_normals_match_subsurf(scene: Any) -> None:
     bpy.data.meshes.remove(result)
 
 
+# --------------------------------------------------------------------------- adaptive output
+
+
+def test_adaptive_output_carries_point_corner_face_attributes(scene: Any) -> None:
+    obj = grid(scene, 4)
+    me = obj.data
+    me.vertices[12].co.z = 1.5  # a bump in the middle: uneven refinement
+    nv, nc, nf = len(me.vertices), len(me.loops), len(me.polygons)
+    rng = np.random.default_rng(4)
+    weight = rng.random(nv).astype(np.float32)
+    colours = rng.random((nc, 4)).astype(np.float32)
+    put(me, "weight", "FLOAT", "POINT", weight)
+    put(me, "corner_paint", "FLOAT_COLOR", "CORNER", colours)
+    put(me, "face_weight", "FLOAT", "FACE", np.arange(nf) / nf)
+    ne = len(me.edges)
+    put(me, "corner_id", "INT", "CORNER", np.arange(nc))
+    put(me, "label", "INT", "POINT", np.arange(nv) * 10)
+    put(me, "edge_value", "FLOAT", "EDGE", np.arange(ne, dtype=np.float32) + 1)
+    put(me, "sharp_edge", "BOOLEAN", "EDGE", [e % 7 == 0 for e in range(ne)])
+    me.uv_layers.new(name="UVMap")
+    uvs = rng.random((nc, 2)).astype(np.float32)
+    for d, uv in zip(me.uv_layers["UVMap"].data, uvs, strict=True):
+        d.uv = uv.tolist()
+    normals = rng.normal(size=(nc, 3))
+    normals[:, 2] += 3.0
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    me.normals_split_custom_set(normals.astype(np.float32).tolist())
+    # The corner normals Blender has for them (its normal-space encoding moves them a little).
+    normals = np.zeros(3 * nc, dtype=np.float32)
+    me.corner_normals.foreach_get("vector", normals)
+    normals = normals.reshape(-1, 3)
+    group = obj.vertex_groups.new(name="group")
+    for v in range(nv):
+        group.add([v], float(weight[nv - 1 - v]), "REPLACE")
+    from bidegree.options import Options
+
+    options = Options(degree=3, levels=3, adaptive=True, tolerance=0.01, uv_mode="corners-plus1")
+    result = subdivided(obj, options=options)
+    cage = plain_cage(me)
+    ref = bidegree.subdivide_adaptive(
+        cage,
+        degree=3,
+        max_level=3,
+        tolerance=0.01,
+        uv_mode="corners-plus1",
+        vertex_values=np.stack([weight, weight[::-1]], axis=1).astype(np.float64),
+        face_varying={
+            "uv": uvs.astype(np.float64),
+            "paint": colours.astype(np.float64),
+            "normals": (normals.astype(np.float32).astype(np.float64), "all"),
+        },
+    )
+    assert len(set(ref.triangle_level.tolist())) >= 2
+    assert len(result.polygons) == ref.num_triangles
+    np.testing.assert_allclose(get(result, "weight"), ref.vertex_values[:, 0], atol=1e-6)
+    np.testing.assert_allclose(get(result, "corner_paint"), ref.face_varying["paint"], atol=1e-6)
+    np.testing.assert_allclose(get(result, "UVMap"), ref.face_varying["uv"], atol=1e-6)
+    np.testing.assert_allclose(get(result, "face_weight"), ref.face_origin / nf, atol=1e-7)
+    # Integers: a corner of the origin face; a vertex of the face of the vertex's first corner.
+    corner_id = get(result, "corner_id")
+    assert ((corner_id // 4) == np.repeat(ref.face_origin, 3)).all()
+    labels = get(result, "label") // 10
+    first = {int(v): c for c, v in reversed(list(enumerate(ref.triangles.reshape(-1))))}
+    for v, c in first.items():
+        assert labels[v] in me.polygons[int(ref.face_origin[c // 3])].vertices
+    # Edge values on the triangle edges along their cage edge (by vertex pair), 0 elsewhere.
+    cage_edge = {tuple(sorted(e.vertices)): e.index for e in me.edges}
+    expected: dict[tuple[int, int], float] = {}
+    tris = ref.triangles
+    for c, o in enumerate(ref.edge_origin.tolist()):
+        pair = tuple(sorted((int(tris[c // 3, c % 3]), int(tris[c // 3, (c % 3 + 1) % 3]))))
+        value = 0.0 if o < 0 else float(cage_edge[tuple(ref.cage_edges[o].tolist())] + 1)
+        assert expected.setdefault(pair, value) == value
+    got_values = get(result, "edge_value")
+    sharp = get(result, "sharp_edge")
+    pairs = [tuple(sorted(e.vertices)) for e in result.edges]
+    np.testing.assert_array_equal(got_values, [expected[p] for p in pairs])
+    np.testing.assert_array_equal(
+        sharp, [expected[p] > 0 and (expected[p] - 1) % 7 == 0 for p in pairs]
+    )
+    assert (got_values > 0).sum() > 2 * ne  # every cage edge split at least once
+    got = np.zeros(3 * len(result.loops), dtype=np.float32)
+    result.corner_normals.foreach_get("vector", got)
+    want = ref.face_varying["normals"]
+    want /= np.linalg.norm(want, axis=1, keepdims=True)
+    np.testing.assert_allclose(got.reshape(-1, 3), want, atol=1e-5)
+    bpy.data.meshes.remove(result)
+    # Vertex groups: the weights through the same levels (the surface's holder has them).
+    from bidegree_blender import pipeline
+
+    surface, _ = pipeline.adaptive_surface(pipeline.evaluated_cage(obj), options)
+    np.testing.assert_allclose(surface.vertex_groups["group"], ref.vertex_values[:, 1], atol=1e-6)
+
+
 # --------------------------------------------------------------------------- the modifier
 
 

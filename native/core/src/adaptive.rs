@@ -81,12 +81,13 @@ use std::hash::{BuildHasherDefault, Hasher};
 
 use crate::curves::{CageFeatures, Curve, CurveNetwork};
 use crate::error::{AdaptiveStage, Error, Result};
+use crate::face_varying::{face_varying_mesh, FaceVaryingMode};
 use crate::memory;
-use crate::mesh::{validate_geometry, Cage};
+use crate::mesh::{check_values, validate_geometry, Cage};
 use crate::options::{check_degree, check_levels, Boundary, Options};
 use crate::refinement::Refinement;
-use crate::scalar::Scalar;
-use crate::scheme::Scheme;
+use crate::scalar::{reciprocal, Scalar};
+use crate::scheme::{decrement, Scheme};
 use crate::step::{LevelData, Scratch, Step};
 use crate::topology::{Edges, Level, NONE};
 
@@ -167,6 +168,40 @@ pub struct AdaptiveMesh<T> {
     /// With [`AdaptiveOptions::measure_leaves`], the largest error measure over all leaves
     /// (relative to the cage diagonal, as the tolerance).
     pub max_error: Option<f64>,
+    /// With [`AdaptiveData::vertex_values`]: those values at the output vertices (the same
+    /// channels, interleaved), each at its vertex's level, bit for bit the uniform
+    /// [`crate::Plan::evaluate`] there; empty otherwise.
+    pub vertex_values: Vec<T>,
+    /// Per triangle corner `3t + i`: the cage edge (index into `cage_edges`) that the
+    /// triangle's edge from corner `i` to corner `i + 1` lies on, [`crate::Level::NONE`] inside
+    /// a cage face (for edge attributes, as [`crate::Plan::output_edge_origin`]).
+    pub edge_origin: Vec<u32>,
+    /// Per triangle corner: the level of that edge (a leaf's edge, or half of it where the
+    /// finer neighbour's midpoint is inserted).
+    pub edge_level: Vec<u32>,
+    /// Per triangle corner: the sharpness that edge keeps at its level (the cage edge's,
+    /// lowered once per level, as [`crate::Plan::output_edge_sharpness`] with the averaging
+    /// rules; 0 inside cage faces, 10 on boundaries).
+    pub edge_sharpness: Vec<f32>,
+    /// The edges of the cage as pairs of cage vertices (the user's numbering, smaller first),
+    /// ordered by pair, as [`crate::Plan::cage_edges`].
+    pub cage_edges: Vec<[u32; 2]>,
+    /// One entry per [`AdaptiveData::face_varying`] set: its values at the triangle corners
+    /// (3 per triangle, its channels interleaved), each at its vertex's level, bit for bit the
+    /// uniform [`crate::Plan::evaluate_face_varying`] at that level on the same side of a seam.
+    pub face_varying: Vec<Vec<T>>,
+}
+
+/// Further data carried through the same adaptive forest as the points (the leaves are chosen
+/// by the points alone).
+#[derive(Debug, Clone, Default)]
+pub struct AdaptiveData<'a, T> {
+    /// Per-vertex values of the cage (any attribute, in the cage's numbering) and their
+    /// channel count: evaluated as the points.
+    pub vertex_values: Option<(&'a [T], usize)>,
+    /// Face-varying sets (UVs): values per cage face corner, their channel count and the mode
+    /// (as [`crate::Plan::evaluate_face_varying`]; each set is welded on its own).
+    pub face_varying: Vec<(&'a [T], usize, FaceVaryingMode)>,
 }
 
 impl<T> AdaptiveMesh<T> {
@@ -184,8 +219,10 @@ struct Part<T> {
     face_uid: Vec<u64>,
     vert_uid: Vec<u64>,
     edge_uid: Vec<u64>,
-    /// Per edge: a boundary edge of the uniform level.
-    boundary: Vec<bool>,
+    /// Per edge: its number of faces in the uniform level.
+    edge_faces: Vec<u32>,
+    /// Per vertex: its number of corners in the uniform level.
+    vert_faces: Vec<u32>,
     /// The curve edges of the step from this level, with their sharpness.
     curves: Vec<Curve>,
     /// The curve network of the step that made this level, restricted to it (`None` at
@@ -207,18 +244,10 @@ impl<T> Part<T> {
         self.face_uid.binary_search(&uid).ok()
     }
 
-    /// True when every uniform face around vertex `v` is present: no edge at `v` lacks a face
-    /// unless it is a boundary edge of the uniform level.
+    /// True when every uniform face around vertex `v` is present (every sheet of a
+    /// non-manifold vertex included).
     fn is_complete(&self, v: usize) -> bool {
-        let level = &self.level;
-        level.corners_of_vertex(v).iter().all(|&k| {
-            let k = k as usize;
-            let out = level.corner_edges()[k] as usize;
-            let inc = level.corner_edges()[level.prev(k)] as usize;
-            [out, inc]
-                .into_iter()
-                .all(|e| level.edge_corners()[e][1] != NONE || self.boundary[e])
-        })
+        self.level.corners_of_vertex(v).len() == self.vert_faces[v] as usize
     }
 }
 
@@ -232,9 +261,17 @@ struct Context<T> {
     margin: usize,
     budget: u64,
     diagonal: f64,
+    /// Per cage face: a hole (refined where its neighbours need it, never drawn or measured).
+    holes: Vec<bool>,
 }
 
 impl<T> Context<T> {
+    /// True when node `uid` of level `t >= 1` lies in a hole face of the cage.
+    fn is_hole(&self, t: usize, uid: u64) -> bool {
+        !self.features.holes.is_empty()
+            && self.holes[self.level0.corner_faces[(uid >> (2 * (t - 1))) as usize] as usize]
+    }
+
     /// Refuses, before the work of `stage`, what is estimated at more than the budget or the
     /// machine's memory ([`memory::check_request`]), saying when ([`Error::AdaptiveStopped`]).
     fn check(&self, stage: AdaptiveStage, required: f64, faces: f64) -> Result<()> {
@@ -265,6 +302,17 @@ pub fn subdivide_adaptive<T: Scalar>(
     subdivide_adaptive_with_margin(cage, points, options, margin_rings(options.degree))
 }
 
+/// [`subdivide_adaptive`], also carrying `data` (per-vertex and face-varying values) through
+/// the forest: [`AdaptiveMesh::vertex_values`] and [`AdaptiveMesh::face_varying`].
+pub fn subdivide_adaptive_with_data<T: Scalar>(
+    cage: &Cage,
+    points: &[T],
+    options: &AdaptiveOptions,
+    data: &AdaptiveData<T>,
+) -> Result<AdaptiveMesh<T>> {
+    adaptive(cage, points, options, margin_rings(options.degree), data)
+}
+
 /// [`subdivide_adaptive`] with another margin than [`margin_rings`]; for the tests that show
 /// that a smaller margin breaks the equality with the uniform points.
 #[doc(hidden)]
@@ -273,6 +321,17 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
     points: &[T],
     options: &AdaptiveOptions,
     margin: usize,
+) -> Result<AdaptiveMesh<T>> {
+    adaptive(cage, points, options, margin, &AdaptiveData::default())
+}
+
+/// The adaptive subdivision of every entry point.
+fn adaptive<T: Scalar>(
+    cage: &Cage,
+    points: &[T],
+    options: &AdaptiveOptions,
+    margin: usize,
+    extra: &AdaptiveData<T>,
 ) -> Result<AdaptiveMesh<T>> {
     check_degree(options.degree)?;
     check_levels(options.max_level, 1)?;
@@ -283,6 +342,12 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
         )));
     }
     validate_geometry(cage, points, 3)?;
+    if let Some((values, channels)) = extra.vertex_values {
+        check_values(values, channels, cage.num_vertices())?;
+    }
+    for &(values, channels, _) in &extra.face_varying {
+        check_values(values, channels, cage.face_vertices().len())?;
+    }
     // The cage level, its vertex compaction and its curve features, as the uniform plan has
     // them.
     let options0 = Options {
@@ -297,13 +362,9 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
     let compact: Vec<P<T>> = base.compact(given).into_owned();
     let level0 = base.levels()[0].clone();
     let features = base.features().clone();
-    // The partial levels keep two slots per edge and no non-manifold tags.
-    if level0.is_non_manifold() || !features.holes.is_empty() {
-        return Err(Error::InvalidInput(
-            "adaptive refinement does not support non-manifold cages or holes yet; use the \
-             uniform refinement (subdivide)"
-                .into(),
-        ));
+    let mut holes = vec![false; level0.num_faces()];
+    for &f in &features.holes {
+        holes[f as usize] = true;
     }
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
@@ -323,6 +384,7 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
         margin,
         budget: options.memory_budget,
         diagonal,
+        holes,
     };
 
     let max_level = options.max_level as usize;
@@ -354,7 +416,9 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
             retained(&parts) + BYTES_PER_NODE * held as f64 + 4.0 * BYTES_PER_FACE * count as f64,
             4.0 * count as f64,
         )?;
-        let nodes = nodes_at(&refined, roots, j)?;
+        let mut nodes = nodes_at(&refined, roots, j)?;
+        // Holes are refined only where the restriction criterion asks.
+        nodes.retain(|&u| !ctx.is_hole(j, u));
         if options.tolerance == 0.0 {
             try_insert(&mut refined[j], &nodes)?;
             continue;
@@ -388,7 +452,7 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
                 seeds[t]
                     .iter()
                     .copied()
-                    .filter(|u| r.is_none_or(|r| !r.contains(u)))
+                    .filter(|&u| r.is_none_or(|r| !r.contains(&u)) && !ctx.is_hole(t, u))
                     .collect()
             }
         })
@@ -422,10 +486,262 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
         retained(&parts) + BYTES_PER_NODE * held as f64 + BYTES_PER_LEAF * num_leaves as f64,
         num_leaves as f64,
     )?;
-    triangulate(&ctx, &parts, &refined, &leaves).map(|mut mesh| {
-        mesh.max_error = max_error;
-        mesh
-    })
+    let drawn = triangulate(&ctx, &parts, &refined, &leaves)?;
+    let mut mesh = drawn.mesh;
+    mesh.max_error = max_error;
+    mesh.cage_edges = (ctx.level0.edge_verts().iter())
+        .map(|&[a, b]| {
+            let (a, b) = (base.cage_vertex(a), base.cage_vertex(b));
+            [a.min(b), a.max(b)]
+        })
+        .collect();
+    let held = retained(&parts) + BYTES_PER_NODE * held as f64;
+    if let Some((values, channels)) = extra.vertex_values {
+        mesh.vertex_values = carry_vertex_values(
+            &ctx,
+            &base,
+            &parts,
+            &drawn.vertex_at,
+            values,
+            channels,
+            held,
+        )?;
+    }
+    for &(values, channels, mode) in &extra.face_varying {
+        let carried = if mode == FaceVaryingMode::All {
+            linear_face_varying(&ctx, &parts, &drawn.corner_at, values, channels)?
+        } else {
+            carry_face_varying(
+                &ctx,
+                &base,
+                &parts,
+                &mesh,
+                &drawn.corner_at,
+                values,
+                channels,
+                mode,
+                held,
+            )?
+        };
+        mesh.face_varying.push(carried);
+    }
+    Ok(mesh)
+}
+
+/// The values of groups of 3 channels (the last padded) as the points of a cage, compacted
+/// as `base` compacts the cage: one [`Context::cage`] per group.
+fn groups_of_three<T: Scalar>(
+    base: &Refinement,
+    values: &[T],
+    channels: usize,
+) -> Result<Vec<Vec<P<T>>>> {
+    let items = values.len() / channels;
+    (0..channels)
+        .step_by(3)
+        .map(|first| {
+            let mut group: Vec<P<T>> = memory::with_capacity(items)?;
+            group.extend((0..items).map(|i| {
+                [0, 1, 2].map(|k| {
+                    let c = first + k;
+                    if c < channels {
+                        values[i * channels + c]
+                    } else {
+                        T::default()
+                    }
+                })
+            }));
+            Ok(base.compact(&group).into_owned())
+        })
+        .collect()
+}
+
+/// Scatters the first `channels - first` (at most 3) channels of `values` into `out` (rows
+/// of `channels`) at channel `first`.
+fn put_group<T: Scalar>(out: &mut [T], channels: usize, first: usize, values: &[P<T>]) {
+    let width = (channels - first).min(3);
+    for (row, v) in out.chunks_exact_mut(channels).zip(values) {
+        row[first..first + width].copy_from_slice(&v[..width]);
+    }
+}
+
+/// Per-vertex values through the forest of `parts`: the same steps on the same partial
+/// levels, 3 channels at a time; `vertex_at` is each output vertex's (level, vertex).
+fn carry_vertex_values<T: Scalar>(
+    ctx: &Context<T>,
+    base: &Refinement,
+    parts: &[Part<T>],
+    vertex_at: &[(u32, u32)],
+    values: &[T],
+    channels: usize,
+    held: f64,
+) -> Result<Vec<T>> {
+    let mut out = memory::filled(vertex_at.len() * channels, T::default())?;
+    for (g, cage) in groups_of_three(base, values, channels)?
+        .into_iter()
+        .enumerate()
+    {
+        let other = Context {
+            cage,
+            level0: ctx.level0.clone(),
+            features: ctx.features.clone(),
+            holes: ctx.holes.clone(),
+            ..*ctx
+        };
+        let carried = follow_pass(&other, parts, held)?;
+        let at: Vec<P<T>> = (vertex_at.iter())
+            .map(|&(t, v)| carried[t as usize].points[v as usize])
+            .collect();
+        put_group(&mut out, channels, 3 * g, &at);
+    }
+    Ok(out)
+}
+
+/// Face-varying values in a smooth `mode` through the forest of `parts`: the face-varying
+/// mesh `M^fv` ([`face_varying_mesh`]: the same faces, so the same partial levels by face
+/// id, which hold every `M^fv` stencil their cage stencils hold) stepped 3 channels at a
+/// time; each triangle corner (`corner_at`: leaf level, leaf, template slot) takes its
+/// `M^fv` vertex at the level of its output vertex.
+#[allow(clippy::too_many_arguments)]
+fn carry_face_varying<T: Scalar>(
+    ctx: &Context<T>,
+    base: &Refinement,
+    parts: &[Part<T>],
+    mesh: &AdaptiveMesh<T>,
+    corner_at: &[(u32, u32, u8)],
+    values: &[T],
+    channels: usize,
+    mode: FaceVaryingMode,
+    held: f64,
+) -> Result<Vec<T>> {
+    let (fv_cage, per_value) = face_varying_mesh(base, values, channels, mode)?;
+    let fv_options = Options {
+        degree: ctx.degree,
+        levels: 0,
+        boundary: Boundary::EdgeOnly,
+        memory_budget: ctx.budget,
+        ..Options::default()
+    };
+    let fv_base = Refinement::new(&fv_cage, &fv_options)?;
+    let fv_level0 = fv_base.levels()[0].clone();
+    let fv_features = fv_base.features().clone();
+    let corners = mesh.triangles.as_flattened();
+    let mut out = memory::filled(corner_at.len() * channels, T::default())?;
+    for (g, cage) in groups_of_three(&fv_base, &per_value, channels)?
+        .into_iter()
+        .enumerate()
+    {
+        let other = Context {
+            cage,
+            level0: fv_level0.clone(),
+            features: fv_features.clone(),
+            holes: ctx.holes.clone(),
+            ..*ctx
+        };
+        let carried = follow_pass(&other, parts, held)?;
+        let at: Vec<P<T>> = (corner_at.iter().zip(corners))
+            .map(|(&(t, f, slot), &v)| {
+                let part = &carried[t as usize];
+                let corner = 4 * f as usize + (slot / 2) as usize;
+                let uid = if slot % 2 == 0 {
+                    part.vert_uid[part.level.corner_verts[corner] as usize]
+                } else {
+                    part.counts[0] + part.edge_uid[part.level.corner_edges()[corner] as usize]
+                };
+                let drawn = &carried[mesh.vertex_level[v as usize] as usize];
+                let i = drawn.vert_uid.binary_search(&uid).map_err(|_| {
+                    Error::Internal(format!(
+                        "adaptive: face-varying vertex {uid} of level {} missing",
+                        mesh.vertex_level[v as usize]
+                    ))
+                })?;
+                Ok(drawn.points[i])
+            })
+            .collect::<Result<_>>()?;
+        put_group(&mut out, channels, 3 * g, &at);
+    }
+    Ok(out)
+}
+
+/// Face-varying values in [`FaceVaryingMode::All`] (bilinear per cage face) at the triangle
+/// corners, exactly as the uniform [`crate::Plan::evaluate_face_varying`] computes them: each
+/// leaf's corner values come down its quadtree from the cage face (own value, edge midpoints,
+/// face centre), and a vertex keeps its value from the level where it appears on.
+fn linear_face_varying<T: Scalar>(
+    ctx: &Context<T>,
+    parts: &[Part<T>],
+    corner_at: &[(u32, u32, u8)],
+    values: &[T],
+    channels: usize,
+) -> Result<Vec<T>> {
+    let level0 = &ctx.level0;
+    let half = T::from_f64(0.5);
+    let at = |c: usize, k: usize| values[c * channels + k];
+    let mut out = memory::filled(corner_at.len() * channels, T::default())?;
+    let mut quad = vec![T::default(); 4 * channels];
+    let mut next = vec![T::default(); 4 * channels];
+    for (row, &(t, f, slot)) in out.chunks_exact_mut(channels).zip(corner_at) {
+        let t = t as usize;
+        let uid = parts[t].face_uid[f as usize];
+        // Level 1: the quad of cage corner c0.
+        let c0 = (uid >> (2 * (t - 1))) as usize;
+        let (n, p) = (level0.next(c0), level0.prev(c0));
+        let corners = level0.face_corners(level0.face_of(c0));
+        let w = reciprocal::<T>(corners.len());
+        for k in 0..channels {
+            let sum = corners.clone().fold(T::default(), |s, c| s + at(c, k));
+            quad[k] = at(c0, k);
+            quad[channels + k] = (at(c0, k) + at(n, k)) * half;
+            quad[2 * channels + k] = sum * w;
+            quad[3 * channels + k] = (at(p, k) + at(c0, k)) * half;
+        }
+        let quarter = reciprocal::<T>(4);
+        for i in 1..t {
+            let d = ((uid >> (2 * (t - 1 - i))) & 3) as usize;
+            let q = |j: usize, k: usize| quad[(j & 3) * channels + k];
+            for k in 0..channels {
+                let sum = (0..4).fold(T::default(), |s, j| s + q(j, k));
+                next[k] = q(d, k);
+                next[channels + k] = (q(d, k) + q(d + 1, k)) * half;
+                next[2 * channels + k] = sum * quarter;
+                next[3 * channels + k] = (q(d + 3, k) + q(d, k)) * half;
+            }
+            std::mem::swap(&mut quad, &mut next);
+        }
+        let k0 = (slot / 2) as usize;
+        for k in 0..channels {
+            let own = quad[k0 * channels + k];
+            row[k] = if slot % 2 == 0 {
+                own
+            } else {
+                (own + quad[((k0 + 1) & 3) * channels + k]) * half
+            };
+        }
+    }
+    Ok(out)
+}
+
+/// Runs the partial levels of another cage with the faces of `reference` (the same face ids
+/// at every level: the levels of `ctx`'s cage, which must have the faces of the reference's
+/// cage in the same order); `held` bytes are held meanwhile (for the budget).
+fn follow_pass<T: Scalar>(
+    ctx: &Context<T>,
+    reference: &[Part<T>],
+    held: f64,
+) -> Result<Vec<Part<T>>> {
+    let mut parts = vec![cage_part(ctx)];
+    let mut retained = held + retained(&parts);
+    for t in 0..reference.len() - 1 {
+        let fine_corners = 4 * parts[t].level.num_corners() as u64;
+        ctx.check(
+            AdaptiveStage::Level(t as u32 + 1),
+            retained + BYTES_PER_CORNER as f64 * fine_corners as f64,
+            fine_corners as f64 / 4.0,
+        )?;
+        let next = refine_part(ctx, t, &parts[t], Keep::Faces(&reference[t + 1].face_uid))?;
+        retained += BYTES_PER_CORNER as f64 * next.level.num_corners() as f64;
+        parts.push(next);
+    }
+    Ok(parts)
 }
 
 /// The nodes at level `t` (sorted uniform ids): every face of `M_1` at level 1, the children of
@@ -537,7 +853,7 @@ fn extend_pass<T: Scalar>(
             retained + BYTES_PER_CORNER as f64 * fine_corners as f64,
             fine_corners as f64 / 4.0,
         )?;
-        let next = refine_part(ctx, t, coarse, &seeds[t + 1])?;
+        let next = refine_part(ctx, t, coarse, Keep::Around(&seeds[t + 1]))?;
         retained += BYTES_PER_CORNER as f64 * next.level.num_corners() as f64;
         parts.push(next);
     }
@@ -557,8 +873,11 @@ fn cage_part<T: Scalar>(ctx: &Context<T>) -> Part<T> {
         face_uid: (0..level0.num_faces() as u64).collect(),
         vert_uid: (0..level0.num_vertices as u64).collect(),
         edge_uid: (0..level0.num_edges() as u64).collect(),
-        boundary: (0..level0.num_edges())
-            .map(|e| level0.is_boundary_edge(e))
+        edge_faces: (0..level0.num_edges())
+            .map(|e| level0.edge_valence(e) as u32)
+            .collect(),
+        vert_faces: (0..level0.num_vertices)
+            .map(|v| level0.corners_of_vertex(v).len() as u32)
             .collect(),
         curves: ctx.features.curves(),
         network: None,
@@ -570,12 +889,21 @@ fn cage_part<T: Scalar>(ctx: &Context<T>) -> Part<T> {
     }
 }
 
-/// One step `P_t -> P_{t+1}`: refine, evaluate, keep the margin rings around the seeds.
+/// Which faces of a refined partial level are kept.
+#[derive(Clone, Copy)]
+enum Keep<'a> {
+    /// The margin rings around these seeds (sorted uniform ids).
+    Around(&'a [u64]),
+    /// Exactly these faces (sorted uniform ids).
+    Faces(&'a [u64]),
+}
+
+/// One step `P_t -> P_{t+1}`: refine, evaluate, keep the faces `keep` names.
 fn refine_part<T: Scalar>(
     ctx: &Context<T>,
     t: usize,
     coarse: &Part<T>,
-    seeds: &[u64],
+    keep: Keep,
 ) -> Result<Part<T>> {
     let c = &coarse.level;
     let fine = c.refine()?;
@@ -610,8 +938,25 @@ fn refine_part<T: Scalar>(
             }
         })
         .collect();
-    let boundary: Vec<bool> = (0..fine.num_edges())
-        .map(|i| i < 2 * cne && coarse.boundary[i >> 1])
+    let edge_faces: Vec<u32> = (0..fine.num_edges())
+        .map(|i| {
+            if i < 2 * cne {
+                coarse.edge_faces[i >> 1]
+            } else {
+                2
+            }
+        })
+        .collect();
+    let vert_faces: Vec<u32> = (0..fine.num_vertices)
+        .map(|w| {
+            if w < cnv {
+                coarse.vert_faces[w]
+            } else if w < cnv + cne {
+                2 * coarse.edge_faces[w - cnv]
+            } else {
+                c.face_corners(w - cnv - cne).len() as u32
+            }
+        })
         .collect();
 
     // The step, as the uniform plan makes it: the curve network of this partial level (its
@@ -665,7 +1010,11 @@ fn refine_part<T: Scalar>(
     let (data, curve) = data.into_parts();
     let points = drawing.as_deref().unwrap_or(&data);
 
-    // The seeds and the margin rings around them.
+    // The seeds and the margin rings around them, or the faces named.
+    let (seeds, margin) = match keep {
+        Keep::Around(seeds) => (seeds, ctx.margin),
+        Keep::Faces(faces) => (faces, 0),
+    };
     let mut keep = vec![false; fine.num_faces()];
     let mut frontier: Vec<usize> = Vec::with_capacity(seeds.len());
     // Both lists are sorted: one merge walk finds every seed.
@@ -685,7 +1034,7 @@ fn refine_part<T: Scalar>(
             frontier.push(f);
         }
     }
-    for _ in 0..ctx.margin {
+    for _ in 0..margin {
         let mut next = Vec::new();
         for &f in &frontier {
             for k in 4 * f..4 * f + 4 {
@@ -712,7 +1061,12 @@ fn refine_part<T: Scalar>(
         face_uid: pick(&face_uid, &sub.faces),
         vert_uid: pick(&vert_uid, &sub.vertices),
         edge_uid: pick(&edge_uid, &sub.edges),
-        boundary: sub.edges.iter().map(|&e| boundary[e as usize]).collect(),
+        edge_faces: sub.edges.iter().map(|&e| edge_faces[e as usize]).collect(),
+        vert_faces: sub
+            .vertices
+            .iter()
+            .map(|&v| vert_faces[v as usize])
+            .collect(),
         curves: network.next_curves(),
         network: Some(network),
         data: if odd {
@@ -788,23 +1142,28 @@ fn restrict(fine: &Level, keep: &[bool]) -> Sub {
         .iter()
         .map(|&e| fine.edge_verts()[e as usize].map(|v| vert_map[v as usize]))
         .collect();
-    let edge_corners = edges
-        .iter()
-        .map(|&e| {
-            let slots = fine.edge_corners()[e as usize].map(|c| {
+    let mut edge_corners = Vec::with_capacity(edges.len());
+    let mut more = Vec::new();
+    let manifold = fine.edges().more.is_empty();
+    for (i, &e) in edges.iter().enumerate() {
+        if manifold {
+            // Two slots at most: the common case, without the slot iterator.
+            let [a, b] = fine.edge_corners()[e as usize].map(|c| {
                 if c == NONE {
                     NONE
                 } else {
                     corner_map[c as usize]
                 }
             });
-            if slots[0] == NONE {
-                [slots[1], NONE]
-            } else {
-                slots
-            }
-        })
-        .collect();
+            edge_corners.push(if a == NONE { [b, NONE] } else { [a, b] });
+            continue;
+        }
+        let mut slots = (fine.edge_slots(e as usize))
+            .map(|c| corner_map[c as usize])
+            .filter(|&c| c != NONE);
+        edge_corners.push([slots.next().unwrap_or(NONE), slots.next().unwrap_or(NONE)]);
+        more.extend(slots.map(|c| (i as u32, c)));
+    }
     let mut vert_corner_offsets = Vec::with_capacity(vertices.len() + 1);
     let mut vert_corners = Vec::with_capacity(corner_verts.len());
     vert_corner_offsets.push(0u32);
@@ -817,18 +1176,27 @@ fn restrict(fine: &Level, keep: &[bool]) -> Sub {
         }
         vert_corner_offsets.push(vert_corners.len() as u32);
     }
-    let level = Level::from_quad_tables(
+    let mut level = Level::from_quad_tables(
         vertices.len(),
         corner_verts,
         Edges {
             corner_edges,
             verts: edge_verts,
             corners: edge_corners,
-            more: Vec::new(),
+            more,
         },
         vert_corner_offsets,
         vert_corners,
     );
+    // The non-manifold tags of what is kept (the maps keep the order: still sorted).
+    let kept = |tags: &[u32], map: &[u32]| -> Vec<u32> {
+        (tags.iter())
+            .map(|&x| map[x as usize])
+            .filter(|&x| x != NONE)
+            .collect()
+    };
+    level.nm_edges = kept(&fine.nm_edges, &edge_map);
+    level.nm_vertices = kept(&fine.nm_vertices, &vert_map);
     Sub {
         level,
         faces,
@@ -954,19 +1322,43 @@ pub fn triangle_template(mask: u8) -> Vec<[u8; 3]> {
         .collect()
 }
 
-/// The output mesh: leaves triangulated by the templates, shared vertices drawn at the finest
-/// level around them.
+/// The cage edge that edge `uid` of the uniform level `t` lies on (its parents' halves down
+/// to `M_0`: edge `e` of `M_j` has the halves `2e`, `2e + 1` in `M_{j+1}`, the edges after
+/// them are inside faces), or `NONE`.
+fn cage_edge_of<T>(parts: &[Part<T>], t: usize, mut uid: u64) -> u32 {
+    for j in (1..=t).rev() {
+        if uid >= 2 * parts[j - 1].counts[1] {
+            return NONE;
+        }
+        uid >>= 1;
+    }
+    uid as u32
+}
+
+/// The output mesh and where its vertices and triangle corners are in the partial levels.
+struct Drawn<T> {
+    mesh: AdaptiveMesh<T>,
+    /// Per output vertex: its level and its vertex there.
+    vertex_at: Vec<(u32, u32)>,
+    /// Per triangle corner: the level of its leaf, the leaf (a face of that partial level) and
+    /// its template slot (corner `k` is `2k`, the midpoint of edge `k` is `2k + 1`).
+    corner_at: Vec<(u32, u32, u8)>,
+}
+
+/// The output mesh: leaves (hole leaves are none) triangulated by the templates, shared
+/// vertices drawn at the finest level around them.
 fn triangulate<T: Scalar>(
     ctx: &Context<T>,
     parts: &[Part<T>],
     refined: &[IdSet],
     leaves: &[Vec<u64>],
-) -> Result<AdaptiveMesh<T>> {
+) -> Result<Drawn<T>> {
     let max_level = parts.len() - 1;
     let mut index: IdMap<u32> = IdMap::default();
     let mut points = Vec::new();
     let mut vertex_level = Vec::new();
     let mut vertex_id = Vec::new();
+    let mut vertex_at = Vec::new();
     let leaf_faces = |t: usize| -> Result<Vec<usize>> {
         leaves[t]
             .iter()
@@ -984,6 +1376,7 @@ fn triangulate<T: Scalar>(
                 let uid = part.vert_uid[v as usize];
                 index.entry(uid).or_insert_with(|| {
                     points.extend_from_slice(&part.points[v as usize]);
+                    vertex_at.push((t as u32, v));
                     vertex_level.push(t as u32);
                     vertex_id.push(uid);
                     (vertex_id.len() - 1) as u32
@@ -995,6 +1388,9 @@ fn triangulate<T: Scalar>(
     let mut triangles = Vec::new();
     let mut face_origin = Vec::new();
     let mut triangle_level = Vec::new();
+    let mut corner_at = Vec::new();
+    let (mut edge_origin, mut edge_level, mut edge_sharpness) =
+        (Vec::new(), Vec::new(), Vec::new());
     for t in 1..=max_level {
         let part = &parts[t];
         let level = &part.level;
@@ -1004,14 +1400,19 @@ fn triangulate<T: Scalar>(
             for k in 0..4 {
                 let corner = 4 * f + k;
                 slots[2 * k] = index[&part.vert_uid[level.corner_verts[corner] as usize]];
-                let e = level.corner_edges()[corner] as usize;
-                let [a, b] = level.edge_corners()[e];
-                let other = if a as usize == corner { b } else { a };
-                if other == NONE || t == max_level {
+                if t == max_level {
                     continue;
                 }
-                let neighbour = part.face_uid[(other >> 2) as usize];
-                if refined[t].contains(&neighbour) {
+                let e = level.corner_edges()[corner] as usize;
+                // Any drawn face across the edge (one, or several on a non-manifold edge) that
+                // is refined once more has the edge's midpoint; a hole has nothing drawn.
+                let finer = level.edge_slots(e).any(|other| {
+                    let neighbour = part.face_uid[(other >> 2) as usize];
+                    other as usize != corner
+                        && !ctx.is_hole(t, neighbour)
+                        && refined[t].contains(&neighbour)
+                });
+                if finer {
                     let uid = part.counts[0] + part.edge_uid[e];
                     slots[2 * k + 1] = *index.get(&uid).ok_or_else(|| {
                         Error::Internal(format!(
@@ -1023,8 +1424,35 @@ fn triangulate<T: Scalar>(
                 }
             }
             let origin = ctx.level0.corner_faces[(part.face_uid[f] >> (2 * (t - 1))) as usize];
+            // The cage edge under each side of the leaf.
+            let sides: [u32; 4] = std::array::from_fn(|k| {
+                cage_edge_of(
+                    parts,
+                    t,
+                    part.edge_uid[level.corner_edges()[4 * f + k] as usize],
+                )
+            });
             for tri in &templates[mask as usize] {
                 triangles.push(tri.map(|p| slots[p as usize]));
+                corner_at.extend(tri.map(|p| (t as u32, f as u32, p)));
+                for i in 0..3 {
+                    let (p, q) = (tri[i], tri[(i + 1) % 3]);
+                    // On side k when both slots are among its corners and midpoint.
+                    let side = (0..4u8).find(|&k| {
+                        let on = |x: u8| (x + 8 - 2 * k) % 8 <= 2;
+                        on(p) && on(q)
+                    });
+                    let origin = side.map_or(NONE, |k| sides[k as usize]);
+                    let depth = t as u32 + (p % 2 == 1 || q % 2 == 1) as u32;
+                    edge_origin.push(origin);
+                    edge_level.push(depth);
+                    edge_sharpness.push(if origin == NONE {
+                        0.0
+                    } else {
+                        let cage = ctx.features.edge_sharpness[origin as usize];
+                        (0..depth).fold(cage, |s, _| decrement(s))
+                    });
+                }
                 face_origin.push(origin);
                 triangle_level.push(t as u32);
             }
@@ -1036,7 +1464,7 @@ fn triangulate<T: Scalar>(
             leaves_per_level[t] = l.len() as u64;
         }
     }
-    Ok(AdaptiveMesh {
+    let mesh = AdaptiveMesh {
         points,
         triangles,
         face_origin,
@@ -1045,5 +1473,16 @@ fn triangulate<T: Scalar>(
         vertex_id,
         leaves_per_level,
         max_error: None,
+        edge_origin,
+        edge_level,
+        edge_sharpness,
+        cage_edges: Vec::new(),
+        vertex_values: Vec::new(),
+        face_varying: Vec::new(),
+    };
+    Ok(Drawn {
+        mesh,
+        vertex_at,
+        corner_at,
     })
 }

@@ -267,6 +267,29 @@ fn dependent_sharpness_of(edges: &[f32]) -> f32 {
     kept.iter().sum::<f32>() / kept.len() as f32
 }
 
+/// The face-varying mesh `M^fv` of `values` (one per cage corner, `channels` interleaved,
+/// checked) in `mode` (not `All`) over `cage_refinement`, and the value of each of its
+/// vertices (`channels` interleaved): for [`crate::adaptive`], which refines it on its own
+/// partial levels.
+pub(crate) fn face_varying_mesh<T: Scalar>(
+    cage_refinement: &Refinement,
+    values: &[T],
+    channels: usize,
+    mode: FaceVaryingMode,
+) -> Result<(Cage, Vec<T>)> {
+    let level0 = &cage_refinement.levels_as_built()[0];
+    let (value_of, num_values) = weld(level0, values, channels);
+    let cage = face_varying_cage(cage_refinement, &value_of, num_values, mode)?;
+    let mut first_corner = vec![NONE; num_values];
+    for (c, &x) in value_of.iter().enumerate().rev() {
+        first_corner[x as usize] = c as u32;
+    }
+    let per_value = (first_corner.iter())
+        .flat_map(|&c| values[c as usize * channels..][..channels].iter().copied())
+        .collect();
+    Ok((cage, per_value))
+}
+
 /// The refinement of one face-varying topology in one mode, with its evaluation buffers and
 /// limit stencils.
 #[derive(Debug)]

@@ -57,8 +57,8 @@ mod topology;
 extern crate self as bidegree;
 
 pub use adaptive::{
-    margin_rings, subdivide_adaptive, subdivide_adaptive_with_margin, triangle_template,
-    AdaptiveMesh, AdaptiveOptions,
+    margin_rings, subdivide_adaptive, subdivide_adaptive_with_data, subdivide_adaptive_with_margin,
+    triangle_template, AdaptiveData, AdaptiveMesh, AdaptiveOptions,
 };
 pub use curves::CurveNetwork;
 pub use error::{AdaptiveStage, Error, Result};

@@ -6,8 +6,9 @@ mod common;
 use std::collections::HashMap;
 
 use bidegree::{
-    margin_rings, subdivide_adaptive, subdivide_adaptive_with_margin, triangle_template,
-    AdaptiveMesh, AdaptiveOptions, AdaptiveStage, Boundary, Cage, Error, Options, Plan, Scalar,
+    margin_rings, subdivide_adaptive, subdivide_adaptive_with_data, subdivide_adaptive_with_margin,
+    triangle_template, AdaptiveData, AdaptiveMesh, AdaptiveOptions, AdaptiveStage, Boundary, Cage,
+    Error, FaceVaryingMode, Level, Options, Plan, Scalar,
 };
 use common::{cage, grid, Random};
 
@@ -67,6 +68,20 @@ fn options(degree: u32, max_level: u32, tolerance: f64) -> AdaptiveOptions {
     }
 }
 
+/// The uniform plan of `cage` at `levels` (averaging rules, primal output).
+fn uniform_plan(cage: &Cage, degree: u32, levels: u32, boundary: Boundary) -> Plan {
+    Plan::new(
+        cage,
+        &Options {
+            degree,
+            levels,
+            boundary,
+            ..Options::default()
+        },
+    )
+    .unwrap()
+}
+
 /// Every vertex of the adaptive mesh is, bit for bit, the vertex of the same id of the uniform
 /// drawing mesh at its level.
 fn assert_uniform_points<T: Scalar>(
@@ -84,16 +99,7 @@ fn assert_uniform_points<T: Scalar>(
         if at.is_empty() {
             continue;
         }
-        let plan = Plan::new(
-            cage,
-            &Options {
-                degree,
-                levels: level,
-                boundary,
-                ..Options::default()
-            },
-        )
-        .unwrap();
+        let plan = uniform_plan(cage, degree, level, boundary);
         let uniform = plan.evaluate(points, 3).unwrap();
         for i in at {
             let u = mesh.vertex_id[i] as usize;
@@ -584,4 +590,365 @@ fn adaptive_memory_budget_is_checked_before_the_work() {
         ..options(4, 4, 1e-14)
     };
     assert!(subdivide_adaptive(&cage, &points, &o).is_ok());
+}
+
+/// The bumped grid with a fin of 2 quads standing on two of its interior edges (edges of 3
+/// faces: non-manifold, one of the fin's faces flipped against its neighbour) and a triangle
+/// hanging from a grid corner by that vertex alone (a bowtie); the fin is bumped too.
+fn finned_grid(n: usize) -> (Cage, Vec<f64>) {
+    let (grid, mut points) = bumped_grid(n, 2.0);
+    let id = |a: usize, b: usize| a * (n + 1) + b;
+    let mut faces: Vec<Vec<usize>> = (0..grid.num_faces())
+        .map(|f| {
+            let o = grid.face_offsets();
+            grid.face_vertices()[o[f] as usize..o[f + 1] as usize]
+                .iter()
+                .map(|&v| v as usize)
+                .collect()
+        })
+        .collect();
+    let base = (n + 1) * (n + 1);
+    let line = [id(2, 1), id(2, 2), id(2, 3)];
+    for (k, &v) in line.iter().enumerate() {
+        let p = [points[3 * v], points[3 * v + 1], points[3 * v + 2]];
+        points.extend([p[0] + 0.2 * k as f64, p[1], 1.0 + 0.4 * (k % 2) as f64]);
+    }
+    faces.push(vec![line[0], line[1], base + 1, base]);
+    faces.push(vec![base + 2, base + 1, line[1], line[2]]);
+    points.extend([-1.0, -0.5, 0.3, -0.5, -1.0, -0.3]);
+    faces.push(vec![id(0, 0), base + 4, base + 3]);
+    (common::cage(base + 5, &faces), points)
+}
+
+/// The value of every vertex of the uniform level `level` that the output has (`None` for a
+/// vertex only holes use), from a plan whose output leaves holes out: its output faces are the
+/// faces of `M_level` outside holes, in order.
+fn uniform_by_level_vertex(plan: &Plan, values: &[f64], channels: usize) -> Vec<Option<Vec<f64>>> {
+    let levels = plan.levels();
+    let last = levels.last().unwrap();
+    let t = levels.len() - 1;
+    let origin_of = |f: usize| levels[0].face_of(f >> (2 * (t - 1)));
+    let drawn: std::collections::HashSet<u32> = plan.output_face_origin().iter().copied().collect();
+    let offsets = plan.output_face_offsets();
+    let mut out = vec![None; last.num_vertices()];
+    let mut i = 0;
+    for f in 0..last.num_faces() {
+        if !drawn.contains(&(origin_of(f) as u32)) {
+            continue;
+        }
+        for k in 0..4 {
+            let w = plan.output_face_vertices()[offsets[i] as usize + k] as usize;
+            out[last.corner_verts()[4 * f + k] as usize] =
+                Some(values[channels * w..channels * (w + 1)].to_vec());
+        }
+        i += 1;
+    }
+    assert_eq!(i, plan.num_output_faces());
+    out
+}
+
+/// The uniform face-varying values at level `level`, per vertex of `M_level` and cage face:
+/// every corner at that vertex in a face of that cage face has the same value (one side of a
+/// seam), checked.
+fn uniform_face_varying_by_vertex(
+    plan: &Plan,
+    values: &[f64],
+    channels: usize,
+) -> HashMap<(u32, u32), Vec<u64>> {
+    let levels = plan.levels();
+    let last = levels.last().unwrap();
+    let t = levels.len() - 1;
+    let drawn: std::collections::HashSet<u32> = plan.output_face_origin().iter().copied().collect();
+    let mut out: HashMap<(u32, u32), Vec<u64>> = HashMap::new();
+    let mut i = 0;
+    for f in 0..last.num_faces() {
+        let origin = levels[0].face_of(f >> (2 * (t - 1))) as u32;
+        if !drawn.contains(&origin) {
+            continue;
+        }
+        for k in 0..4 {
+            let c = 4 * i + k;
+            let bits: Vec<u64> = values[channels * c..channels * (c + 1)]
+                .iter()
+                .map(|x| x.to_bits())
+                .collect();
+            let key = (last.corner_verts()[4 * f + k], origin);
+            let before = out.insert(key, bits.clone());
+            assert!(
+                before.is_none_or(|b| b == bits),
+                "uniform corners at {key:?} differ"
+            );
+        }
+        i += 1;
+    }
+    out
+}
+
+/// Adaptive points, per-vertex values (when carried: those of `x * x - 0.5 * x` per point
+/// coordinate) and face-varying values against the uniform plans at every level the mesh uses
+/// (holes left out there as here).
+fn assert_uniform_data(
+    cage: &Cage,
+    points: &[f64],
+    degree: u32,
+    boundary: Boundary,
+    mesh: &AdaptiveMesh<f64>,
+    face_varying: &[(&[f64], usize, FaceVaryingMode)],
+) {
+    let channels = 3;
+    let drawn: std::collections::HashSet<u32> = mesh.face_origin.iter().copied().collect();
+    for level in 1..mesh.leaves_per_level.len() as u32 {
+        if !mesh.vertex_level.contains(&level) {
+            continue;
+        }
+        let plan = uniform_plan(cage, degree, level, boundary);
+        let faces: std::collections::HashSet<u32> =
+            plan.output_face_origin().iter().copied().collect();
+        assert!(drawn.is_subset(&faces), "adaptive draws a hole");
+        let uniform = uniform_by_level_vertex(&plan, &plan.evaluate(points, 3).unwrap(), 3);
+        let squared: Vec<f64> = points.iter().map(|x| x * x - 0.5 * x).collect();
+        let uniform_values =
+            uniform_by_level_vertex(&plan, &plan.evaluate(&squared, 3).unwrap(), 3);
+        for i in (0..mesh.vertex_level.len()).filter(|&i| mesh.vertex_level[i] == level) {
+            let u = mesh.vertex_id[i] as usize;
+            let want = uniform[u]
+                .as_ref()
+                .expect("an adaptive vertex is drawn uniformly");
+            let values = uniform_values[u].as_ref().unwrap();
+            for k in 0..channels {
+                assert_eq!(
+                    mesh.points[3 * i + k].to_bits(),
+                    want[k].to_bits(),
+                    "degree {degree}: vertex {u} of level {level}"
+                );
+                if !mesh.vertex_values.is_empty() {
+                    assert_eq!(
+                        mesh.vertex_values[3 * i + k].to_bits(),
+                        values[k].to_bits(),
+                        "degree {degree}: value of vertex {u} of level {level}"
+                    );
+                }
+            }
+        }
+        for (set, &(values, width, mode)) in face_varying.iter().enumerate() {
+            let uniform = plan
+                .evaluate_face_varying(values, width, mode, false)
+                .unwrap();
+            let by_vertex = uniform_face_varying_by_vertex(&plan, &uniform, width);
+            for (c, &v) in mesh.triangles.as_flattened().iter().enumerate() {
+                let v = v as usize;
+                if mesh.vertex_level[v] != level {
+                    continue;
+                }
+                let key = (mesh.vertex_id[v] as u32, mesh.face_origin[c / 3]);
+                let got: Vec<u64> = mesh.face_varying[set][width * c..width * (c + 1)]
+                    .iter()
+                    .map(|x| x.to_bits())
+                    .collect();
+                assert_eq!(
+                    Some(&got),
+                    by_vertex.get(&key),
+                    "degree {degree}, {mode:?}: corner {c} at vertex {key:?} of level {level}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn non_manifold_and_holed_cages_give_uniform_points_bitwise() {
+    let (finned, finned_points) = finned_grid(6);
+    let (grid, grid_points) = bumped_grid(6, 2.0);
+    let holed = grid.clone().with_holes(&[7, 20]).unwrap();
+    let finned_holed = finned.clone().with_holes(&[14, 36]).unwrap();
+    let cases: Vec<(&str, &Cage, &[f64], Boundary)> = vec![
+        ("finned", &finned, &finned_points, Boundary::EdgeOnly),
+        (
+            "finned corners",
+            &finned,
+            &finned_points,
+            Boundary::EdgeAndCorner,
+        ),
+        ("holed", &holed, &grid_points, Boundary::EdgeOnly),
+        (
+            "finned holed",
+            &finned_holed,
+            &finned_points,
+            Boundary::EdgeOnly,
+        ),
+        ("boundary none", &grid, &grid_points, Boundary::None),
+    ];
+    for degree in 1..=9 {
+        for &(name, cage, points, boundary) in &cases {
+            let options = AdaptiveOptions {
+                boundary,
+                ..options(degree, 3, if degree < 6 { 3e-3 } else { 5e-4 })
+            };
+            let squared: Vec<f64> = points.iter().map(|x| x * x - 0.5 * x).collect();
+            let data = AdaptiveData {
+                vertex_values: Some((&squared, 3)),
+                face_varying: Vec::new(),
+            };
+            let mesh = subdivide_adaptive_with_data(cage, points, &options, &data).unwrap();
+            assert!(
+                levels_used(&mesh) >= 2 || degree == 1,
+                "{name}, degree {degree}: leaves {:?}",
+                mesh.leaves_per_level
+            );
+            assert_uniform_data(cage, points, degree, boundary, &mesh, &[]);
+            // Holes are left out: no triangle of a hole face.
+            for &f in cage.holes() {
+                assert!(!mesh.face_origin.contains(&f), "{name}: hole {f} drawn");
+            }
+            let plain = subdivide_adaptive(cage, points, &options).unwrap();
+            assert_eq!(plain.points, mesh.points, "{name}: data changed the points");
+        }
+    }
+}
+
+/// UVs of the bumped grid with a seam down the middle (the right half shifted) and, in the
+/// right half, another seam across (its top shifted too): a vertex with 3 values.
+fn seamed_uvs(cage: &Cage, points: &[f64], n: usize) -> Vec<f64> {
+    let o = cage.face_offsets();
+    let mut uvs = Vec::new();
+    for f in 0..cage.num_faces() {
+        let (a, b) = (f / n, f % n);
+        for &v in &cage.face_vertices()[o[f] as usize..o[f + 1] as usize] {
+            let (x, y) = (points[3 * v as usize], points[3 * v as usize + 1]);
+            let right = (b >= n / 2) as u32 as f64;
+            let top = (b >= n / 2 && a >= n / 2) as u32 as f64;
+            uvs.extend([0.1 * x + 0.7 * right + 0.01 * y * y, 0.1 * y + 0.4 * top]);
+        }
+    }
+    uvs
+}
+
+#[test]
+fn adaptive_face_varying_values_equal_uniform_ones_bitwise() {
+    let n = 6;
+    let (grid, points) = bumped_grid(n, 2.0);
+    let grid = grid.with_creases(&[(8, 9, 10.0), (9, 10, 1.5)]).unwrap();
+    let uvs = seamed_uvs(&grid, &points, n);
+    let modes = [
+        FaceVaryingMode::None,
+        FaceVaryingMode::CornersOnly,
+        FaceVaryingMode::CornersPlus1,
+        FaceVaryingMode::CornersPlus2,
+        FaceVaryingMode::Boundaries,
+        FaceVaryingMode::All,
+    ];
+    for degree in 1..=9 {
+        let sets: Vec<(&[f64], usize, FaceVaryingMode)> =
+            modes.iter().map(|&m| (&uvs[..], 2, m)).collect();
+        let data = AdaptiveData {
+            vertex_values: None,
+            face_varying: sets.clone(),
+        };
+        let tolerance = if degree < 6 { 3e-3 } else { 5e-4 };
+        let mesh =
+            subdivide_adaptive_with_data(&grid, &points, &options(degree, 3, tolerance), &data)
+                .unwrap();
+        assert!(levels_used(&mesh) >= 2 || degree == 1, "degree {degree}");
+        assert_eq!(mesh.face_varying.len(), modes.len());
+        for values in &mesh.face_varying {
+            assert_eq!(values.len(), 2 * 3 * mesh.triangles.len());
+        }
+        assert_uniform_data(&grid, &points, degree, Boundary::EdgeOnly, &mesh, &sets);
+        // Smooth and linear differ (from degree 2: degree 1 is bilinear in every mode).
+        assert!(degree == 1 || mesh.face_varying[0] != mesh.face_varying[5]);
+    }
+    // A non-manifold, holed cage with UVs of 3 channels (a padded group) and 4 (two groups).
+    let (finned, finned_points) = finned_grid(n);
+    let finned = finned.with_holes(&[3]).unwrap();
+    let corners = finned.face_vertices().len();
+    let wide: Vec<f64> = (0..4 * corners)
+        .map(|i| ((i * 7919) % 23) as f64 / 23.0)
+        .collect();
+    let uv3: Vec<f64> = (0..corners)
+        .flat_map(|c| wide[4 * c..4 * c + 3].to_vec())
+        .collect();
+    for degree in [2, 3, 4] {
+        let sets: Vec<(&[f64], usize, FaceVaryingMode)> = vec![
+            (&uv3, 3, FaceVaryingMode::Boundaries),
+            (&wide, 4, FaceVaryingMode::CornersPlus1),
+        ];
+        let data = AdaptiveData {
+            vertex_values: None,
+            face_varying: sets.clone(),
+        };
+        let mesh =
+            subdivide_adaptive_with_data(&finned, &finned_points, &options(degree, 3, 3e-3), &data)
+                .unwrap();
+        assert!(levels_used(&mesh) >= 2);
+        assert_uniform_data(
+            &finned,
+            &finned_points,
+            degree,
+            Boundary::EdgeOnly,
+            &mesh,
+            &sets,
+        );
+    }
+    // Bad data is a typed error.
+    let short = AdaptiveData {
+        vertex_values: None,
+        face_varying: vec![(&uvs[1..], 2, FaceVaryingMode::None)],
+    };
+    assert!(matches!(
+        subdivide_adaptive_with_data(&grid, &points, &options(3, 3, 3e-3), &short),
+        Err(Error::InvalidInput(_))
+    ));
+    let mut bad = uvs.clone();
+    bad[5] = f64::NAN;
+    let nan = AdaptiveData {
+        vertex_values: None,
+        face_varying: vec![(&bad, 2, FaceVaryingMode::None)],
+    };
+    assert!(matches!(
+        subdivide_adaptive_with_data(&grid, &points, &options(3, 3, 3e-3), &nan),
+        Err(Error::NonFinite { .. })
+    ));
+}
+
+#[test]
+fn triangle_edges_know_their_cage_edge_and_sharpness() {
+    let (finned, points) = finned_grid(6);
+    let creased = finned
+        .with_creases(&[(8, 9, 2.5), (9, 10, 10.0), (22, 23, 1.5)])
+        .unwrap();
+    for degree in [2, 3, 4] {
+        let mesh = subdivide_adaptive(&creased, &points, &options(degree, 3, 3e-3)).unwrap();
+        assert!(levels_used(&mesh) >= 2);
+        assert_eq!(mesh.edge_origin.len(), 3 * mesh.triangles.len());
+        let mut checked = 0;
+        for level in 1..=3 {
+            let plan = uniform_plan(&creased, degree, level, Boundary::EdgeOnly);
+            assert_eq!(plan.cage_edges(), mesh.cage_edges);
+            let sharpness = plan.output_edge_sharpness().unwrap();
+            let uniform: HashMap<(u64, u64), usize> = (plan.output_edges().iter().enumerate())
+                .map(|(e, &[a, b])| ((a.min(b) as u64, a.max(b) as u64), e))
+                .collect();
+            for (c, &v) in mesh.triangles.as_flattened().iter().enumerate() {
+                if mesh.edge_level[c] != level {
+                    continue;
+                }
+                let next = mesh.triangles[c / 3][(c % 3 + 1) % 3];
+                let (a, b) = (mesh.vertex_id[v as usize], mesh.vertex_id[next as usize]);
+                let Some(&e) = uniform.get(&(a.min(b), a.max(b))) else {
+                    // A fan diagonal: no edge of the uniform level, inside a cage face.
+                    assert_eq!(mesh.edge_origin[c], Level::NONE);
+                    continue;
+                };
+                assert_eq!(
+                    mesh.edge_origin[c],
+                    plan.output_edge_origin()[e],
+                    "corner {c}"
+                );
+                assert_eq!(mesh.edge_sharpness[c], sharpness[e], "corner {c}");
+                checked += (mesh.edge_origin[c] != Level::NONE) as usize;
+            }
+        }
+        assert!(checked > 100, "{checked}");
+        assert!(mesh.edge_sharpness.iter().any(|&s| s > 0.0 && s < 10.0));
+    }
 }

@@ -2,15 +2,18 @@
 //! (`bidegree::adaptive`), with the same conventions as the rest of the module (GIL released,
 //! panics caught, core errors as their Python classes).
 
-use bidegree::{subdivide_adaptive as core_adaptive, AdaptiveMesh, AdaptiveOptions, Scalar};
-use numpy::{Element, PyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use bidegree::{
+    subdivide_adaptive_with_data as core_adaptive, AdaptiveData, AdaptiveMesh, AdaptiveOptions,
+    FaceVaryingMode, Scalar,
+};
+use numpy::{Element, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyList};
 
 use crate::arrays::{array2, check_output, contiguous, floats, to_i32, Floats};
 use crate::cage::PyCage;
 use crate::errors::{invalid, to_py_err};
-use crate::options::{degree, levels, memory_budget, parse_boundary};
+use crate::options::{degree, levels, memory_budget, parse_boundary, parse_face_varying_mode};
 
 /// Registers the adaptive functions in the extension module.
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -38,11 +41,16 @@ fn adaptive_options(
 
 /// Adaptive subdivision of a cage with 3-D points: a dict with `points` (N, 3) of the points'
 /// dtype, `triangles` int32 (T, 3), `face_origin` and `triangle_level` int32 (T,),
-/// `vertex_level` int32 (N,), `vertex_id` int64 (N,), `leaves_per_level` int64 (max_level + 1,)
-/// and `max_error` (a float with `measure_leaves`, else None).
+/// `vertex_level` int32 (N,), `vertex_id` int64 (N,), `leaves_per_level` int64 (max_level + 1,),
+/// `max_error` (a float with `measure_leaves`, else None), `edge_origin` (int32 (3 T,), -1
+/// inside cage faces), `edge_level` (int32 (3 T,)), `edge_sharpness` (float32 (3 T,)),
+/// `cage_edges` (int32 (E0, 2)), `vertex_values` ((N, C) for
+/// `vertex_values` (cage vertices, C) in the points' dtype, else None) and `face_varying` (a
+/// list: for each `(values (cage corners, C), mode)` of `face_varying`, (3 T, C) at the
+/// triangle corners).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (cage, points, degree, max_level, tolerance, boundary, memory_budget=None, measure_leaves=false))]
+#[pyo3(signature = (cage, points, degree, max_level, tolerance, boundary, memory_budget=None, measure_leaves=false, vertex_values=None, face_varying=None))]
 fn subdivide_adaptive<'py>(
     py: Python<'py>,
     cage: &Bound<'py, PyCage>,
@@ -53,6 +61,8 @@ fn subdivide_adaptive<'py>(
     boundary: &str,
     memory_budget: Option<u64>,
     measure_leaves: bool,
+    vertex_values: Option<&Bound<'py, PyAny>>,
+    face_varying: Option<Vec<(Bound<'py, PyAny>, String)>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let cage = cage.get();
     let options = adaptive_options(
@@ -64,10 +74,36 @@ fn subdivide_adaptive<'py>(
         measure_leaves,
     )
     .map_err(|e| to_py_err(py, e))?;
-    match floats(points, "points")? {
-        Floats::F32(a) => adaptive(py, cage, &a, options),
-        Floats::F64(a) => adaptive(py, cage, &a, options),
+    let mut sets = Vec::new();
+    for (values, mode) in face_varying.unwrap_or_default() {
+        sets.push((
+            values,
+            parse_face_varying_mode(&mode).map_err(|e| to_py_err(py, e))?,
+        ));
     }
+    match floats(points, "points")? {
+        Floats::F32(a) => adaptive(py, cage, &a, options, vertex_values, &sets),
+        Floats::F64(a) => adaptive(py, cage, &a, options, vertex_values, &sets),
+    }
+}
+
+/// A 2-D array of the points' dtype `T` (the Python layer converts).
+fn same_dtype<'py, T: Element>(
+    values: &Bound<'py, PyAny>,
+    what: &str,
+) -> PyResult<PyReadonlyArray2<'py, T>> {
+    let py = values.py();
+    let array = values.cast::<PyArray2<T>>().map_err(|_| {
+        to_py_err(
+            py,
+            invalid(format!(
+                "{what} must be a 2-D numpy array of the points' dtype"
+            )),
+        )
+    })?;
+    array
+        .try_readonly()
+        .map_err(|_| to_py_err(py, invalid(format!("{what} is being written elsewhere"))))
 }
 
 fn adaptive<'py, T: Scalar + Element>(
@@ -75,17 +111,48 @@ fn adaptive<'py, T: Scalar + Element>(
     cage: &PyCage,
     points: &PyReadonlyArray2<'_, T>,
     options: AdaptiveOptions,
+    vertex_values: Option<&Bound<'py, PyAny>>,
+    face_varying: &[(Bound<'py, PyAny>, FaceVaryingMode)],
 ) -> PyResult<Bound<'py, PyDict>> {
     let channels = points.shape()[1];
     let data = contiguous(points, "points")?;
+    let vertex_values = vertex_values
+        .map(|v| same_dtype::<T>(v, "vertex_values"))
+        .transpose()?;
+    let sets = (face_varying.iter())
+        .map(|(v, mode)| Ok((same_dtype::<T>(v, "face_varying values")?, *mode)))
+        .collect::<PyResult<Vec<_>>>()?;
+    let mut extra = AdaptiveData::default();
+    let mut vertex_channels = 0;
+    if let Some(values) = &vertex_values {
+        vertex_channels = values.shape()[1];
+        extra.vertex_values = Some((contiguous(values, "vertex_values")?, vertex_channels));
+    }
+    let mut set_channels = Vec::new();
+    for (values, mode) in &sets {
+        let width = values.shape()[1];
+        set_channels.push(width);
+        extra
+            .face_varying
+            .push((contiguous(values, "face_varying values")?, width, *mode));
+    }
     let (mesh, triangles, face_origin, triangle_level, vertex_level) = cage.run(py, |cage| {
         if channels != 3 {
             return Err(invalid(format!(
                 "adaptive subdivision needs 3-D points, not {channels} channels"
             )));
         }
-        let mesh: AdaptiveMesh<T> = core_adaptive(cage, data, &options)?;
+        if vertex_channels == 0 && extra.vertex_values.is_some() || set_channels.contains(&0) {
+            return Err(invalid("values need at least one channel"));
+        }
+        let mesh: AdaptiveMesh<T> = core_adaptive(cage, data, &options, &extra)?;
         check_output(&mesh.points, 3, data)?;
+        if let Some((values, width)) = extra.vertex_values {
+            check_output(&mesh.vertex_values, width, values)?;
+        }
+        for (out, &(values, width, _)) in mesh.face_varying.iter().zip(&extra.face_varying) {
+            check_output(out, width, values)?;
+        }
         let triangles = to_i32(mesh.triangles.as_flattened())?;
         let face_origin = to_i32(&mesh.face_origin)?;
         let triangle_level = to_i32(&mesh.triangle_level)?;
@@ -104,5 +171,40 @@ fn adaptive<'py, T: Scalar + Element>(
     let leaves: Vec<i64> = mesh.leaves_per_level.iter().map(|&n| n as i64).collect();
     out.set_item("leaves_per_level", PyArray1::from_vec(py, leaves))?;
     out.set_item("max_error", mesh.max_error)?;
+    let AdaptiveMesh {
+        vertex_values,
+        face_varying,
+        edge_origin,
+        edge_level,
+        edge_sharpness,
+        cage_edges,
+        ..
+    } = mesh;
+    let edge_origin: Vec<i32> = (edge_origin.iter())
+        .map(|&e| {
+            if e == bidegree::Level::NONE {
+                Ok(-1)
+            } else {
+                to_i32(&[e]).map(|x| x[0])
+            }
+        })
+        .collect::<bidegree::Result<_>>()
+        .map_err(|e| to_py_err(py, e))?;
+    out.set_item("edge_origin", PyArray1::from_vec(py, edge_origin))?;
+    let edge_level = to_i32(&edge_level).map_err(|e| to_py_err(py, e))?;
+    out.set_item("edge_level", PyArray1::from_vec(py, edge_level))?;
+    out.set_item("edge_sharpness", PyArray1::from_vec(py, edge_sharpness))?;
+    let cage_edges = to_i32(cage_edges.as_flattened()).map_err(|e| to_py_err(py, e))?;
+    out.set_item("cage_edges", array2(py, cage_edges, 2)?)?;
+    if extra.vertex_values.is_some() {
+        out.set_item("vertex_values", array2(py, vertex_values, vertex_channels)?)?;
+    } else {
+        out.set_item("vertex_values", py.None())?;
+    }
+    let sets = PyList::empty(py);
+    for (values, width) in face_varying.into_iter().zip(set_channels) {
+        sets.append(array2(py, values, width)?)?;
+    }
+    out.set_item("face_varying", sets)?;
     Ok(out)
 }

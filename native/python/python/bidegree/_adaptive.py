@@ -5,14 +5,15 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from . import _convert as convert
 from . import _native
-from ._convert import FloatArray
+from ._convert import FloatArray, UvMode
 from ._errors import InvalidInputError, LevelOutOfRangeError
 from ._mesh import Mesh, write_obj_arrays
 
@@ -32,9 +33,32 @@ class AdaptiveResult:
         leaves_per_level: int64 (max_level + 1,), quadtree leaves at each level.
         max_error: with ``measure_leaves=True``, the largest flatness error of any leaf
             (relative to the cage's bounding-box diagonal), else None.
+        uvs: (3 T, 2) the cage's uvs at the triangle corners (corner ``k`` of triangle ``t``
+            is row ``3 t + k``), subdivided in ``uv_mode``: each the uniform result's uv at
+            that vertex's level, on the triangle's side of a seam; None without cage uvs.
+        uv_mode: the face-varying mode of ``uvs`` and ``face_varying``.
+        vertex_values: (N, C) the ``vertex_values`` given, at the output vertices (each at
+            its level, as the points), or None.
+        face_varying: name -> (3 T, C) for each set of ``face_varying`` given, as ``uvs``.
+        edge_origin: int32 (3 T,), per triangle corner ``3 t + k``: the cage edge (row of
+            ``cage_edges``) under the triangle's edge from corner ``k`` to ``k + 1``, -1 inside
+            a cage face (as ``Plan.edge_origin``).
+        edge_level: int32 (3 T,), the level of that edge.
+        edge_sharpness: float32 (3 T,), the sharpness it keeps at its level (as
+            ``Plan.edge_sharpness`` with the averaging rules).
+        cage_edges: int32 (E0, 2), the cage's edges as vertex pairs (smaller first), ordered by
+            pair.
     """
 
-    def __init__(self, data: dict[str, Any], degree: int, max_level: int, tolerance: float) -> None:
+    def __init__(
+        self,
+        data: dict[str, Any],
+        degree: int,
+        max_level: int,
+        tolerance: float,
+        uv_mode: UvMode = "boundaries",
+        names: tuple[str | None, ...] = (),
+    ) -> None:
         self.points: FloatArray = data["points"]
         self.triangles: NDArray[np.int32] = convert.readonly(data["triangles"])
         self.face_origin: NDArray[np.int32] = convert.readonly(data["face_origin"])
@@ -46,6 +70,17 @@ class AdaptiveResult:
         self.degree = degree
         self.max_level = max_level
         self.tolerance = tolerance
+        self.uv_mode: UvMode = uv_mode
+        self.vertex_values: FloatArray | None = data["vertex_values"]
+        self.edge_origin: NDArray[np.int32] = convert.readonly(data["edge_origin"])
+        self.edge_level: NDArray[np.int32] = convert.readonly(data["edge_level"])
+        self.edge_sharpness: NDArray[np.float32] = convert.readonly(data["edge_sharpness"])
+        self.cage_edges: NDArray[np.int32] = convert.readonly(data["cage_edges"])
+        sets = dict(zip(names, data["face_varying"], strict=True))
+        self.uvs: FloatArray | None = sets.pop(None, None)
+        self.face_varying: dict[str, FloatArray] = {
+            name: values for name, values in sets.items() if name is not None
+        }
 
     @property
     def num_vertices(self) -> int:
@@ -64,7 +99,8 @@ class AdaptiveResult:
 
     @convert.memory_errors()
     def write_obj(self, path: str | os.PathLike[str]) -> None:
-        """Writes the triangles as OBJ (``v``, ``f``).
+        """Writes the triangles as OBJ (``v``, ``vt`` per triangle corner when there are uvs,
+        ``f``).
 
         Raises:
             BidegreeIOError: the file cannot be written.
@@ -73,7 +109,7 @@ class AdaptiveResult:
         if points.dtype not in (np.float32, np.float64):
             points = points.astype(np.float64)
         sizes = np.full(len(self.triangles), 3, dtype=np.int64)
-        write_obj_arrays(path, points, sizes, self.triangles.reshape(-1), None)
+        write_obj_arrays(path, points, sizes, self.triangles.reshape(-1), self.uvs)
 
     def __repr__(self) -> str:
         return (
@@ -91,6 +127,10 @@ def subdivide_adaptive(
     tolerance: float = 1e-3,
     memory_budget: int | None = None,
     measure_leaves: bool = False,
+    *,
+    uv_mode: UvMode = "boundaries",
+    vertex_values: ArrayLike | None = None,
+    face_varying: Mapping[str, ArrayLike | tuple[ArrayLike, UvMode]] | None = None,
 ) -> AdaptiveResult:
     """Subdivides ``mesh`` adaptively (the paper's §3): a quadtree per quad of level 1, refined
     while a node is not flat enough, up to ``max_level``, with neighbouring leaves (sharing an
@@ -106,8 +146,19 @@ def subdivide_adaptive(
         memory_budget: refuse work estimated above this many bytes (default 4 GiB).
         measure_leaves: also measure every leaf's error (one level more of work around the
             leaves) and report the largest as ``max_error``.
+        uv_mode: the face-varying mode of the mesh's uvs and of ``face_varying`` (OpenSubdiv's
+            six, as :meth:`Plan.evaluate_face_varying`).
+        vertex_values: (cage vertices, C) any per-vertex attribute, carried through the same
+            levels as the points (``AdaptiveResult.vertex_values``).
+        face_varying: name -> (cage corners, C) further face-varying sets (each welded on its
+            own), at the triangle corners (``AdaptiveResult.face_varying``); a set given as
+            ``(values, mode)`` has its own mode instead of ``uv_mode``.
 
-    Every vertex is bit for bit the vertex of the uniform result at its level.
+    Every vertex is bit for bit the vertex of the uniform result at its level, and so are its
+    values; face-varying values are those of the uniform result at the vertex's level. Holes
+    (and boundary ``"none"``) leave faces out as the uniform result does; non-manifold edges
+    and vertices are infinitely sharp there as in the uniform result. Values given in another
+    dtype than the points are converted to the points' dtype.
 
     Raises:
         NonFiniteError, DegenerateFaceError: bad geometry.
@@ -130,6 +181,29 @@ def subdivide_adaptive(
         error.levels, error.max = max_level, _native.MAX_LEVELS
         raise error
     tol = convert.tolerance(tolerance)
+    uv_mode = convert.choice(uv_mode, convert.UV_MODES, "uv_mode")  # type: ignore[assignment]
+    dtype = mesh.points.dtype
+    values = None
+    if vertex_values is not None:
+        values, _ = convert.values_2d(vertex_values, mesh.num_vertices, "vertex_values", "vertices")
+        values = np.ascontiguousarray(values, dtype=dtype)
+    names: list[str | None] = []
+    sets: list[tuple[FloatArray, str]] = []
+    if mesh.uvs is not None:
+        names.append(None)
+        sets.append((np.ascontiguousarray(mesh.uvs, dtype=dtype), uv_mode))
+    if face_varying is not None and not isinstance(face_varying, Mapping):
+        raise InvalidInputError(
+            f"face_varying must be a mapping of name -> values, not {type(face_varying).__name__}"
+        )
+    for name, given in (face_varying or {}).items():
+        array, mode = given if isinstance(given, tuple) else (given, uv_mode)
+        mode = convert.choice(mode, convert.UV_MODES, "uv_mode")
+        corners, _ = convert.values_2d(
+            array, mesh.num_corners, f"face_varying[{name!r}]", "face corners"
+        )
+        names.append(str(name))
+        sets.append((np.ascontiguousarray(corners, dtype=dtype), mode))
     data = _native.subdivide_adaptive(
         mesh._cage,
         mesh.points,
@@ -139,8 +213,10 @@ def subdivide_adaptive(
         mesh.boundary,
         convert.budget(memory_budget),
         bool(measure_leaves),
+        values,
+        sets,
     )
     used = np.zeros(mesh.num_vertices, dtype=bool)
     used[mesh.face_indices] = True
     convert.warn_isolated(np.flatnonzero(~used).astype(np.int32))
-    return AdaptiveResult(data, degree, max_level, tol)
+    return AdaptiveResult(data, degree, max_level, tol, uv_mode, tuple(names))

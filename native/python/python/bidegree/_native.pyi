@@ -167,6 +167,12 @@ class _AdaptiveData(TypedDict):
     vertex_id: NDArray[np.int64]
     leaves_per_level: NDArray[np.int64]
     max_error: float | None
+    vertex_values: _Float | None
+    face_varying: list[_Float]
+    edge_origin: NDArray[np.int32]
+    edge_level: NDArray[np.int32]
+    edge_sharpness: NDArray[np.float32]
+    cage_edges: NDArray[np.int32]
 
 def subdivide_adaptive(
     cage: Cage,
@@ -177,4 +183,6 @@ def subdivide_adaptive(
     boundary: str,
     memory_budget: int | None = None,
     measure_leaves: bool = False,
+    vertex_values: _Float | None = None,
+    face_varying: list[tuple[_Float, str]] | None = None,
 ) -> _AdaptiveData: ...

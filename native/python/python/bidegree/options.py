@@ -198,8 +198,15 @@ class Options:
             uv_mode=self.uv_mode,  # type: ignore[arg-type]
         )
 
-    def subdivide_adaptive(self, mesh: bidegree.Mesh) -> bidegree.AdaptiveResult:
-        """:func:`bidegree.subdivide_adaptive` of ``mesh`` up to ``levels``.
+    def subdivide_adaptive(
+        self,
+        mesh: bidegree.Mesh,
+        *,
+        vertex_values: Any = None,
+        face_varying: Any = None,
+    ) -> bidegree.AdaptiveResult:
+        """:func:`bidegree.subdivide_adaptive` of ``mesh`` up to ``levels``, the mesh's uvs and
+        ``face_varying`` in ``uv_mode``, with ``vertex_values`` (see there).
 
         Raises:
             bidegree.InvalidInputError: a setting adaptive subdivision does not support.
@@ -215,6 +222,9 @@ class Options:
             max_level=self.levels,
             tolerance=self.tolerance,
             memory_budget=self.memory_budget,
+            uv_mode=self.uv_mode,  # type: ignore[arg-type]
+            vertex_values=vertex_values,
+            face_varying=face_varying,
         )
 
     def estimate(self, mesh: bidegree.Mesh) -> dict[str, int]:

@@ -31,12 +31,21 @@ What each domain does (Blender's Subdivision Surface, ``subdiv_mesh.cc``, is the
 
 Dual output: edges lie on cage edges only along the boundary (``Plan.edge_origin``) and no
 output vertex is a cage vertex, so interior edge attributes and vertex creases stay at their
-defaults. Adaptive output keeps face attributes only (the core evaluates no data on it).
+defaults.
+
+Adaptive output (:func:`adaptive_request`, :func:`adaptive_attributes`): point floats, vertex
+groups, corner floats (UV maps included, in the UV mode), custom normals, face attributes and
+edge attributes (on the triangle edges along their cage edge, the crease lowered by each
+edge's level) and integers and booleans (the quadrant's cage corner, from the unit vectors
+carried linearly) come through as on uniform output (each at its vertex's level); vertex
+creases are not carried.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from types import SimpleNamespace
 from typing import TYPE_CHECKING, Any
 
 import bidegree
@@ -177,20 +186,34 @@ class SurfaceAttributes:
     colors: tuple[str, str] = ("", "")
 
 
+@dataclass
+class _OutputEdges:
+    """Where the output edges lie on the cage: ``cage_edges`` (E0, 2) as the core orders them,
+    per output edge its cage edge ``origin`` (-1 inside a cage face), the sharpness it keeps
+    (``sharpness()``, computed only for a crease) and its level (``levels``: one for all, or
+    per edge on adaptive output)."""
+
+    cage_edges: np.ndarray
+    origin: np.ndarray
+    sharpness: Callable[[], np.ndarray]
+    levels: int | np.ndarray
+
+
 class _Corners:
     """The cage corners as the core sees them, and where each output corner lies in them."""
 
-    def __init__(self, plan: bidegree.Plan, cage: Any) -> None:
+    def __init__(self, plan: Any, cage: Any, direction: np.ndarray | None = None) -> None:
+        """``plan``: a :class:`bidegree.Plan`, or anything with its ``face_origin``,
+        ``face_sizes``, ``face_indices``, ``output`` and ``num_output_vertices`` when
+        ``direction`` (the linear face-varying :meth:`unit_vectors` at the output corners)
+        is given."""
         sizes = np.asarray(cage.face_sizes, dtype=np.int64)
         starts = np.zeros(len(sizes), dtype=np.int64)
         np.cumsum(sizes[:-1], out=starts[1:])
-        face = np.repeat(np.arange(len(sizes)), sizes)
-        local = np.arange(int(sizes.sum())) - starts[face]
-        theta = 2 * np.pi * local / sizes[face]
         #: The unit vector of each cage corner, and its linear face-varying values (float64:
         #: exact at the output corners that are cage corners).
-        self.unit = np.stack([np.cos(theta), np.sin(theta)], axis=1)
-        self.direction = face_varying(plan, self.unit, "all")
+        self.unit = self.unit_vectors(cage)
+        self.direction = face_varying(plan, self.unit, "all") if direction is None else direction
         origin = np.repeat(np.asarray(plan.face_origin, dtype=np.int64), plan.face_sizes)
         n = sizes[origin]
         angle = np.arctan2(self.direction[:, 1], self.direction[:, 0])
@@ -207,6 +230,16 @@ class _Corners:
         self.first = np.empty(int(plan.num_output_vertices), dtype=np.int64)
         self.first[face_indices[::-1]] = np.arange(len(face_indices) - 1, -1, -1)
         self.corner_verts = np.asarray(cage.corner_verts, dtype=np.int64)
+
+    @staticmethod
+    def unit_vectors(cage: Any) -> np.ndarray:
+        """Corner ``i`` of each ``n``-gon: the unit vector at angle ``2 pi i / n``."""
+        sizes = np.asarray(cage.face_sizes, dtype=np.int64)
+        starts = np.zeros(len(sizes), dtype=np.int64)
+        np.cumsum(sizes[:-1], out=starts[1:])
+        face = np.repeat(np.arange(len(sizes)), sizes)
+        theta = 2 * np.pi * (np.arange(int(sizes.sum())) - starts[face]) / sizes[face]
+        return np.stack([np.cos(theta), np.sin(theta)], axis=1)
 
     def point_source(self) -> np.ndarray:
         """The cage vertex each output vertex takes a non-averaged value from."""
@@ -254,18 +287,117 @@ def transfer(
                 out.append(_like(a, a.values[corners.quadrant]))
     edges = [a for a in attrs if a.domain == "EDGE"]
     if edges:
-        out += _edge_attributes(edges, plan, cage, use_creases)
+        on = _OutputEdges(
+            plan.cage_edges, plan.edge_origin, lambda: plan.edge_sharpness, int(plan.levels)
+        )
+        out += _edge_attributes(edges, on, cage, use_creases)
     order = {(a.domain, a.name): i for i, a in enumerate(attrs)}
     out.sort(key=lambda a: order[(a.domain, a.name)])
     return SurfaceAttributes(out, cage_attributes.colors)
 
 
-def face_attributes(cage_attributes: CageAttributes, face_origin: np.ndarray) -> SurfaceAttributes:
-    """Only the face attributes of the cage, through ``face_origin`` (adaptive output)."""
-    origin = np.asarray(face_origin, dtype=np.int64)
-    return SurfaceAttributes(
-        [_like(a, a.values[origin]) for a in cage_attributes.attributes if a.domain == "FACE"]
+#: Names of the face-varying sets that carry the custom normals and the corners' unit vectors
+#: (for integer and boolean attributes) through adaptive output.
+_NORMALS_SET = "\0custom normals"
+_QUADRANT_SET = "\0quadrant"
+
+
+def adaptive_request(
+    cage: Any, uv_mode: str
+) -> tuple[list[Attribute], dict[str, tuple[np.ndarray, str]]]:
+    """What adaptive output carries of the attributes of ``cage`` (a
+    :class:`.mesh_io.CageArrays`), as the arguments of :func:`bidegree.subdivide_adaptive`:
+    the averaged point attributes (stacked as its ``vertex_values``) and the averaged corner
+    attributes, custom normals and, for integer and boolean attributes, the corners' unit
+    vectors (its ``face_varying``: corner values in ``uv_mode``, the others linear)."""
+    cage_attributes = cage.attributes
+    attrs = cage_attributes.attributes
+    points = [
+        a
+        for a in attrs
+        if a.domain == "POINT" and a.data_type in _AVERAGED and a.name != CREASE_VERT
+    ]
+    sets = {
+        f"{a.domain}:{a.name}": (a.values.astype(np.float64), uv_mode)
+        for a in attrs
+        if a.domain == "CORNER" and a.data_type in _AVERAGED
+    }
+    if cage_attributes.custom_normals is not None:
+        sets[_NORMALS_SET] = (np.asarray(cage_attributes.custom_normals, np.float64), "all")
+    if any(_by_value(a) and a.name != CREASE_VERT for a in attrs):
+        sets[_QUADRANT_SET] = (_Corners.unit_vectors(cage), "all")
+    return points, sets
+
+
+def _by_value(a: Attribute) -> bool:
+    """A point or corner attribute taken from one cage value (not averaged)."""
+    return a.domain in ("POINT", "CORNER") and (
+        a.data_type not in _AVERAGED or (a.domain, a.name) == ("POINT", CREASE_VERT)
     )
+
+
+def adaptive_attributes(
+    result: bidegree.AdaptiveResult,
+    cage: Any,
+    points: list[Attribute],
+    point_values: np.ndarray | None,
+    corner_edges: np.ndarray,
+    *,
+    use_creases: bool,
+) -> tuple[SurfaceAttributes, np.ndarray | None]:
+    """The attributes adaptive output carries (see :func:`adaptive_request`; ``point_values``
+    are the columns of ``points`` in ``result.vertex_values``; ``corner_edges``: the output
+    edge of each triangle corner's edge), with the face attributes through ``face_origin``
+    and the edge attributes on the triangle edges along their cage edge (the crease as
+    ``result.edge_sharpness`` keeps it), integer and boolean values from the quadrant's cage
+    corner (as uniform output), and the custom normals per triangle corner (renormalized) or
+    ``None``. Not carried: vertex creases."""
+    cage_attributes = cage.attributes
+    origin = np.asarray(result.face_origin, dtype=np.int64)
+    out = [_like(a, a.values[origin]) for a in cage_attributes.attributes if a.domain == "FACE"]
+    edge_attrs = [a for a in cage_attributes.attributes if a.domain == "EDGE"]
+    if edge_attrs:
+        corner_edges = np.asarray(corner_edges, dtype=np.int64)
+        count = int(corner_edges.max()) + 1 if len(corner_edges) else 0
+        per_edge = []
+        for values, dtype in (
+            (result.edge_origin, np.int64),
+            (result.edge_sharpness, np.float32),
+            (result.edge_level, np.int64),
+        ):
+            column = np.zeros(count, dtype=dtype)
+            column[corner_edges] = values  # both corners of an edge agree
+            per_edge.append(column)
+        on = _OutputEdges(result.cage_edges, per_edge[0], lambda: per_edge[1], per_edge[2])
+        out += _edge_attributes(edge_attrs, on, cage, use_creases)
+    if points and point_values is not None:
+        out += _split(points, point_values)
+    for a in cage_attributes.attributes:
+        values = result.face_varying.get(f"{a.domain}:{a.name}")
+        if values is not None:
+            out += _split([a], values.reshape(len(values), -1))
+    direction = result.face_varying.get(_QUADRANT_SET)
+    if direction is not None:
+        triangles = np.asarray(result.triangles).reshape(-1)
+        output = SimpleNamespace(
+            face_origin=result.face_origin,
+            face_sizes=np.full(result.num_triangles, 3),
+            face_indices=triangles,
+            output="primal",
+            num_output_vertices=result.num_vertices,
+        )
+        corners = _Corners(output, cage, direction)
+        for a in cage_attributes.attributes:
+            if _by_value(a) and a.name != CREASE_VERT:
+                source = corners.point_source() if a.domain == "POINT" else corners.quadrant
+                out.append(_like(a, a.values[source]))
+    normals = result.face_varying.get(_NORMALS_SET)
+    if normals is not None:
+        length = np.linalg.norm(normals, axis=1, keepdims=True)
+        normals = (normals / np.where(length > 0, length, 1.0)).astype(np.float32)
+    order = {(a.domain, a.name): i for i, a in enumerate(cage_attributes.attributes)}
+    out.sort(key=lambda a: order[(a.domain, a.name)])
+    return SurfaceAttributes(out, cage_attributes.colors), normals
 
 
 def custom_normals(plan: bidegree.Plan, normals: np.ndarray) -> np.ndarray:
@@ -299,7 +431,7 @@ def _split(attrs: list[Attribute], values: np.ndarray) -> list[Attribute]:
     return out
 
 
-def _lowered(sharpness: np.ndarray, levels: int) -> np.ndarray:
+def _lowered(sharpness: np.ndarray, levels: int | np.ndarray) -> np.ndarray:
     """OpenSubdiv's uniform decrement, ``levels`` times: minus one per level, 10 stays."""
     return np.where(sharpness >= _CREASE_SCALE, _CREASE_SCALE, np.maximum(sharpness - levels, 0))
 
@@ -322,10 +454,13 @@ def _vertex_crease(
 
 
 def _edge_attributes(
-    attrs: list[Attribute], plan: bidegree.Plan, cage: Any, use_creases: bool
+    attrs: list[Attribute],
+    on: _OutputEdges,
+    cage: Any,
+    use_creases: bool,
 ) -> list[Attribute]:
     """Edge attributes on the child edges of each cage edge (the default elsewhere)."""
-    cage_edges = np.asarray(plan.cage_edges, dtype=np.int64)
+    cage_edges = np.asarray(on.cage_edges, dtype=np.int64)
     core_keys = cage_edges[:, 0] << 32 | cage_edges[:, 1]
     edges = np.sort(np.asarray(cage.edges, dtype=np.int64).reshape(-1, 2), axis=1)
     keys = edges[:, 0] << 32 | edges[:, 1]
@@ -333,7 +468,7 @@ def _edge_attributes(
     found = (core_keys[at] == keys) if len(core_keys) else np.zeros(len(keys), bool)
     blender_of_core = np.full(len(core_keys), -1, dtype=np.int64)
     blender_of_core[at[found]] = np.flatnonzero(found)
-    origin = np.asarray(plan.edge_origin, dtype=np.int64)
+    origin = np.asarray(on.origin, dtype=np.int64)
     source = np.where(origin >= 0, blender_of_core[np.maximum(origin, 0)], -1)
     on_edge = source >= 0
     out = []
@@ -341,13 +476,13 @@ def _edge_attributes(
         values = np.zeros((len(origin), *a.values.shape[1:]), dtype=a.values.dtype)
         values[on_edge] = a.values[source[on_edge]]
         if a.name == CREASE_EDGE and a.data_type == "FLOAT" and use_creases:
-            values = _edge_crease(a.values, values, source, plan, cage)
+            values = _edge_crease(a.values, values, source, on, cage)
         out.append(_like(a, values))
     return out
 
 
 def _edge_crease(
-    crease: np.ndarray, copied: np.ndarray, source: np.ndarray, plan: bidegree.Plan, cage: Any
+    crease: np.ndarray, copied: np.ndarray, source: np.ndarray, on: _OutputEdges, cage: Any
 ) -> np.ndarray:
     """The crease each child edge keeps: the core's sharpness at the last level (its own
     per-level rule), the uniform decrement on boundary edges (always infinitely sharp in the
@@ -356,9 +491,10 @@ def _edge_crease(
     creased = (source >= 0) & (copied > 0)
     boundary = np.zeros(len(source), dtype=bool)
     boundary[creased] = faces_per_edge[source[creased]] == 1
-    sharpness = np.asarray(plan.edge_sharpness, dtype=np.float32).copy()
+    sharpness = np.asarray(on.sharpness(), dtype=np.float32).copy()
     cage_sharpness = _CREASE_SCALE * np.clip(copied, 0.0, 1.0) ** 2
-    sharpness[boundary] = _lowered(cage_sharpness[boundary], int(plan.levels))
+    levels = np.broadcast_to(np.asarray(on.levels), sharpness.shape)
+    sharpness[boundary] = _lowered(cage_sharpness[boundary], levels[boundary])
     return np.where(creased, _to_crease(sharpness), 0.0).astype(np.float32)
 
 

@@ -229,12 +229,29 @@ def triangle_edges(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def adaptive_surface(cage: mesh_io.CageArrays, options: Options) -> tuple[Surface, list[str]]:
-    """The adaptive :class:`Surface` of ``cage`` (triangles; face data through ``face_origin``,
-    generic face attributes included; no UVs, no point, corner or edge attributes and no vertex
-    group weights: the core evaluates no data on adaptive output)."""
+    """The adaptive :class:`Surface` of ``cage`` (triangles): UV maps and corner floats in the
+    options' UV mode, vertex group weights and point floats through the same levels as the
+    points, custom normals (linear, renormalized; the limit normals of ``options.normals``
+    are not available on adaptive output), face data through ``face_origin``, edge data on
+    the triangle edges along their cage edge, integers and booleans from the quadrant's cage
+    corner. Vertex creases are not carried (:func:`attributes.adaptive_attributes`)."""
     bmesh = cage_mesh(cage, options)
-    result, notes = _with_warnings(lambda: options.subdivide_adaptive(bmesh))
+    points, sets = attributes.adaptive_request(cage, options.uv_mode)
+    for name, uv in cage.uv_maps.items():
+        sets[f"uv:{name}"] = (uv, options.uv_mode)
+    groups = list(cage.vertex_groups)
+    columns = [cage.vertex_groups[n].reshape(-1, 1) for n in groups]
+    columns += [a.values.reshape(len(a.values), -1) for a in points]
+    stacked = np.concatenate(columns, axis=1) if columns else None
+    result, notes = _with_warnings(
+        lambda: options.subdivide_adaptive(bmesh, vertex_values=stacked, face_varying=sets)
+    )
     edges, corner_edges = triangle_edges(result.triangles)
+    values = result.vertex_values
+    point_values = values[:, len(groups) :] if values is not None else None
+    surface_attributes, normals = attributes.adaptive_attributes(
+        result, cage, points, point_values, corner_edges, use_creases=options.use_creases
+    )
     surface = Surface(
         points=result.points,
         face_sizes=np.full(result.num_triangles, 3, dtype=np.int32),
@@ -242,14 +259,15 @@ def adaptive_surface(cage: mesh_io.CageArrays, options: Options) -> tuple[Surfac
         edges=edges,
         corner_edges=corner_edges,
         face_origin=result.face_origin,
+        normals=normals,
+        uv_maps={
+            name: result.face_varying[f"uv:{name}"].astype(np.float32) for name in cage.uv_maps
+        },
+        attributes=surface_attributes,
     )
-    surface.attributes = attributes.face_attributes(cage.attributes, result.face_origin)
-    if cage.vertex_groups:
-        # The core evaluates no attributes on adaptive output: the groups keep their names.
-        surface.vertex_groups = {
-            name: np.zeros(len(result.points), dtype=np.float32) for name in cage.vertex_groups
-        }
-        notes.append("adaptive surfaces keep the vertex groups' names, not their weights")
+    if groups and values is not None:
+        weights = np.clip(values[:, : len(groups)], 0.0, 1.0).astype(np.float32)
+        surface.vertex_groups = {n: weights[:, i] for i, n in enumerate(groups)}
     return surface, notes
 
 
