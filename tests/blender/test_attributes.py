@@ -398,7 +398,9 @@ def test_adaptive_output_carries_point_corner_face_attributes(scene: Any) -> Non
     result.corner_normals.foreach_get("vector", got)
     want = ref.face_varying["normals"]
     want /= np.linalg.norm(want, axis=1, keepdims=True)
-    np.testing.assert_allclose(got.reshape(-1, 3), want, atol=1e-5)
+    # Blender 4.2 keeps custom normals as 16-bit corner-space angles (9.2e-5 apart here; 5.0
+    # stores them as floats).
+    np.testing.assert_allclose(got.reshape(-1, 3), want, atol=2e-4)
     bpy.data.meshes.remove(result)
     # Vertex groups: the weights through the same levels (the surface's holder has them).
     from bidegree_blender import pipeline
