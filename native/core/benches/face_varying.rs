@@ -16,7 +16,7 @@ use std::time::Instant;
 use bidegree::{FaceVaryingMode, Options, Plan, Rules};
 
 mod cages;
-use cages::ico_quad_sphere;
+use cages::{ico_patch_uvs, ico_quad_sphere};
 
 fn median_ms<R>(seconds: f64, mut f: impl FnMut() -> R) -> f64 {
     let mut once = || {
@@ -54,19 +54,7 @@ fn main() {
         .filter_map(|l| l.trim().parse().ok())
         .collect();
     let (cage, _, indices, points) = ico_quad_sphere(n);
-    // Corner k of face f is in base patch f / n^2 (the cage is built patch by patch).
-    let uvs: Vec<f32> = indices
-        .iter()
-        .enumerate()
-        .flat_map(|(k, &v)| {
-            let patch = (k / 4 / (n * n)) as f32;
-            let p = &points[3 * v as usize..][..3];
-            [
-                p[0] + 3.0 * (patch % 8.0),
-                p[1] + 3.0 * (patch / 8.0).floor(),
-            ]
-        })
-        .collect();
+    let uvs = ico_patch_uvs(n, &indices, &points);
     println!(
         "face-varying bench: {} quads, 60 UV islands; load average {}",
         cage.num_faces(),

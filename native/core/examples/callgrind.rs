@@ -124,18 +124,7 @@ fn main() {
         // Smooth UVs (mode `boundaries`) of the face-varying bench's layout: every base patch of
         // the sphere its own island; cached (the face-varying topology built before).
         let n = 8;
-        let uvs: Vec<f32> = cage_indices
-            .iter()
-            .enumerate()
-            .flat_map(|(k, &v)| {
-                let patch = (k / 4 / (n * n)) as f32;
-                let p = &points[3 * v as usize..][..3];
-                [
-                    p[0] + 3.0 * (patch % 8.0),
-                    p[1] + 3.0 * (patch / 8.0).floor(),
-                ]
-            })
-            .collect();
+        let uvs = cages::ico_patch_uvs(n, &cage_indices, &points);
         let plan = Plan::new(&cage, &o).unwrap();
         let mode = FaceVaryingMode::Boundaries;
         black_box(plan.evaluate_face_varying(&uvs, 2, mode, false).unwrap());

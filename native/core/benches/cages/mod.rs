@@ -132,6 +132,25 @@ pub fn ico_quad_sphere(n: usize) -> (Cage, Vec<u32>, Vec<u32>, Vec<f32>) {
 
 /// A closed disc: a fan of `valence` triangles around vertex 0 (the rim on the unit circle,
 /// a boundary), the limit's worst case near one high valence.
+/// UVs per corner of `ico_quad_sphere(n)` (its `indices` and `points`) with a seam around each
+/// of its 60 base patches: each patch is its own island (corner `k` of face `f` is in patch
+/// `f / n^2`, the cage being built patch by patch), the islands on an 8-wide grid.
+#[allow(dead_code)] // the face-varying bench and the callgrind driver only
+pub fn ico_patch_uvs(n: usize, indices: &[u32], points: &[f32]) -> Vec<f32> {
+    indices
+        .iter()
+        .enumerate()
+        .flat_map(|(k, &v)| {
+            let patch = (k / 4 / (n * n)) as f32;
+            let p = &points[3 * v as usize..][..3];
+            [
+                p[0] + 3.0 * (patch % 8.0),
+                p[1] + 3.0 * (patch / 8.0).floor(),
+            ]
+        })
+        .collect()
+}
+
 #[allow(dead_code)] // a case of the callgrind driver only; each bench uses some of these cages
 pub fn triangle_fan(valence: usize) -> (Cage, Vec<f32>) {
     let mut points = vec![0.0f32, 0.0, 0.0];

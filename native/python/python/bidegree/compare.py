@@ -589,7 +589,8 @@ def opensubdiv_surface(
         raise ValueError(f"unknown face-varying mode {uv_mode!r}; one of {sorted(UV_SMOOTH)}")
 
     has_uvs = getattr(cage, "uvs", None) is not None
-    holes = np.asarray(getattr(cage, "holes", None) or [], dtype=np.int64)
+    given = getattr(cage, "holes", None)  # a sequence or an array (never tested for truth)
+    holes = np.asarray([] if given is None else given, dtype=np.int64)
     if boundary == "none":
         holes = np.union1d(holes, boundary_none_holes(cage))
 
