@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import resource
-import subprocess
-import sys
 from collections import Counter
 from pathlib import Path
 
@@ -12,6 +10,7 @@ import bidegree
 import numpy as np
 import pytest
 from cages import CUBE_FACES, CUBE_POINTS
+from test_hostile import cli
 
 
 def bumped_cube(dtype: type = np.float64) -> bidegree.Mesh:
@@ -140,28 +139,10 @@ def test_cli_adaptive_writes_triangles(tmp_path: Path) -> None:
     cage = tmp_path / "cube.obj"
     bumped_cube().write_obj(cage)
     out = tmp_path / "out.obj"
-    done = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "bidegree.cli",
-            "subdivide",
-            str(cage),
-            "-o",
-            str(out),
-            "--adaptive",
-            "--tolerance",
-            "0.003",
-            "--max-level",
-            "4",
-            "--degree",
-            "3",
-        ],
-        capture_output=True,
-        text=True,
-        check=False,
-        timeout=120,
-    )
+    done = cli(
+        "subdivide", cage, "-o", out, "--adaptive", "--tolerance", "0.003", "--max-level", "4",
+        "--degree", "3",
+    )  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert "leaves" in done.stdout and "triangles" in done.stdout
     faces = [line for line in out.read_text().splitlines() if line.startswith("f ")]
@@ -170,22 +151,7 @@ def test_cli_adaptive_writes_triangles(tmp_path: Path) -> None:
     )
     assert len(faces) == expected.num_triangles
     assert all(len(f.split()) == 4 for f in faces)
-    bad = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "bidegree.cli",
-            "subdivide",
-            str(cage),
-            "-o",
-            str(tmp_path / "out.usda"),
-            "--adaptive",
-        ],
-        capture_output=True,
-        text=True,
-        check=False,
-        timeout=120,
-    )
+    bad = cli("subdivide", cage, "-o", tmp_path / "out.usda", "--adaptive")
     assert bad.returncode == 2 and "OBJ only" in bad.stderr
 
 
@@ -202,27 +168,15 @@ def test_cli_adaptive_stays_under_the_budget(tmp_path: Path, tolerance: str, bud
     cage = tmp_path / "cube.obj"
     bumped_cube().write_obj(cage)
 
-    def limit() -> None:
-        resource.setrlimit(resource.RLIMIT_AS, (3 << 29, 3 << 29))
-
     args = ["--adaptive", "--tolerance", tolerance, "--max-level", "16"]
-    done = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "bidegree.cli",
-            "subdivide",
-            str(cage),
-            "-o",
-            str(tmp_path / "o.obj"),
-        ]
-        + args
-        + (["--memory-budget", budget] if budget else []),
-        capture_output=True,
-        text=True,
-        check=False,
-        timeout=120,
-        preexec_fn=limit,
+    done = cli(
+        "subdivide",
+        cage,
+        "-o",
+        tmp_path / "o.obj",
+        *args,
+        *(["--memory-budget", budget] if budget else []),
+        limits={resource.RLIMIT_AS: 3 << 29},
     )
     assert done.returncode == 2, (done.returncode, done.stderr)
     assert "memory budget" in done.stderr, done.stderr
