@@ -280,14 +280,27 @@ pub(crate) fn face_varying_mesh<T: Scalar>(
     let level0 = &cage_refinement.levels_as_built()[0];
     let (value_of, num_values) = weld(level0, values, channels);
     let cage = face_varying_cage(cage_refinement, &value_of, num_values, mode)?;
+    let per_value = values_of(&first_corners(&value_of, num_values), values, channels);
+    Ok((cage, per_value))
+}
+
+/// The first cage corner of each of the `num_values` face-varying values (`value_of` per
+/// corner): where a value's data is read from.
+fn first_corners(value_of: &[u32], num_values: usize) -> Vec<u32> {
     let mut first_corner = vec![NONE; num_values];
     for (c, &x) in value_of.iter().enumerate().rev() {
         first_corner[x as usize] = c as u32;
     }
-    let per_value = (first_corner.iter())
+    first_corner
+}
+
+/// The data (`channels` interleaved per cage corner) of each face-varying value, read at its
+/// first corner.
+fn values_of<T: Scalar>(first_corner: &[u32], values: &[T], channels: usize) -> Vec<T> {
+    first_corner
+        .iter()
         .flat_map(|&c| values[c as usize * channels..][..channels].iter().copied())
-        .collect();
-    Ok((cage, per_value))
+        .collect()
 }
 
 /// The refinement of one face-varying topology in one mode, with its evaluation buffers and
@@ -323,10 +336,7 @@ impl FaceVarying {
         };
         let refinement = Refinement::new(&cage, &options)?;
         let output = OutputMesh::build(&refinement)?;
-        let mut first_corner = vec![NONE; num_values];
-        for (c, &x) in value_of.iter().enumerate().rev() {
-            first_corner[x as usize] = c as u32;
-        }
+        let first_corner = first_corners(&value_of, num_values);
         Ok(FaceVarying {
             mode,
             value_of,
@@ -340,11 +350,7 @@ impl FaceVarying {
 
     /// Values per corner (interleaved) -> per output corner of the drawing mesh `M_L`.
     fn evaluate<T: Scalar>(&self, values: &[T], channels: usize, limit: bool) -> Result<Vec<T>> {
-        let per_value: Vec<T> = self
-            .first_corner
-            .iter()
-            .flat_map(|&c| values[c as usize * channels..][..channels].iter().copied())
-            .collect();
+        let per_value = values_of(&self.first_corner, values, channels);
         let at_vertices = if limit {
             limit::positions(
                 &self.refinement,

@@ -159,7 +159,9 @@ pub(crate) fn fill_rows<T: Send>(out: &mut [T], row: usize, fill: impl Fn(usize,
         });
 }
 
-/// `out[i] = f(i)` for `i < n`, in parallel chunks, reusing the allocation of `out`.
+/// `out[i] = f(i)` for `i < n`, in parallel chunks, reusing the allocation of `out`. It keeps
+/// rayon's collect rather than [`fill_spare`]: with `fill_spare` LLVM stopped inlining the
+/// averaging step's face closure (cached averaging 4: +3.8 % instructions under callgrind).
 pub(crate) fn gather_into<V: Send, F: Fn(usize) -> V + Sync + Send>(
     out: &mut Vec<V>,
     n: usize,
