@@ -889,6 +889,120 @@ fn cage_part<T: Scalar>(ctx: &Context<T>) -> Part<T> {
     }
 }
 
+/// The last of `extra` partial levels past a plan's last level `L >= 1` (its refinement
+/// `refinement`, all tables complete, with `data` and the 1-D `curve` data of that level as
+/// the plan's run leaves them), made around `seeds` (sorted faces of `M_L`) and their
+/// descendants, with the margin rings of the degree at every level: the limit's local
+/// extension. Every value whose stencil lies in the seeds' descendants is bitwise the uniform
+/// value of that level (module documentation).
+pub(crate) fn local_levels<T: Scalar>(
+    refinement: &Refinement,
+    cage: &[P<T>],
+    data: &[P<T>],
+    curve: &[P<T>],
+    seeds: &[u64],
+    extra: u32,
+) -> Result<LocalLevel<T>> {
+    let options = refinement.options();
+    let last = refinement.levels().last().expect("a level");
+    let network = refinement.curve_networks().last().expect("a step");
+    let degree = options.degree;
+    let ctx = Context {
+        cage: cage.to_vec(),
+        level0: refinement.levels()[0].clone(),
+        features: refinement.features().clone(),
+        scheme: refinement.scheme(),
+        degree,
+        margin: margin_rings(degree),
+        budget: options.memory_budget,
+        diagonal: 0.0,
+        holes: Vec::new(),
+    };
+    // P_L: the margin rings around the seeds.
+    let mut keep = vec![false; last.num_faces()];
+    let mut frontier: Vec<usize> = seeds.iter().map(|&f| f as usize).collect();
+    for &f in &frontier {
+        keep[f] = true;
+    }
+    for _ in 0..ctx.margin {
+        let mut next = Vec::new();
+        for &f in &frontier {
+            for k in 4 * f..4 * f + 4 {
+                for &d in last.corners_of_vertex(last.corner_verts[k] as usize) {
+                    let g = (d >> 2) as usize;
+                    if !keep[g] {
+                        keep[g] = true;
+                        next.push(g);
+                    }
+                }
+            }
+        }
+        frontier = next;
+    }
+    let sub = restrict(last, &keep);
+    let (network, kept_vertices, kept_edges) = network.restrict(&sub.vertex_map, &sub.edge_map);
+    let odd = degree % 2 == 1;
+    let widen = |ids: &[u32]| -> Vec<u64> { ids.iter().map(|&i| i as u64).collect() };
+    let mut part = Part {
+        face_uid: widen(&sub.faces),
+        vert_uid: widen(&sub.vertices),
+        edge_uid: widen(&sub.edges),
+        edge_faces: (sub.edges.iter())
+            .map(|&e| last.edge_valence(e as usize) as u32)
+            .collect(),
+        vert_faces: (sub.vertices.iter())
+            .map(|&v| last.corners_of_vertex(v as usize).len() as u32)
+            .collect(),
+        curves: network.next_curves(),
+        network: Some(network),
+        data: match odd {
+            true => sub.vertices.iter().map(|&v| data[v as usize]).collect(),
+            false => sub.faces.iter().map(|&f| data[f as usize]).collect(),
+        },
+        curve: match odd {
+            true => &kept_vertices,
+            false => &kept_edges,
+        }
+        .iter()
+        .map(|&i| curve[i as usize])
+        .collect(),
+        points: Vec::new(),
+        counts: [
+            last.num_vertices as u64,
+            last.num_edges() as u64,
+            last.num_faces() as u64,
+            last.num_corners() as u64,
+        ],
+        level: sub.level,
+    };
+    let top = refinement.levels().len() - 1;
+    let mut seeds = seeds.to_vec();
+    for t in top..top + extra as usize {
+        seeds = children(&seeds)?;
+        part = refine_part(&ctx, t, &part, Keep::Around(&seeds))?;
+    }
+    Ok(LocalLevel {
+        level: part.level,
+        face_uid: part.face_uid,
+        vert_uid: part.vert_uid,
+        network: part.network.expect("a refined part has its network"),
+        data: part.data,
+        curve: part.curve,
+    })
+}
+
+/// A partial level of [`local_levels`]: its topology, the uniform ids of its faces and
+/// vertices, the curve network of the step that made it, and its data as a plan's run leaves
+/// it (per vertex for odd degrees, per face for even ones; 1-D data per curve vertex or edge).
+pub(crate) struct LocalLevel<T> {
+    pub(crate) level: Level,
+    pub(crate) face_uid: Vec<u64>,
+    pub(crate) vert_uid: Vec<u64>,
+    pub(crate) network: CurveNetwork,
+    pub(crate) data: Vec<P<T>>,
+    pub(crate) curve: Vec<P<T>>,
+}
+
 /// Which faces of a refined partial level are kept.
 #[derive(Clone, Copy)]
 enum Keep<'a> {

@@ -25,6 +25,29 @@ pub(crate) fn run<T: Scalar, const N: usize>(
     cage: &[Value<T, N>],
     want_dual: bool,
 ) -> Result<Final<T, N>> {
+    let data = steps(refinement, scratch, cage)?;
+    let steps = refinement.curve_networks().len();
+    let last = steps.checked_sub(1).map(|j| refinement.step(j));
+    Ok(data.finish(last.as_ref(), want_dual))
+}
+
+/// As [`run`], leaving the last level's data as the steps make it (per vertex for odd
+/// degrees, per face for even ones) with its 1-D data (per curve vertex or curve edge of the
+/// last step): what the limit stencils and their local extension read.
+pub(crate) fn run_parts<T: Scalar, const N: usize>(
+    refinement: &Refinement,
+    scratch: &Scratch,
+    cage: &[Value<T, N>],
+) -> Result<(Vec<Value<T, N>>, Vec<Value<T, N>>)> {
+    Ok(steps(refinement, scratch, cage)?.finish_parts())
+}
+
+/// Every step of `refinement` on `cage` (see [`run`]).
+fn steps<'a, T: Scalar, const N: usize>(
+    refinement: &Refinement,
+    scratch: &'a Scratch,
+    cage: &'a [Value<T, N>],
+) -> Result<LevelData<'a, T, N>> {
     let steps = refinement.curve_networks().len();
     let mut data = LevelData::new(cage);
     if steps > 0 {
@@ -35,8 +58,7 @@ pub(crate) fn run<T: Scalar, const N: usize>(
     for j in 0..steps {
         data.step(&refinement.step(j));
     }
-    let last = steps.checked_sub(1).map(|j| refinement.step(j));
-    Ok(data.finish(last.as_ref(), want_dual))
+    Ok(data)
 }
 
 /// Values a run's buffers hold at most: the largest level's data (and the last step's 1-D

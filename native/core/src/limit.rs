@@ -48,7 +48,10 @@ use crate::analysis::{
 };
 use crate::curves::LevelSharpness;
 use crate::error::{Error, Result};
-use crate::evaluate::{in_groups_of_four, run};
+use crate::adaptive::local_levels;
+use crate::curves::CurveNetwork;
+use crate::evaluate::{in_groups_of_four, run, run_parts};
+use crate::scheme::Scheme;
 use crate::memory;
 use crate::options::{Options, OutputKind};
 use crate::parallel::gather_hinted;
@@ -73,6 +76,8 @@ enum LimitMask {
     Curve,
     /// A corner: its cage point.
     Corner,
+    /// Not clean at this level: the stencil of the local extension.
+    Local,
 }
 
 /// Everything topological the limit needs, built once per plan (see the module documentation).
@@ -81,8 +86,16 @@ pub(crate) struct Stencils {
     /// The refinement extended by `extra_levels` levels and its evaluation buffers (`None` when
     /// the plan's own refinement is enough).
     extended: Option<(Refinement, Scratch)>,
-    /// Levels added to the plan.
+    /// Levels added to the plan (the whole plan when `extended`, else around the vertices of
+    /// `local`).
     extra_levels: u32,
+    /// The stencils of the vertices that are not clean at the plan's last level, on partial
+    /// levels past it around those vertices (the seeds: faces of the plan's last level).
+    local: Option<(Box<Stencils>, Vec<u64>)>,
+    /// The stencils (indices into `masks_of`) that `local` gives, in order.
+    local_vertices: Vec<u32>,
+    /// The output vertex of each stencil.
+    outputs: Vec<u32>,
     /// Mask of each output vertex.
     masks_of: Vec<LimitMask>,
     /// Offsets into `items` per output vertex.
@@ -105,22 +118,32 @@ pub(crate) struct Stencils {
     fan_items: Vec<u32>,
 }
 
-/// Builds the stencils with `refinement` (the plan's or an extended one) for the first
-/// `outputs` vertices of its last level, the output corners `output_corners` (corner `c` of
-/// the output is corner `c * 4^extra` of the last level). `None` when some vertex is not clean.
-fn build_stencils(
-    refinement: &Refinement,
-    outputs: usize,
+/// Which vertices and corners of a level [`build_stencils`] makes stencils for: stencil `i` is
+/// at level vertex `vertex(i)`; output corner `c` is level corner `corner(c)` (`None`: not
+/// one of the target's); `index(w)` is the stencil of level vertex `w`, if any; `output(i)`
+/// the output vertex of stencil `i`.
+struct Targets<'a> {
+    count: usize,
     output_corners: usize,
-    extra: u32,
+    vertex: &'a (dyn Fn(usize) -> usize + Sync),
+    corner: &'a (dyn Fn(usize) -> Option<usize> + Sync),
+    index: &'a (dyn Fn(usize) -> Option<usize> + Sync),
+    output: &'a (dyn Fn(usize) -> usize + Sync),
+}
+
+/// Builds the stencils on `last` (a plan's last level, an extended one's, or a partial level
+/// past it) with `curves` (the network of the step that made it) for `targets`. A target vertex
+/// that is not clean makes the result `None`, or with `allow_local`, a [`LimitMask::Local`]
+/// stencil (listed in `local`), to be built on a local extension.
+fn build_stencils(
+    last: &Level,
+    curves: &CurveNetwork,
+    degree: u32,
+    targets: &Targets,
+    allow_local: bool,
 ) -> Result<Option<Stencils>> {
-    let degree = refinement.options().degree;
     let primal = degree % 2 == 1;
     let n = neighbourhood_size(degree);
-    // The last level's edge and vertex -> corner tables, fallibly (`levels()` would panic).
-    refinement.complete_levels()?;
-    let last = refinement.levels().last().expect("a level");
-    let curves = refinement.curve_networks().last().expect("a step");
     let nf = last.num_faces();
     let nc = curves.edges().len();
     // Data layout (see `limit_data`): odd degrees, the vertices; even degrees, the faces,
@@ -228,14 +251,16 @@ fn build_stencils(
     // The tables are allocated fallibly; the per-vertex stencils are gathered a block of
     // vertices at a time, so that what is held besides the tables stays small.
     const BLOCK: usize = 1 << 16;
+    let outputs = targets.count;
     let mut masks_of = memory::with_capacity(outputs)?;
     let mut offsets = memory::with_capacity(outputs + 1)?;
     let mut items: Vec<u32> = Vec::new();
+    let mut local = Vec::new();
     offsets.push(0u32);
     for start in (0..outputs).step_by(BLOCK) {
         let end = (start + BLOCK).min(outputs);
-        let block = gather_hinted(end - start, |i| stencil_of(start + i))?;
-        if block.iter().any(Option::is_none) {
+        let block = gather_hinted(end - start, |i| stencil_of((targets.vertex)(start + i)))?;
+        if !allow_local && block.iter().any(Option::is_none) {
             return Ok(None);
         }
         let size: usize = block.iter().flatten().map(|(_, its)| its.len()).sum();
@@ -244,7 +269,13 @@ fn build_stencils(
             let more = size.max(items.len());
             memory::reserve(&mut items, more)?;
         }
-        for (mask, its) in block.into_iter().flatten() {
+        for (i, stencil) in block.into_iter().enumerate() {
+            let Some((mask, its)) = stencil else {
+                local.push((start + i) as u32);
+                masks_of.push(LimitMask::Local);
+                offsets.push(items.len() as u32);
+                continue;
+            };
             let mask = match mask {
                 LimitMask::Interior(k) => {
                     let at = match valences.iter().position(|&x| x == k as usize) {
@@ -263,16 +294,28 @@ fn build_stencils(
             offsets.push(items.len() as u32);
         }
     }
+    if !local.is_empty() {
+        // Curve vertices and corners go with them: their normals come from fans at the level
+        // where every vertex is clean (the local extension's), as with the whole plan extended.
+        for (i, mask) in masks_of.iter_mut().enumerate() {
+            if matches!(mask, LimitMask::Curve | LimitMask::Corner) {
+                *mask = LimitMask::Local;
+                local.push(i as u32);
+            }
+        }
+        local.sort_unstable();
+    }
     let masks = valences
         .iter()
         .map(|&k| cached_vertex_masks(degree, k))
         .collect::<Result<Vec<_>>>()?;
 
-    // Fans at curve vertices and corners, one per output corner there.
-    let spread = 4usize.pow(extra);
+    // Fans at curve vertices and corners, one per output corner there: (level corner, stencil).
+    let output_corners = targets.output_corners;
     let on_curve = |c: usize| {
-        let v = last.corner_verts[c * spread] as usize;
-        (v < outputs && matches!(masks_of[v], LimitMask::Curve | LimitMask::Corner)).then_some(v)
+        let d = (targets.corner)(c)?;
+        let i = (targets.index)(last.corner_verts[d] as usize)?;
+        matches!(masks_of[i], LimitMask::Curve | LimitMask::Corner).then_some((d, i))
     };
     // At most one fan per such corner, and at most three items per corner of a fan (its
     // outline, or its faces and two curve edges).
@@ -290,8 +333,7 @@ fn build_stencils(
         .try_reserve(fan_corners)
         .map_err(|_| memory::refused_bytes(16 * fan_corners as u64))?;
     for (c, fan) in corner_fan.iter_mut().enumerate() {
-        let d = c * spread;
-        let Some(v) = on_curve(c) else {
+        let Some((d, i)) = on_curve(c) else {
             continue;
         };
         // Clockwise to the fan's start: across outgoing edges until a curve edge.
@@ -352,14 +394,17 @@ fn build_stencils(
         }
         let id = fan_closed.len() as u32;
         fan_closed.push(closed);
-        fan_vertex.push(v as u32);
+        fan_vertex.push(i as u32);
         fan_offsets.push(fan_items.len() as u32);
         fan_of_start.insert(start, id);
         *fan = id;
     }
     Ok(Some(Stencils {
         extended: None,
-        extra_levels: extra,
+        extra_levels: 0,
+        local: None,
+        local_vertices: local,
+        outputs: (0..outputs).map(|i| (targets.output)(i) as u32).collect(),
         masks_of,
         offsets,
         items,
@@ -383,6 +428,15 @@ fn stencils(refinement: &Refinement, cache: &LimitCache) -> Result<Arc<Stencils>
     if let Some(st) = kept.as_ref() {
         return Ok(st.clone());
     }
+    let st = Arc::new(build(refinement, true)?);
+    *kept = Some(st.clone());
+    Ok(st)
+}
+
+/// Builds the stencils of `refinement`: at its last level where every vertex is clean there;
+/// else, with `local` and the averaging rules (and no semi-sharp feature), the vertices that are
+/// not clean on partial levels around them; else on the whole refinement extended.
+fn build(refinement: &Refinement, local: bool) -> Result<Stencils> {
     let options = *refinement.options();
     let levels = options.levels;
     let n = neighbourhood_size(options.degree) as u32;
@@ -404,34 +458,161 @@ fn stencils(refinement: &Refinement, cache: &LimitCache) -> Result<Arc<Stencils>
     let mut candidates = vec![first, first.max(clean)];
     candidates.extend((1..=MAX_EXTRA_LEVELS).map(|i| first.max(clean) + i));
     candidates.dedup();
-    let outputs = refinement.levels().last().expect("a level").num_vertices;
-    let output_corners = refinement.levels().last().expect("a level").num_corners();
-    for m in candidates {
-        let built = if m == 0 {
-            build_stencils(refinement, outputs, output_corners, 0)?
-        } else {
-            let extended = Refinement::new(
-                cage,
-                &Options {
-                    levels: levels + m,
-                    output: OutputKind::Primal,
-                    ..options
-                },
-            )?;
-            build_stencils(&extended, outputs, output_corners, m)?.map(|mut st| {
-                st.extended = Some((extended, Scratch::default()));
-                st
-            })
+    // The last level's edge and vertex -> corner tables, fallibly (`levels()` would panic).
+    refinement.complete_levels()?;
+    let last = refinement.levels().last().expect("a level");
+    let outputs = last.num_vertices;
+    let output_corners = last.num_corners();
+    let degree = options.degree;
+    let whole = |i: usize| i;
+    let below = |w: usize| (w < outputs).then_some(w);
+    if first == 0 {
+        // The stencils at the plan's own last level; with the averaging rules, the vertices
+        // that are not clean there get theirs on partial levels around them.
+        let local = local && matches!(refinement.scheme(), Scheme::Averaging { .. });
+        let curves = refinement.curve_networks().last().expect("a step");
+        let targets = Targets {
+            count: outputs,
+            output_corners,
+            vertex: &whole,
+            corner: &Some,
+            index: &below,
+            output: &whole,
         };
-        if let Some(st) = built {
-            let st = Arc::new(st);
-            *kept = Some(st.clone());
+        if let Some(mut st) = build_stencils(last, curves, degree, &targets, local)? {
+            if st.local_vertices.is_empty() {
+                return Ok(st);
+            }
+            for m in (clean..).take(MAX_EXTRA_LEVELS as usize) {
+                if let Some(built) = local_stencils(refinement, &st.local_vertices, m)? {
+                    st.local = Some(built);
+                    st.extra_levels = m;
+                    return Ok(st);
+                }
+            }
+        }
+    }
+    for m in candidates.into_iter().filter(|&m| m > 0) {
+        let extended = Refinement::new(
+            cage,
+            &Options {
+                levels: levels + m,
+                output: OutputKind::Primal,
+                ..options
+            },
+        )?;
+        extended.complete_levels()?;
+        let spread = 4usize.pow(m);
+        let corner = |c: usize| Some(c * spread);
+        let targets = Targets {
+            count: outputs,
+            output_corners,
+            vertex: &whole,
+            corner: &corner,
+            index: &below,
+            output: &whole,
+        };
+        let ext_last = extended.levels().last().expect("a level");
+        let curves = extended.curve_networks().last().expect("a step");
+        if let Some(mut st) = build_stencils(ext_last, curves, degree, &targets, false)? {
+            st.extended = Some((extended, Scratch::default()));
+            st.extra_levels = m;
             return Ok(st);
         }
     }
     Err(Error::Internal(format!(
         "no clean neighbourhood for the limit within {MAX_EXTRA_LEVELS} extra levels"
     )))
+}
+
+/// The stencils of the output vertices `vertices` (of the plan's last level `M_L`, none clean
+/// there) on the partial level `M_{L+m}` made around them ([`local_levels`]), with the seeds
+/// (faces of `M_L`) that make it; `None` when one of them is not clean there either.
+fn local_stencils(
+    refinement: &Refinement,
+    vertices: &[u32],
+    m: u32,
+) -> Result<Option<(Box<Stencils>, Vec<u64>)>> {
+    let last = refinement.last_level();
+    let curves = refinement.curve_networks().last().expect("a step");
+    let degree = refinement.options().degree;
+    let odd = degree % 2 == 1;
+    // Rings of M_L around each vertex whose descendants hold its N + 1 rings at M_{L+m} (a
+    // ring there lies within ceil(d / 2^m) + 1 rings of M_L).
+    let n = neighbourhood_size(degree);
+    let rings = 2 + (n + 1).div_ceil(1 << m);
+    let mut marked = memory::filled(last.num_faces(), false)?;
+    let mut frontier: Vec<usize> = Vec::new();
+    for &v in vertices {
+        for &c in last.corners_of_vertex(v as usize) {
+            let f = last.face_of(c as usize);
+            if !marked[f] {
+                marked[f] = true;
+                frontier.push(f);
+            }
+        }
+    }
+    for _ in 1..rings {
+        let mut next = Vec::new();
+        for &f in &frontier {
+            for c in last.face_corners(f) {
+                for &d in last.corners_of_vertex(last.corner_verts[c] as usize) {
+                    let g = last.face_of(d as usize);
+                    if !marked[g] {
+                        marked[g] = true;
+                        next.push(g);
+                    }
+                }
+            }
+        }
+        frontier = next;
+    }
+    let seeds: Vec<u64> = (0..marked.len() as u64)
+        .filter(|&f| marked[f as usize])
+        .collect();
+    // The topology does not depend on the data: zeros will do.
+    let zero3 = |count: usize| vec![[0.0f64; 3]; count];
+    let cage = zero3(refinement.levels()[0].num_vertices);
+    let data = zero3(if odd { last.num_vertices } else { last.num_faces() });
+    let curve = zero3(if odd {
+        curves.vertices().len()
+    } else {
+        curves.edges().len()
+    });
+    let local = local_levels(refinement, &cage, &data, &curve, &seeds, m)?;
+    let mut at = Vec::with_capacity(vertices.len());
+    for &v in vertices {
+        match local.vert_uid.binary_search(&(v as u64)) {
+            Ok(w) => at.push(w),
+            Err(_) => return Ok(None),
+        }
+    }
+    let slot = |v: usize| vertices.binary_search(&(v as u32)).ok();
+    let shift = 2 * (m - 1);
+    let vertex = |i: usize| at[i];
+    let corner = |c: usize| {
+        slot(last.corner_verts[c] as usize)?;
+        let f = local.face_uid.binary_search(&((c as u64) << shift)).ok()?;
+        Some(4 * f)
+    };
+    let outputs = last.num_vertices as u64;
+    let index = |w: usize| {
+        let uid = local.vert_uid[w];
+        (uid < outputs).then(|| slot(uid as usize)).flatten()
+    };
+    let output = |i: usize| vertices[i] as usize;
+    let targets = Targets {
+        count: vertices.len(),
+        output_corners: last.num_corners(),
+        vertex: &vertex,
+        corner: &corner,
+        index: &index,
+        output: &output,
+    };
+    Ok(
+        build_stencils(&local.level, &local.network, degree, &targets, false)?
+            .map(|st| (Box::new(st), seeds)),
+    )
 }
 
 /// How the limit of `refinement` is found, or why it cannot be (`normals`: normals too).
@@ -555,18 +736,26 @@ impl Limit<'_> {
             }
             LimitMethod::Eigen => {
                 let st = stencils(r, self.cache)?;
-                let data = self.limit_data(&st, &compact)?;
-                let positions: Vec<[T; N]> = gather_hinted(st.masks_of.len(), |v| {
-                    let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
-                    let weights: &[f64] = match st.masks_of[v] {
-                        LimitMask::Interior(m) => &st.masks[m as usize].position,
-                        LimitMask::Curve => &st.curve_mask,
-                        LimitMask::Corner => return data[items[0] as usize],
-                    };
-                    combine(&data, items, weights)
-                })?;
+                let (data, curve) = self.limit_data(&st, &compact)?;
+                let mut positions = stencil_positions(&st, &data)?;
+                let local = match &st.local {
+                    Some((local, seeds)) => {
+                        // The local extension is made at the plan's own last level.
+                        let two_d = match r.options().degree % 2 {
+                            0 => &data[..r.last_level().num_faces()],
+                            _ => &data[..],
+                        };
+                        let ldata = self.local_data(seeds, st.extra_levels, two_d, &curve, &compact)?;
+                        let lpos = stencil_positions(local, &ldata)?;
+                        for (i, &v) in local.outputs.iter().enumerate() {
+                            positions[v as usize] = lpos[i];
+                        }
+                        Some((local.as_ref(), ldata, lpos))
+                    }
+                    None => None,
+                };
                 let normals = match normals {
-                    true => Some(self.stencil_normals(&st, &data, &positions)?),
+                    true => Some(self.stencil_normals(&st, &data, &positions, local)?),
                     false => None,
                 };
                 Ok((positions.into_flattened(), normals))
@@ -575,72 +764,156 @@ impl Limit<'_> {
     }
 
     /// The data the stencils read: the last level's vertex values (odd degrees), or its face
-    /// values, then the last step's curve-edge values, then the cage points (even degrees).
+    /// values, then the last step's curve-edge values, then the cage points (even degrees);
+    /// and the last step's 1-D values (curve vertices, odd; curve edges, even), which the local
+    /// extension starts from.
     fn limit_data<T: Scalar, const N: usize>(
         &self,
         st: &Stencils,
         compact: &[[T; N]],
-    ) -> Result<Vec<[T; N]>> {
+    ) -> Result<(Vec<[T; N]>, Vec<[T; N]>)> {
         let (refinement, scratch) = match &st.extended {
             Some((r, s)) => (r, s),
             None => (self.refinement, self.scratch),
         };
-        let even = self.refinement.options().degree.is_multiple_of(2);
-        Ok(match run(refinement, scratch, compact, even)? {
-            Final::Primal(vertices) => vertices,
-            Final::Dual {
-                mut faces,
-                curve_edges,
-            } => {
-                memory::reserve(&mut faces, curve_edges.len() + compact.len())?;
-                faces.extend(curve_edges);
-                faces.extend_from_slice(compact);
-                faces
-            }
-        })
+        let (mut data, curve) = run_parts(refinement, scratch, compact)?;
+        if self.refinement.options().degree.is_multiple_of(2) {
+            memory::reserve(&mut data, curve.len() + compact.len())?;
+            data.extend_from_slice(&curve);
+            data.extend_from_slice(compact);
+        }
+        Ok((data, curve))
     }
 
-    /// Unit normals per output corner from the stencils (see [`surface`]).
+    /// The data of the local extension's last level in the layout of [`Limit::limit_data`],
+    /// from the plan's last level `two_d` (per vertex or face) and 1-D `curve` data: the
+    /// partial levels carry three channels, so the channels go through them three at a time.
+    fn local_data<T: Scalar, const N: usize>(
+        &self,
+        seeds: &[u64],
+        extra: u32,
+        two_d: &[[T; N]],
+        curve: &[[T; N]],
+        compact: &[[T; N]],
+    ) -> Result<Vec<[T; N]>> {
+        let even = self.refinement.options().degree.is_multiple_of(2);
+        let three = |x: &[[T; N]], first: usize| -> Vec<[T; 3]> {
+            x.iter()
+                .map(|v| std::array::from_fn(|k| v.get(first + k).copied().unwrap_or_default()))
+                .collect()
+        };
+        let mut out: Vec<[T; N]> = Vec::new();
+        for first in (0..N).step_by(3) {
+            let cage = three(compact, first);
+            let level = local_levels(
+                self.refinement,
+                &cage,
+                &three(two_d, first),
+                &three(curve, first),
+                seeds,
+                extra,
+            )?;
+            let mut layout = level.data;
+            if even {
+                layout.extend_from_slice(&level.curve);
+                layout.extend_from_slice(&cage);
+            }
+            if out.is_empty() {
+                out = memory::filled(layout.len(), [T::default(); N])?;
+            }
+            for (o, x) in out.iter_mut().zip(&layout) {
+                for k in 0..3.min(N - first) {
+                    o[first + k] = x[k];
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// Unit normals per output corner from the stencils (see [`surface`]), those of the local
+    /// extension's (its stencils, data and positions) where they are.
     fn stencil_normals<T: Scalar, const N: usize>(
         &self,
         st: &Stencils,
         data: &[[T; N]],
         positions: &[[T; N]],
+        local: Option<(&Stencils, Vec<[T; N]>, Vec<[T; N]>)>,
     ) -> Result<Vec<T>> {
-        let at = |x: &[T; N]| DVec3::new(x[0].to_f64(), x[1].to_f64(), x[2].to_f64());
-        let vertex_normals: Vec<DVec3> = gather_hinted(st.masks_of.len(), |v| {
-            let LimitMask::Interior(m) = st.masks_of[v] else {
-                return DVec3::ZERO;
-            };
-            let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
-            let [a, b] = &st.masks[m as usize].tangents;
-            let (a, b) = (at(&combine(data, items, a)), at(&combine(data, items, b)));
-            a.cross(b).normalize_or_zero()
-        })?;
-        let fan_normals: Vec<DVec3> = gather_hinted(st.fan_closed.len(), |f| {
-            let items = &st.fan_items[st.fan_offsets[f] as usize..st.fan_offsets[f + 1] as usize];
-            let centre = at(&positions[st.fan_vertex[f] as usize]);
-            let q: Vec<DVec3> = items
-                .iter()
-                .map(|&i| at(&data[i as usize]) - centre)
-                .collect();
-            let pairs = q.len() - usize::from(!st.fan_closed[f]);
-            (0..pairs)
-                .map(|i| q[i].cross(q[(i + 1) % q.len()]))
-                .sum::<DVec3>()
-                .normalize_or_zero()
-        })?;
+        let (vertex_normals, fan_normals) = stencil_vertex_normals(st, data, positions)?;
+        let local = match &local {
+            Some((lst, ldata, lpos)) => Some((lst, stencil_vertex_normals(lst, ldata, lpos)?)),
+            None => None,
+        };
         let corners = &self.refinement.last_level().corner_verts;
         let mut out = memory::with_capacity(3 * corners.len())?;
         for (c, &v) in corners.iter().enumerate() {
-            let n = match st.corner_fan[c] {
-                NONE => vertex_normals[v as usize],
-                f => fan_normals[f as usize],
+            let n = match (st.masks_of[v as usize], &local) {
+                (LimitMask::Local, Some((lst, (lv, lf)))) => match lst.corner_fan[c] {
+                    NONE => {
+                        let i = st.local_vertices.binary_search(&v).unwrap_or_default();
+                        lv[i]
+                    }
+                    f => lf[f as usize],
+                },
+                _ => match st.corner_fan[c] {
+                    NONE => vertex_normals[v as usize],
+                    f => fan_normals[f as usize],
+                },
             };
             out.extend(n.to_array().map(T::from_f64));
         }
         Ok(out)
     }
+}
+
+/// Limit positions of every stencil of `st` from `data` (zero for [`LimitMask::Local`]).
+fn stencil_positions<T: Scalar, const N: usize>(
+    st: &Stencils,
+    data: &[[T; N]],
+) -> Result<Vec<[T; N]>> {
+    gather_hinted(st.masks_of.len(), |v| {
+        let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
+        let weights: &[f64] = match st.masks_of[v] {
+            LimitMask::Interior(m) => &st.masks[m as usize].position,
+            LimitMask::Curve => &st.curve_mask,
+            LimitMask::Corner => return data[items[0] as usize],
+            LimitMask::Local => return zero(),
+        };
+        combine(data, items, weights)
+    })
+}
+
+/// Unit normals of the stencils of `st` at interior vertices (zero elsewhere) and of its fans,
+/// from `data` and the stencils' limit `positions`.
+fn stencil_vertex_normals<T: Scalar, const N: usize>(
+    st: &Stencils,
+    data: &[[T; N]],
+    positions: &[[T; N]],
+) -> Result<(Vec<DVec3>, Vec<DVec3>)> {
+    let at = |x: &[T; N]| DVec3::new(x[0].to_f64(), x[1].to_f64(), x[2].to_f64());
+    let vertex_normals: Vec<DVec3> = gather_hinted(st.masks_of.len(), |v| {
+        let LimitMask::Interior(m) = st.masks_of[v] else {
+            return DVec3::ZERO;
+        };
+        let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
+        let [a, b] = &st.masks[m as usize].tangents;
+        let (a, b) = (at(&combine(data, items, a)), at(&combine(data, items, b)));
+        a.cross(b).normalize_or_zero()
+    })?;
+    let fan_normals: Vec<DVec3> = gather_hinted(st.fan_closed.len(), |f| {
+        let items = &st.fan_items[st.fan_offsets[f] as usize..st.fan_offsets[f + 1] as usize];
+        let centre = at(&positions[st.fan_vertex[f] as usize]);
+        let q: Vec<DVec3> = items
+            .iter()
+            .map(|&i| at(&data[i as usize]) - centre)
+            .collect();
+        let pairs = q.len() - usize::from(!st.fan_closed[f]);
+        (0..pairs)
+            .map(|i| q[i].cross(q[(i + 1) % q.len()]))
+            .sum::<DVec3>()
+            .normalize_or_zero()
+    })?;
+    Ok((vertex_normals, fan_normals))
 }
 
 /// Unit normals of each face's bilinear patch at its corners, face after face.
@@ -773,4 +1046,103 @@ fn combine<T: Scalar, const N: usize>(data: &[[T; N]], items: &[u32], weights: &
         }
     }
     acc.map(T::from_f64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::Cage;
+
+    /// An n x n grid of unit quads in the plane z = bump(x, y) (boundary, valence-2 corners).
+    fn grid(n: usize) -> (Cage, Vec<f64>) {
+        let id = |i: usize, j: usize| (i * (n + 1) + j) as i64;
+        let mut indices = Vec::new();
+        for i in 0..n {
+            for j in 0..n {
+                indices.extend([id(i, j), id(i, j + 1), id(i + 1, j + 1), id(i + 1, j)]);
+            }
+        }
+        let mut points = Vec::new();
+        for i in 0..=n {
+            for j in 0..=n {
+                let (x, y) = (j as f64, i as f64);
+                points.extend([x, y, 0.3 * (x * 0.7).sin() * (y * 0.9).cos()]);
+            }
+        }
+        let cage = Cage::from_indices((n + 1) * (n + 1), &vec![4; n * n], &indices).unwrap();
+        (cage, points)
+    }
+
+    /// A cube of quads (eight valence-3 vertices), slightly perturbed.
+    fn cube() -> (Cage, Vec<f64>) {
+        let faces = [
+            [0, 1, 3, 2],
+            [4, 6, 7, 5],
+            [0, 4, 5, 1],
+            [2, 3, 7, 6],
+            [0, 2, 6, 4],
+            [1, 5, 7, 3],
+        ];
+        let indices: Vec<i64> = faces.iter().flatten().copied().collect();
+        let points: Vec<f64> = (0..8)
+            .flat_map(|v| {
+                let at = |bit: usize| if v >> bit & 1 == 1 { 1.0 } else { -1.0 };
+                [at(0) * 1.1, at(1), at(2) + 0.05 * v as f64]
+            })
+            .collect();
+        (Cage::from_indices(8, &[4; 6], &indices).unwrap(), points)
+    }
+
+    /// The local extension gives the limits of the whole plan extended (the stencils of the
+    /// vertices clean at the plan's level are other masks of the same limit: equal to rounding;
+    /// the others, curve normals included, are the same sums).
+    #[test]
+    fn local_extension_matches_the_whole_plan_extended() {
+        let (grid, grid_points) = grid(5);
+        let crease = grid.clone().with_creases(&[(8, 14, f32::INFINITY)]).unwrap();
+        let cases = [
+            ("cube", cube().0, cube().1),
+            ("grid", grid, grid_points.clone()),
+            ("creased grid", crease, grid_points),
+        ];
+        let mut engaged = 0;
+        for (name, cage, points) in &cases {
+            for degree in 2..=9 {
+                for levels in 1..=2 {
+                    let options = Options {
+                        degree,
+                        levels,
+                        ..Options::default()
+                    };
+                    let refinement = Refinement::new(cage, &options).unwrap();
+                    let whole = LimitCache::default();
+                    let built = build(&refinement, false).unwrap();
+                    *whole.0.lock().unwrap() = Some(Arc::new(built));
+                    let local = LimitCache::default();
+                    let (p, n) =
+                        surface(&refinement, &Scratch::default(), &local, points).unwrap();
+                    let (q, m) =
+                        surface(&refinement, &Scratch::default(), &whole, points).unwrap();
+                    let extra = |c: &LimitCache| extra_levels(&refinement, c).unwrap();
+                    assert_eq!(extra(&local), extra(&whole), "{name} {degree} L{levels}");
+                    let st = stencils(&refinement, &local).unwrap();
+                    engaged += usize::from(st.local.is_some());
+                    assert!(st.extended.is_none(), "{name} {degree} L{levels}: whole extension");
+                    let worst = |a: &[f64], b: &[f64]| {
+                        a.iter()
+                            .zip(b)
+                            .map(|(x, y)| (x - y).abs())
+                            .fold(0.0, f64::max)
+                    };
+                    assert_eq!((p.len(), n.len()), (q.len(), m.len()));
+                    let (dp, dn) = (worst(&p, &q), worst(&n, &m));
+                    assert!(
+                        dp < 1e-12 && dn < 1e-11,
+                        "{name} degree {degree} level {levels}: positions {dp:e}, normals {dn:e}"
+                    );
+                }
+            }
+        }
+        assert!(engaged >= 40, "the local extension was used {engaged} times of 48");
+    }
 }

@@ -378,6 +378,22 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         }
     }
 
+    /// The 2-D and 1-D data as the steps left them ([`LevelData::into_parts`]), the buffers no
+    /// longer needed going back to the scratch.
+    pub(crate) fn finish_parts(mut self) -> (Vec<Value<T, N>>, Vec<Value<T, N>>) {
+        if let Some((scratch, _)) = self.scratch {
+            scratch.give(std::mem::take(&mut self.spare));
+            let other = match self.primal {
+                true => std::mem::replace(&mut self.faces, Cow::Borrowed(&[])),
+                false => std::mem::replace(&mut self.vertices, Cow::Borrowed(&[])),
+            };
+            if let Cow::Owned(v) = other {
+                scratch.give(v);
+            }
+        }
+        self.into_parts()
+    }
+
     /// The drawing points of dual data (one more dual -> primal average with the 1-D values),
     /// leaving the data as it is.
     pub(crate) fn drawing_points(&self, step: &Step) -> Result<Vec<Value<T, N>>> {
