@@ -16,10 +16,13 @@
 //!
 //! At valence 4 these are exactly the tensor-product B-spline masks (tested). Vertices that are
 //! not in such a clean neighbourhood (near another irregular vertex, a crease or a boundary) are
-//! handled by refining further: the plan is extended by `m` levels, which doubles their
-//! distances `m` times while the old vertices keep their ids, until every one of them is clean.
-//! Semi-sharp creases are refined past the level where they become smooth.
-//!
+//! handled by refining further, `m` levels, which doubles their distances `m` times while the old
+//! vertices keep their ids, until every one of them is clean. With the averaging rules this is
+//! local: only partial levels around those vertices are made (the adaptive module's
+//! [`local_levels`], exact where their stencils reach), and every other vertex keeps the masks of
+//! the plan's own last level; when any vertex needs the extension, the curve vertices and corners
+//! take it too (their normals come from fans at the extended level). Semi-sharp creases (refined
+//! past the level where they become smooth) and the other rule sets extend the whole plan.
 //! Curve vertices (boundaries, infinitely sharp creases) lie on the curve's uniform B-spline of
 //! degree n (DESIGN.md §2): their limit position is the 1-D B-spline mask along the curve, exact;
 //! corners keep their cage point. Normals there are one-sided: one per side of the curve (a
@@ -28,9 +31,9 @@
 //! eigenvectors of the boundary subdivision matrices). Degree 1 is bilinear: positions are the
 //! refined points, normals those of each face's bilinear patch at its corner.
 //!
-//! Everything topological (the extended refinement, the stencils, the fans) is built on first
-//! use and kept in the plan ([`LimitCache`]), so re-evaluating a deformed cage costs one
-//! evaluation of the extended refinement plus one small gather per vertex.
+//! The stencils and fans are built on first use and kept in the plan ([`LimitCache`]), so
+//! re-evaluating a deformed cage costs one evaluation of the plan (or of the whole extended
+//! refinement), the steps of the local partial levels, and one small gather per vertex.
 //!
 //! Classic Catmull-Clark limit positions use OpenSubdiv's limit masks (`catmark_limit`).
 //!
@@ -43,15 +46,14 @@ use std::sync::{Arc, Mutex};
 
 use glam::DVec3;
 
+use crate::adaptive::local_levels;
 use crate::analysis::{
     cached_vertex_masks, frame_items, neighbourhood_size, sector_frames, VertexMasks,
 };
+use crate::curves::CurveNetwork;
 use crate::curves::LevelSharpness;
 use crate::error::{Error, Result};
-use crate::adaptive::local_levels;
-use crate::curves::CurveNetwork;
 use crate::evaluate::{in_groups_of_four, run, run_parts};
-use crate::scheme::Scheme;
 use crate::memory;
 use crate::options::{Options, OutputKind};
 use crate::parallel::gather_hinted;
@@ -60,12 +62,18 @@ use crate::scalar::{add, mad, scale, zero, Scalar, Value};
 use crate::scheme::catmark::{
     dart_limit_mask, smooth_limit_weights, VertexRule, CREASE_LIMIT_WEIGHTS,
 };
+use crate::scheme::Scheme;
 use crate::scheme::{cardinal_bspline, is_infinitely_sharp, is_semi_sharp, is_sharp, LimitMethod};
 use crate::step::{Final, Scratch};
 use crate::topology::{Level, NONE};
 
 /// Extra levels tried at most beyond the first guess before giving up.
 const MAX_EXTRA_LEVELS: u32 = 8;
+
+/// The local extension is made when its seeds are at most this share (1 / LOCAL_SHARE) of the
+/// plan's last level (measured: a fan of valence 400, all of it near its centre, costs 8x per
+/// cached call on partial levels what the whole plan extended costs).
+const LOCAL_SHARE: usize = 8;
 
 /// Which mask gives the limit at one output vertex.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -428,15 +436,16 @@ fn stencils(refinement: &Refinement, cache: &LimitCache) -> Result<Arc<Stencils>
     if let Some(st) = kept.as_ref() {
         return Ok(st.clone());
     }
-    let st = Arc::new(build(refinement, true)?);
+    let st = Arc::new(build(refinement, Some(LOCAL_SHARE))?);
     *kept = Some(st.clone());
     Ok(st)
 }
 
 /// Builds the stencils of `refinement`: at its last level where every vertex is clean there;
-/// else, with `local` and the averaging rules (and no semi-sharp feature), the vertices that are
-/// not clean on partial levels around them; else on the whole refinement extended.
-fn build(refinement: &Refinement, local: bool) -> Result<Stencils> {
+/// else, with `local` (the [`LOCAL_SHARE`] it allows) and the averaging rules (and no semi-sharp
+/// feature), the vertices that are not clean on partial levels around them; else on the whole
+/// refinement extended.
+fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
     let options = *refinement.options();
     let levels = options.levels;
     let n = neighbourhood_size(options.degree) as u32;
@@ -469,7 +478,7 @@ fn build(refinement: &Refinement, local: bool) -> Result<Stencils> {
     if first == 0 {
         // The stencils at the plan's own last level; with the averaging rules, the vertices
         // that are not clean there get theirs on partial levels around them.
-        let local = local && matches!(refinement.scheme(), Scheme::Averaging { .. });
+        let share = local.filter(|_| matches!(refinement.scheme(), Scheme::Averaging { .. }));
         let curves = refinement.curve_networks().last().expect("a step");
         let targets = Targets {
             count: outputs,
@@ -479,12 +488,19 @@ fn build(refinement: &Refinement, local: bool) -> Result<Stencils> {
             index: &below,
             output: &whole,
         };
-        if let Some(mut st) = build_stencils(last, curves, degree, &targets, local)? {
+        if let Some(mut st) = build_stencils(last, curves, degree, &targets, share.is_some())? {
             if st.local_vertices.is_empty() {
                 return Ok(st);
             }
             for m in (clean..).take(MAX_EXTRA_LEVELS as usize) {
-                if let Some(built) = local_stencils(refinement, &st.local_vertices, m)? {
+                let seeds = local_seeds(last, degree, &st.local_vertices, m)?;
+                // Partial levels are made on every evaluation, at several times the cost of a
+                // cached level per face: around most of the mesh, the whole plan extended (its
+                // topology kept) is cheaper.
+                if share.unwrap_or_default() * seeds.len() > last.num_faces() {
+                    break;
+                }
+                if let Some(built) = local_stencils(refinement, &st.local_vertices, m, seeds)? {
                     st.local = Some(built);
                     st.extra_levels = m;
                     return Ok(st);
@@ -525,20 +541,10 @@ fn build(refinement: &Refinement, local: bool) -> Result<Stencils> {
     )))
 }
 
-/// The stencils of the output vertices `vertices` (of the plan's last level `M_L`, none clean
-/// there) on the partial level `M_{L+m}` made around them ([`local_levels`]), with the seeds
-/// (faces of `M_L`) that make it; `None` when one of them is not clean there either.
-fn local_stencils(
-    refinement: &Refinement,
-    vertices: &[u32],
-    m: u32,
-) -> Result<Option<(Box<Stencils>, Vec<u64>)>> {
-    let last = refinement.last_level();
-    let curves = refinement.curve_networks().last().expect("a step");
-    let degree = refinement.options().degree;
-    let odd = degree % 2 == 1;
-    // Rings of M_L around each vertex whose descendants hold its N + 1 rings at M_{L+m} (a
-    // ring there lies within ceil(d / 2^m) + 1 rings of M_L).
+/// The faces of the last level `last` whose descendants `m` levels down hold the `N + 1` rings
+/// of every vertex of `vertices` (a ring there lies within `ceil(d / 2^m) + 1` rings of `last`),
+/// sorted: the seeds of the local extension.
+fn local_seeds(last: &Level, degree: u32, vertices: &[u32], m: u32) -> Result<Vec<u64>> {
     let n = neighbourhood_size(degree);
     let rings = 2 + (n + 1).div_ceil(1 << m);
     let mut marked = memory::filled(last.num_faces(), false)?;
@@ -567,13 +573,32 @@ fn local_stencils(
         }
         frontier = next;
     }
-    let seeds: Vec<u64> = (0..marked.len() as u64)
+    Ok((0..marked.len() as u64)
         .filter(|&f| marked[f as usize])
-        .collect();
+        .collect())
+}
+
+/// The stencils of the output vertices `vertices` (of the plan's last level `M_L`, none clean
+/// there) on the partial level `M_{L+m}` made around them ([`local_levels`]), with the seeds
+/// (faces of `M_L`) that make it; `None` when one of them is not clean there either.
+fn local_stencils(
+    refinement: &Refinement,
+    vertices: &[u32],
+    m: u32,
+    seeds: Vec<u64>,
+) -> Result<Option<(Box<Stencils>, Vec<u64>)>> {
+    let last = refinement.last_level();
+    let curves = refinement.curve_networks().last().expect("a step");
+    let degree = refinement.options().degree;
+    let odd = degree % 2 == 1;
     // The topology does not depend on the data: zeros will do.
     let zero3 = |count: usize| vec![[0.0f64; 3]; count];
     let cage = zero3(refinement.levels()[0].num_vertices);
-    let data = zero3(if odd { last.num_vertices } else { last.num_faces() });
+    let data = zero3(if odd {
+        last.num_vertices
+    } else {
+        last.num_faces()
+    });
     let curve = zero3(if odd {
         curves.vertices().len()
     } else {
@@ -745,7 +770,8 @@ impl Limit<'_> {
                             0 => &data[..r.last_level().num_faces()],
                             _ => &data[..],
                         };
-                        let ldata = self.local_data(seeds, st.extra_levels, two_d, &curve, &compact)?;
+                        let ldata =
+                            self.local_data(seeds, st.extra_levels, two_d, &curve, &compact)?;
                         let lpos = stencil_positions(local, &ldata)?;
                         for (i, &v) in local.outputs.iter().enumerate() {
                             positions[v as usize] = lpos[i];
@@ -1099,7 +1125,10 @@ mod tests {
     #[test]
     fn local_extension_matches_the_whole_plan_extended() {
         let (grid, grid_points) = grid(5);
-        let crease = grid.clone().with_creases(&[(8, 14, f32::INFINITY)]).unwrap();
+        let crease = grid
+            .clone()
+            .with_creases(&[(8, 14, f32::INFINITY)])
+            .unwrap();
         let cases = [
             ("cube", cube().0, cube().1),
             ("grid", grid, grid_points.clone()),
@@ -1116,18 +1145,21 @@ mod tests {
                     };
                     let refinement = Refinement::new(cage, &options).unwrap();
                     let whole = LimitCache::default();
-                    let built = build(&refinement, false).unwrap();
+                    let built = build(&refinement, None).unwrap();
                     *whole.0.lock().unwrap() = Some(Arc::new(built));
                     let local = LimitCache::default();
-                    let (p, n) =
-                        surface(&refinement, &Scratch::default(), &local, points).unwrap();
-                    let (q, m) =
-                        surface(&refinement, &Scratch::default(), &whole, points).unwrap();
+                    // Local wherever it can be (the share of the plan's faces not limited).
+                    *local.0.lock().unwrap() = Some(Arc::new(build(&refinement, Some(0)).unwrap()));
+                    let (p, n) = surface(&refinement, &Scratch::default(), &local, points).unwrap();
+                    let (q, m) = surface(&refinement, &Scratch::default(), &whole, points).unwrap();
                     let extra = |c: &LimitCache| extra_levels(&refinement, c).unwrap();
                     assert_eq!(extra(&local), extra(&whole), "{name} {degree} L{levels}");
                     let st = stencils(&refinement, &local).unwrap();
                     engaged += usize::from(st.local.is_some());
-                    assert!(st.extended.is_none(), "{name} {degree} L{levels}: whole extension");
+                    assert!(
+                        st.extended.is_none(),
+                        "{name} {degree} L{levels}: whole extension"
+                    );
                     let worst = |a: &[f64], b: &[f64]| {
                         a.iter()
                             .zip(b)
@@ -1143,6 +1175,28 @@ mod tests {
                 }
             }
         }
-        assert!(engaged >= 40, "the local extension was used {engaged} times of 48");
+        assert!(
+            engaged >= 40,
+            "the local extension was used {engaged} times of 48"
+        );
+    }
+
+    /// On a mesh whose unclean vertices are a small part (a large grid: its boundary and
+    /// corners), the plan's own stencils take the local extension; on a small one (the cube,
+    /// every vertex near an irregular one), the whole plan is extended.
+    #[test]
+    fn the_local_extension_is_taken_where_it_is_a_small_part() {
+        let options = Options {
+            degree: 4,
+            levels: 3,
+            ..Options::default()
+        };
+        let (large, _) = grid(24);
+        let r = Refinement::new(&large, &options).unwrap();
+        let st = stencils(&r, &LimitCache::default()).unwrap();
+        assert!(st.local.is_some() && st.extended.is_none());
+        let r = Refinement::new(&cube().0, &options).unwrap();
+        let st = stencils(&r, &LimitCache::default()).unwrap();
+        assert!(st.local.is_none() && st.extended.is_some());
     }
 }
