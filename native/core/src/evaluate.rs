@@ -9,7 +9,7 @@ use crate::output::OutputMesh;
 use crate::parallel::{fill_rows, in_pool};
 use crate::refinement::Refinement;
 use crate::scalar::{reciprocal, Scalar, Value};
-use crate::step::{Final, LevelData, Scratch};
+use crate::step::{Final, LevelData, Parts, Scratch};
 
 /// Runs `cage` (one value per vertex of `M_0`) through every step of `refinement`, taking and
 /// giving back buffers in `scratch`. `want_dual` selects the final kind: the drawing mesh wants
@@ -38,7 +38,7 @@ pub(crate) fn run_parts<T: Scalar, const N: usize>(
     refinement: &Refinement,
     scratch: &Scratch,
     cage: &[Value<T, N>],
-) -> Result<(Vec<Value<T, N>>, Vec<Value<T, N>>)> {
+) -> Result<Parts<T, N>> {
     Ok(steps(refinement, scratch, cage)?.finish_parts())
 }
 

@@ -64,7 +64,7 @@ use crate::scheme::catmark::{
 };
 use crate::scheme::Scheme;
 use crate::scheme::{cardinal_bspline, is_infinitely_sharp, is_semi_sharp, is_sharp, LimitMethod};
-use crate::step::{Final, Scratch};
+use crate::step::{Final, Parts, Scratch};
 use crate::topology::{Level, NONE};
 
 /// Extra levels tried at most beyond the first guess before giving up.
@@ -797,7 +797,7 @@ impl Limit<'_> {
         &self,
         st: &Stencils,
         compact: &[[T; N]],
-    ) -> Result<(Vec<[T; N]>, Vec<[T; N]>)> {
+    ) -> Result<Parts<T, N>> {
         let (refinement, scratch) = match &st.extended {
             Some((r, s)) => (r, s),
             None => (self.refinement, self.scratch),
@@ -848,9 +848,8 @@ impl Limit<'_> {
                 out = memory::filled(layout.len(), [T::default(); N])?;
             }
             for (o, x) in out.iter_mut().zip(&layout) {
-                for k in 0..3.min(N - first) {
-                    o[first + k] = x[k];
-                }
+                let width = 3.min(N - first);
+                o[first..first + width].copy_from_slice(&x[..width]);
             }
         }
         Ok(out)
@@ -863,7 +862,7 @@ impl Limit<'_> {
         st: &Stencils,
         data: &[[T; N]],
         positions: &[[T; N]],
-        local: Option<(&Stencils, Vec<[T; N]>, Vec<[T; N]>)>,
+        local: Option<LocalValues<T, N>>,
     ) -> Result<Vec<T>> {
         let (vertex_normals, fan_normals) = stencil_vertex_normals(st, data, positions)?;
         let local = match &local {
@@ -891,6 +890,9 @@ impl Limit<'_> {
         Ok(out)
     }
 }
+
+/// The local extension's stencils, data and limit positions.
+type LocalValues<'a, T, const N: usize> = (&'a Stencils, Vec<[T; N]>, Vec<[T; N]>);
 
 /// Limit positions of every stencil of `st` from `data` (zero for [`LimitMask::Local`]).
 fn stencil_positions<T: Scalar, const N: usize>(

@@ -237,6 +237,9 @@ pub(crate) struct LevelData<'a, T: Scalar, const N: usize> {
     scratch: Option<(&'a Scratch, usize)>,
 }
 
+/// A level's 2-D data (per vertex or per face) and 1-D data (per curve vertex or curve edge).
+pub(crate) type Parts<T, const N: usize> = (Vec<Value<T, N>>, Vec<Value<T, N>>);
+
 /// The data at the end of a run of steps.
 pub(crate) enum Final<T: Scalar, const N: usize> {
     /// Per vertex.
@@ -380,7 +383,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
 
     /// The 2-D and 1-D data as the steps left them ([`LevelData::into_parts`]), the buffers no
     /// longer needed going back to the scratch.
-    pub(crate) fn finish_parts(mut self) -> (Vec<Value<T, N>>, Vec<Value<T, N>>) {
+    pub(crate) fn finish_parts(mut self) -> Parts<T, N> {
         if let Some((scratch, _)) = self.scratch {
             scratch.give(std::mem::take(&mut self.spare));
             let other = match self.primal {
