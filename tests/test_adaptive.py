@@ -356,3 +356,34 @@ def test_uvs_of_a_non_manifold_cage_and_the_obj_output(tmp_path: Path) -> None:
         bidegree.subdivide_adaptive(
             mesh, face_varying={"uv": np.full((mesh.num_corners, 2), np.nan)}
         )
+
+
+def test_cage_vertices_and_their_corner_sharpness() -> None:
+    """``cage_vertex`` names each cage vertex's own output vertex (past an isolated vertex the
+    core drops), ``vertex_sharpness`` is its corner sharpness lowered by its level."""
+    prism = pyramid_prism()
+    points = np.concatenate([[[9.0, 9.0, 9.0]], prism.points])
+    faces = prism.face_indices + 1
+    given = {3: 10.0, 6: 2.5, 9: 1.5}
+    mesh = bidegree.Mesh(
+        points,
+        face_sizes=prism.face_sizes,
+        face_indices=faces,
+        corners=(np.array(list(given)), np.array(list(given.values()))),
+    )
+    with pytest.warns(bidegree.IsolatedVerticesWarning):
+        result = bidegree.subdivide_adaptive(mesh, degree=3, max_level=4, tolerance=0.003)
+    assert len(np.unique(result.vertex_level)) >= 2
+    assert result.cage_vertex.dtype == np.int32 and result.vertex_sharpness.dtype == np.float32
+    at = np.flatnonzero(result.cage_vertex >= 0)
+    np.testing.assert_array_equal(np.sort(result.cage_vertex[at]), np.arange(1, 12))
+    np.testing.assert_array_equal(result.cage_vertex[at], result.vertex_id[at] + 1)
+    assert (result.vertex_id[result.cage_vertex < 0] >= 11).all()
+    for i in at:
+        s = given.get(int(result.cage_vertex[i]), 0.0)
+        kept = 10.0 if s >= 10 else max(s - int(result.vertex_level[i]), 0.0)
+        assert result.vertex_sharpness[i] == np.float32(kept)
+    assert (result.vertex_sharpness[result.cage_vertex < 0] == 0).all()
+    corner = at[result.cage_vertex[at] == 3][0]
+    np.testing.assert_array_equal(result.points[corner], points[3])
+

@@ -163,6 +163,14 @@ pub struct AdaptiveMesh<T> {
     /// Uniform vertex id of each vertex at its level: vertex `i` is vertex `vertex_id[i]` of the
     /// uniform level `vertex_level[i]`, which has the same point bit for bit.
     pub vertex_id: Vec<u64>,
+    /// Per vertex: the cage vertex (the user's numbering) it is, [`crate::Level::NONE`] for a
+    /// vertex made by refinement (for vertex attributes such as Blender's vertex crease).
+    pub cage_vertex: Vec<u32>,
+    /// Per vertex: the corner sharpness it keeps at its level (OpenSubdiv's convention, 10
+    /// infinitely sharp; the cage's corners and the topological ones of the boundary rule and
+    /// of non-manifold vertices, lowered once per level as the edges' in `edge_sharpness`):
+    /// what one more level would use; 0 for a vertex that is not a cage corner.
+    pub vertex_sharpness: Vec<f32>,
     /// Number of leaves at each level (index = level; index 0 is always 0).
     pub leaves_per_level: Vec<u64>,
     /// With [`AdaptiveOptions::measure_leaves`], the largest error measure over all leaves
@@ -489,6 +497,7 @@ fn adaptive<T: Scalar>(
     let drawn = triangulate(&ctx, &parts, &refined, &leaves)?;
     let mut mesh = drawn.mesh;
     mesh.max_error = max_error;
+    vertex_creases(&ctx, &base, &mut mesh);
     mesh.cage_edges = (ctx.level0.edge_verts().iter())
         .map(|&[a, b]| {
             let (a, b) = (base.cage_vertex(a), base.cage_vertex(b));
@@ -526,6 +535,34 @@ fn adaptive<T: Scalar>(
         mesh.face_varying.push(carried);
     }
     Ok(mesh)
+}
+
+/// [`AdaptiveMesh::cage_vertex`] and [`AdaptiveMesh::vertex_sharpness`]: an old vertex keeps
+/// its uniform id from level to level, so the vertices of `M_0` are the ids below its count.
+fn vertex_creases<T>(ctx: &Context<T>, base: &Refinement, mesh: &mut AdaptiveMesh<T>) {
+    let nv0 = ctx.level0.num_vertices as u64;
+    let mut corner = vec![0.0f32; ctx.level0.num_vertices];
+    for &(v, s) in &ctx.features.corners {
+        corner[v as usize] = s;
+    }
+    mesh.cage_vertex = (mesh.vertex_id.iter())
+        .map(|&u| {
+            if u < nv0 {
+                base.cage_vertex(u as u32)
+            } else {
+                NONE
+            }
+        })
+        .collect();
+    mesh.vertex_sharpness = (mesh.vertex_id.iter().zip(&mesh.vertex_level))
+        .map(|(&u, &level)| {
+            if u < nv0 {
+                (0..level).fold(corner[u as usize], |s, _| decrement(s))
+            } else {
+                0.0
+            }
+        })
+        .collect();
 }
 
 /// The values of groups of 3 channels (the last padded) as the points of a cage, compacted
@@ -1471,6 +1508,8 @@ fn triangulate<T: Scalar>(
         triangle_level,
         vertex_level,
         vertex_id,
+        cage_vertex: Vec::new(),
+        vertex_sharpness: Vec::new(),
         leaves_per_level,
         max_error: None,
         edge_origin,

@@ -952,3 +952,67 @@ fn triangle_edges_know_their_cage_edge_and_sharpness() {
         assert!(mesh.edge_sharpness.iter().any(|&s| s > 0.0 && s < 10.0));
     }
 }
+
+/// Vertex creases: each cage vertex's own output vertex knows it (`cage_vertex`, in the
+/// user's numbering, past an isolated vertex the compaction drops) and the corner sharpness it
+/// keeps at its level, and an infinitely sharp corner stays at its cage point.
+#[test]
+fn cage_vertices_know_their_corner_sharpness_at_their_level() {
+    let (prism, prism_points) = roofed_prism();
+    // The prism's vertices shifted by one: vertex 0 is in no face.
+    let offsets = prism.face_offsets();
+    let faces: Vec<Vec<usize>> = (offsets.windows(2))
+        .map(|w| {
+            (prism.face_vertices()[w[0] as usize..w[1] as usize].iter())
+                .map(|&v| v as usize + 1)
+                .collect()
+        })
+        .collect();
+    let corners = [(3i64, 10.0f32), (6, 2.5), (9, 1.5)];
+    let shifted = cage(12, &faces).with_corners(&corners).unwrap();
+    let mut points = vec![9.0, 9.0, 9.0];
+    points.extend_from_slice(&prism_points);
+    for degree in 1..=5 {
+        let mesh = subdivide_adaptive(&shifted, &points, &options(degree, 4, 0.003)).unwrap();
+        assert!(levels_used(&mesh) >= 2 || degree == 1, "degree {degree}");
+        assert_uniform_points(&shifted, &points, degree, Boundary::EdgeOnly, &mesh);
+        let mut seen = [0; 12];
+        for i in 0..mesh.vertex_id.len() {
+            let (id, level, c) = (mesh.vertex_id[i], mesh.vertex_level[i], mesh.cage_vertex[i]);
+            if id >= 11 {
+                assert_eq!(c, Level::NONE, "degree {degree}: vertex {i} (uniform {id})");
+                assert_eq!(mesh.vertex_sharpness[i], 0.0);
+                continue;
+            }
+            assert_eq!(c as u64, id + 1, "degree {degree}: vertex {i}");
+            seen[c as usize] += 1;
+            let given = corners
+                .iter()
+                .find(|k| k.0 == c as i64)
+                .map_or(0.0, |k| k.1);
+            let kept = if given >= 10.0 {
+                10.0
+            } else {
+                (given - level as f32).max(0.0)
+            };
+            assert_eq!(
+                mesh.vertex_sharpness[i].to_bits(),
+                kept.to_bits(),
+                "degree {degree}: cage vertex {c} at level {level}"
+            );
+            if given >= 10.0 {
+                let at = &mesh.points[3 * i..3 * i + 3];
+                assert_eq!(
+                    at,
+                    &points[3 * c as usize..3 * c as usize + 3],
+                    "degree {degree}"
+                );
+            }
+        }
+        assert_eq!(
+            seen,
+            [0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1],
+            "degree {degree}"
+        );
+    }
+}

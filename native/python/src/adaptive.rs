@@ -178,19 +178,15 @@ fn adaptive<'py, T: Scalar + Element>(
         edge_level,
         edge_sharpness,
         cage_edges,
+        cage_vertex,
+        vertex_sharpness,
         ..
     } = mesh;
-    let edge_origin: Vec<i32> = (edge_origin.iter())
-        .map(|&e| {
-            if e == bidegree::Level::NONE {
-                Ok(-1)
-            } else {
-                to_i32(&[e]).map(|x| x[0])
-            }
-        })
-        .collect::<bidegree::Result<_>>()
-        .map_err(|e| to_py_err(py, e))?;
+    let edge_origin = none_as_minus_one(&edge_origin).map_err(|e| to_py_err(py, e))?;
     out.set_item("edge_origin", PyArray1::from_vec(py, edge_origin))?;
+    let cage_vertex = none_as_minus_one(&cage_vertex).map_err(|e| to_py_err(py, e))?;
+    out.set_item("cage_vertex", PyArray1::from_vec(py, cage_vertex))?;
+    out.set_item("vertex_sharpness", PyArray1::from_vec(py, vertex_sharpness))?;
     let edge_level = to_i32(&edge_level).map_err(|e| to_py_err(py, e))?;
     out.set_item("edge_level", PyArray1::from_vec(py, edge_level))?;
     out.set_item("edge_sharpness", PyArray1::from_vec(py, edge_sharpness))?;
@@ -207,4 +203,17 @@ fn adaptive<'py, T: Scalar + Element>(
     }
     out.set_item("face_varying", sets)?;
     Ok(out)
+}
+
+/// Indices as int32, [`bidegree::Level::NONE`] as -1.
+fn none_as_minus_one(values: &[u32]) -> bidegree::Result<Vec<i32>> {
+    (values.iter())
+        .map(|&e| {
+            if e == bidegree::Level::NONE {
+                Ok(-1)
+            } else {
+                to_i32(&[e]).map(|x| x[0])
+            }
+        })
+        .collect()
 }

@@ -30,6 +30,11 @@ class AdaptiveResult:
         vertex_level: int32 (N,), the level whose point each vertex carries (the finest level
             of the leaves around it).
         vertex_id: int64 (N,), the vertex's id in the uniform level ``vertex_level``.
+        cage_vertex: int32 (N,), the cage vertex each vertex is, -1 for a vertex made by
+            refinement (for vertex attributes such as vertex creases).
+        vertex_sharpness: float32 (N,), the corner sharpness each vertex keeps at its level
+            (the cage's corners, and the boundary rule's and non-manifold vertices' infinitely
+            sharp ones, lowered by one per level; 10 stays 10; 0 elsewhere).
         leaves_per_level: int64 (max_level + 1,), quadtree leaves at each level.
         max_error: with ``measure_leaves=True``, the largest flatness error of any leaf
             (relative to the cage's bounding-box diagonal), else None.
@@ -65,6 +70,8 @@ class AdaptiveResult:
         self.triangle_level: NDArray[np.int32] = convert.readonly(data["triangle_level"])
         self.vertex_level: NDArray[np.int32] = convert.readonly(data["vertex_level"])
         self.vertex_id: NDArray[np.int64] = convert.readonly(data["vertex_id"])
+        self.cage_vertex: NDArray[np.int32] = convert.readonly(data["cage_vertex"])
+        self.vertex_sharpness: NDArray[np.float32] = convert.readonly(data["vertex_sharpness"])
         self.leaves_per_level: NDArray[np.int64] = convert.readonly(data["leaves_per_level"])
         self.max_error: float | None = data["max_error"]
         self.degree = degree

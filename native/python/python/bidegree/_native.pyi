@@ -165,6 +165,8 @@ class _AdaptiveData(TypedDict):
     triangle_level: NDArray[np.int32]
     vertex_level: NDArray[np.int32]
     vertex_id: NDArray[np.int64]
+    cage_vertex: NDArray[np.int32]
+    vertex_sharpness: NDArray[np.float32]
     leaves_per_level: NDArray[np.int64]
     max_error: float | None
     vertex_values: _Float | None

@@ -234,7 +234,8 @@ def adaptive_surface(cage: mesh_io.CageArrays, options: Options) -> tuple[Surfac
     points, custom normals (linear, renormalized; the limit normals of ``options.normals``
     are not available on adaptive output), face data through ``face_origin``, edge data on
     the triangle edges along their cage edge, integers and booleans from the quadrant's cage
-    corner. Vertex creases are not carried (:func:`attributes.adaptive_attributes`)."""
+    corner, vertex creases on the cage vertices' own output vertices
+    (:func:`attributes.adaptive_attributes`)."""
     bmesh = cage_mesh(cage, options)
     points, sets = attributes.adaptive_request(cage, options.uv_mode)
     for name, uv in cage.uv_maps.items():
