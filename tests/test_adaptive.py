@@ -387,3 +387,26 @@ def test_cage_vertices_and_their_corner_sharpness() -> None:
     corner = at[result.cage_vertex[at] == 3][0]
     np.testing.assert_array_equal(result.points[corner], points[3])
 
+
+def test_one_dimensional_values_come_back_one_dimensional() -> None:
+    """As ``Plan.evaluate`` / ``evaluate_face_varying``: (vertices,) in, (N,) out; a (corners,)
+    set gives (3 T,); the same numbers as the (.., 1) form."""
+    base = bumped_grid()
+    weights = base.points[:, 0] * base.points[:, 1]
+    uvs = seamed_uvs(base)
+    mesh = bidegree.Mesh(
+        base.points, face_sizes=base.face_sizes, face_indices=base.face_indices, uvs=uvs
+    )
+    kwargs = {"degree": 3, "max_level": 3, "tolerance": 3e-3}
+    flat = bidegree.subdivide_adaptive(
+        mesh, vertex_values=weights, face_varying={"u": uvs[:, 0], "uv": uvs}, **kwargs
+    )
+    column = bidegree.subdivide_adaptive(
+        mesh, vertex_values=weights[:, None], face_varying={"u": uvs[:, :1]}, **kwargs
+    )
+    assert flat.vertex_values.shape == (flat.num_vertices,)
+    assert flat.face_varying["u"].shape == (3 * flat.num_triangles,)
+    assert flat.face_varying["uv"].shape == (3 * flat.num_triangles, 2)
+    assert column.vertex_values.shape == (column.num_vertices, 1)
+    np.testing.assert_array_equal(flat.vertex_values, column.vertex_values[:, 0])
+    np.testing.assert_array_equal(flat.face_varying["u"], column.face_varying["u"][:, 0])

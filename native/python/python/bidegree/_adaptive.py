@@ -43,8 +43,9 @@ class AdaptiveResult:
             that vertex's level, on the triangle's side of a seam; None without cage uvs.
         uv_mode: the face-varying mode of ``uvs`` and ``face_varying``.
         vertex_values: (N, C) the ``vertex_values`` given, at the output vertices (each at
-            its level, as the points), or None.
-        face_varying: name -> (3 T, C) for each set of ``face_varying`` given, as ``uvs``.
+            its level, as the points), or None; (N,) for values given as (cage vertices,).
+        face_varying: name -> (3 T, C) for each set of ``face_varying`` given, as ``uvs``;
+            (3 T,) for a set given as (cage corners,).
         edge_origin: int32 (3 T,), per triangle corner ``3 t + k``: the cage edge (row of
             ``cage_edges``) under the triangle's edge from corner ``k`` to ``k + 1``, -1 inside
             a cage face (as ``Plan.edge_origin``).
@@ -191,11 +192,16 @@ def subdivide_adaptive(
     uv_mode = convert.choice(uv_mode, convert.UV_MODES, "uv_mode")  # type: ignore[assignment]
     dtype = mesh.points.dtype
     values = None
+    # Inputs given 1-D ((vertices,) / (corners,)) come back 1-D, as from Plan.evaluate.
+    flat_values = False
     if vertex_values is not None:
-        values, _ = convert.values_2d(vertex_values, mesh.num_vertices, "vertex_values", "vertices")
+        values, flat_values = convert.values_2d(
+            vertex_values, mesh.num_vertices, "vertex_values", "vertices"
+        )
         values = np.ascontiguousarray(values, dtype=dtype)
     names: list[str | None] = []
     sets: list[tuple[FloatArray, str]] = []
+    flat_sets: set[str] = set()
     if mesh.uvs is not None:
         names.append(None)
         sets.append((np.ascontiguousarray(mesh.uvs, dtype=dtype), uv_mode))
@@ -206,9 +212,11 @@ def subdivide_adaptive(
     for name, given in (face_varying or {}).items():
         array, mode = given if isinstance(given, tuple) else (given, uv_mode)
         mode = convert.choice(mode, convert.UV_MODES, "uv_mode")
-        corners, _ = convert.values_2d(
+        corners, flat = convert.values_2d(
             array, mesh.num_corners, f"face_varying[{name!r}]", "face corners"
         )
+        if flat:
+            flat_sets.add(str(name))
         names.append(str(name))
         sets.append((np.ascontiguousarray(corners, dtype=dtype), mode))
     data = _native.subdivide_adaptive(
@@ -226,4 +234,10 @@ def subdivide_adaptive(
     used = np.zeros(mesh.num_vertices, dtype=bool)
     used[mesh.face_indices] = True
     convert.warn_isolated(np.flatnonzero(~used).astype(np.int32))
+    if flat_values:
+        data["vertex_values"] = data["vertex_values"].reshape(-1)
+    data["face_varying"] = [
+        values.reshape(-1) if name in flat_sets else values
+        for name, values in zip(names, data["face_varying"], strict=True)
+    ]
     return AdaptiveResult(data, degree, max_level, tol, uv_mode, tuple(names))
