@@ -334,7 +334,10 @@ def test_uvs_of_a_non_manifold_cage_and_the_obj_output(tmp_path: Path) -> None:
     path = tmp_path / "adaptive.obj"
     result.write_obj(path)
     lines = path.read_text().splitlines()
-    assert sum(line.startswith("vt ") for line in lines) == 3 * result.num_triangles
+    # One vt per distinct value: read back, the indices weld as the values do.
+    distinct = len(np.unique(result.uvs, axis=0))
+    assert sum(line.startswith("vt ") for line in lines) == distinct
+    np.testing.assert_allclose(bidegree.Mesh.from_obj(path).uvs, result.uvs, rtol=0, atol=1e-12)
     faces = [line for line in lines if line.startswith("f ")]
     assert len(faces) == result.num_triangles and "/" in faces[0]
     # Triangle edges along cage edges know them (checked against the uniform plans in Rust).
@@ -410,3 +413,45 @@ def test_one_dimensional_values_come_back_one_dimensional() -> None:
     assert column.vertex_values.shape == (column.num_vertices, 1)
     np.testing.assert_array_equal(flat.vertex_values, column.vertex_values[:, 0])
     np.testing.assert_array_equal(flat.face_varying["u"], column.face_varying["u"][:, 0])
+
+
+@pytest.mark.parametrize("mode", ["boundaries", "none", "all"])
+def test_indexed_uvs_keep_their_seams(mode: str) -> None:
+    """The mesh's ``uv_indices`` (and ``(values, mode, indices)`` sets) are the topology on
+    adaptive output as on uniform output: a cut with equal coordinates on both sides stays a
+    seam; every triangle corner is the uniform (indexed) value at its vertex's level."""
+    base = bumped_grid()
+    n = 6
+    chart = np.column_stack([0.1 * base.points[:, 0], 0.1 * base.points[:, 1] ** 1.5])
+    corner_verts = np.asarray(base.face_indices)
+    face = np.repeat(np.arange(base.num_faces), base.face_sizes)
+    # Faces are column-major here (face = a * n + b, a the x index): cut along x = 3.
+    cut = corner_verts.copy()
+    on_cut = (face // n >= 3) & (base.points[corner_verts, 0] == 3)
+    cut[on_cut] += len(base.points)
+    values = np.concatenate([chart, chart])
+    mesh = bidegree.Mesh(
+        base.points,
+        face_sizes=base.face_sizes,
+        face_indices=base.face_indices,
+        uvs=values,
+        uv_indices=cut,
+    )
+    kwargs = {"degree": 3, "max_level": 3, "tolerance": 3e-3, "uv_mode": mode}
+    result = bidegree.subdivide_adaptive(
+        base, face_varying={"cut": (values, mode, cut), "welded": values[cut]}, **kwargs
+    )
+    from_mesh = bidegree.subdivide_adaptive(mesh, **kwargs)
+    np.testing.assert_array_equal(from_mesh.uvs, result.face_varying["cut"])
+    if mode != "all":
+        assert np.abs(result.face_varying["cut"] - result.face_varying["welded"]).max() > 1e-4
+    corner_vertex = result.triangles.reshape(-1)
+    corner_face = np.repeat(result.face_origin, 3)
+    for level in np.unique(result.vertex_level):
+        uniform = bidegree.subdivide(mesh, degree=3, levels=int(level), uv_mode=mode)
+        want = uniform_by_vertex_and_face(
+            uniform.uvs, uniform.face_indices, uniform.face_origin, uniform.face_sizes
+        )
+        for c in np.flatnonzero(result.vertex_level[corner_vertex] == level):
+            key = (int(result.vertex_id[corner_vertex[c]]), int(corner_face[c]))
+            assert result.face_varying["cut"][c].tobytes() == want[key], (level, key)

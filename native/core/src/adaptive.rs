@@ -81,7 +81,7 @@ use std::hash::{BuildHasherDefault, Hasher};
 
 use crate::curves::{CageFeatures, Curve, CurveNetwork};
 use crate::error::{AdaptiveStage, Error, Result};
-use crate::face_varying::{face_varying_mesh, FaceVaryingMode};
+use crate::face_varying::{face_varying_mesh, FaceVaryingMode, Topology};
 use crate::memory;
 use crate::mesh::{check_values, validate_geometry, Cage};
 use crate::options::{check_degree, check_levels, Boundary, Options};
@@ -210,6 +210,11 @@ pub struct AdaptiveData<'a, T> {
     /// Face-varying sets (UVs): values per cage face corner, their channel count and the mode
     /// (as [`crate::Plan::evaluate_face_varying`]; each set is welded on its own).
     pub face_varying: Vec<(&'a [T], usize, FaceVaryingMode)>,
+    /// The face-varying topology of the sets of `face_varying` (one entry per set, or none at
+    /// all): one index per cage corner, corners of one cage vertex with the same index share
+    /// one value (OpenSubdiv's index buffer, as [`crate::Plan::evaluate_face_varying_indexed`]);
+    /// `None` welds the set by value.
+    pub face_varying_indices: Vec<Option<&'a [u32]>>,
 }
 
 impl<T> AdaptiveMesh<T> {
@@ -355,6 +360,23 @@ fn adaptive<T: Scalar>(
     }
     for &(values, channels, _) in &extra.face_varying {
         check_values(values, channels, cage.face_vertices().len())?;
+    }
+    let topologies = &extra.face_varying_indices;
+    if !topologies.is_empty() && topologies.len() != extra.face_varying.len() {
+        return Err(Error::InvalidInput(format!(
+            "{} face-varying topologies for {} face-varying sets",
+            topologies.len(),
+            extra.face_varying.len()
+        )));
+    }
+    for indices in topologies.iter().flatten() {
+        if indices.len() != cage.face_vertices().len() {
+            return Err(Error::InvalidInput(format!(
+                "{} face-varying indices for a cage of {} face corners",
+                indices.len(),
+                cage.face_vertices().len()
+            )));
+        }
     }
     // The cage level, its vertex compaction and its curve features, as the uniform plan has
     // them.
@@ -516,7 +538,11 @@ fn adaptive<T: Scalar>(
             held,
         )?;
     }
-    for &(values, channels, mode) in &extra.face_varying {
+    for (i, &(values, channels, mode)) in extra.face_varying.iter().enumerate() {
+        let topology = match topologies.get(i) {
+            Some(Some(indices)) => Topology::Indexed(indices),
+            _ => Topology::ByValue,
+        };
         let carried = if mode == FaceVaryingMode::All {
             linear_face_varying(&ctx, &parts, &drawn.corner_at, values, channels)?
         } else {
@@ -528,6 +554,7 @@ fn adaptive<T: Scalar>(
                 &drawn.corner_at,
                 values,
                 channels,
+                topology,
                 mode,
                 held,
             )?
@@ -647,10 +674,11 @@ fn carry_face_varying<T: Scalar>(
     corner_at: &[(u32, u32, u8)],
     values: &[T],
     channels: usize,
+    topology: Topology,
     mode: FaceVaryingMode,
     held: f64,
 ) -> Result<Vec<T>> {
-    let (fv_cage, per_value) = face_varying_mesh(base, values, channels, mode)?;
+    let (fv_cage, per_value) = face_varying_mesh(base, values, channels, mode, topology)?;
     let fv_options = Options {
         degree: ctx.degree,
         levels: 0,

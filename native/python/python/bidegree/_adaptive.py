@@ -138,7 +138,10 @@ def subdivide_adaptive(
     *,
     uv_mode: UvMode = "boundaries",
     vertex_values: ArrayLike | None = None,
-    face_varying: Mapping[str, ArrayLike | tuple[ArrayLike, UvMode]] | None = None,
+    face_varying: Mapping[
+        str, ArrayLike | tuple[ArrayLike, UvMode] | tuple[ArrayLike, UvMode, ArrayLike]
+    ]
+    | None = None,
 ) -> AdaptiveResult:
     """Subdivides ``mesh`` adaptively (the paper's §3): a quadtree per quad of level 1, refined
     while a node is not flat enough, up to ``max_level``, with neighbouring leaves (sharing an
@@ -160,7 +163,10 @@ def subdivide_adaptive(
             levels as the points (``AdaptiveResult.vertex_values``).
         face_varying: name -> (cage corners, C) further face-varying sets (each welded on its
             own), at the triangle corners (``AdaptiveResult.face_varying``); a set given as
-            ``(values, mode)`` has its own mode instead of ``uv_mode``.
+            ``(values, mode)`` has its own mode instead of ``uv_mode``, one given as
+            ``(values, mode, indices)`` is indexed as in :meth:`Plan.evaluate_face_varying`
+            (``values`` (N, C), ``indices`` per face corner: the set's topology). The mesh's
+            :attr:`Mesh.uv_indices` are its uvs' topology.
 
     Every vertex is bit for bit the vertex of the uniform result at its level, and so are its
     values; face-varying values are those of the uniform result at the vertex's level. Holes
@@ -200,25 +206,32 @@ def subdivide_adaptive(
         )
         values = np.ascontiguousarray(values, dtype=dtype)
     names: list[str | None] = []
-    sets: list[tuple[FloatArray, str]] = []
+    sets: list[tuple[FloatArray, str, NDArray[np.uint32] | None]] = []
     flat_sets: set[str] = set()
     if mesh.uvs is not None:
         names.append(None)
-        sets.append((np.ascontiguousarray(mesh.uvs, dtype=dtype), uv_mode))
+        sets.append((np.ascontiguousarray(mesh.uvs, dtype=dtype), uv_mode, mesh.uv_indices))
     if face_varying is not None and not isinstance(face_varying, Mapping):
         raise InvalidInputError(
             f"face_varying must be a mapping of name -> values, not {type(face_varying).__name__}"
         )
     for name, given in (face_varying or {}).items():
-        array, mode = given if isinstance(given, tuple) else (given, uv_mode)
+        array, mode, indices = _face_varying_set(given, uv_mode)
         mode = convert.choice(mode, convert.UV_MODES, "uv_mode")
-        corners, flat = convert.values_2d(
-            array, mesh.num_corners, f"face_varying[{name!r}]", "face corners"
-        )
+        what = f"face_varying[{name!r}]"
+        index = None
+        if indices is not None:
+            table = convert.float_array(array, what)
+            rows = len(table) if table.ndim else 0
+            table, flat = convert.values_2d(table, rows, what, "indexed values")
+            index = convert.face_varying_indices(indices, mesh.num_corners, rows, f"{what} indices")
+            corners = table[index]
+        else:
+            corners, flat = convert.values_2d(array, mesh.num_corners, what, "face corners")
         if flat:
             flat_sets.add(str(name))
         names.append(str(name))
-        sets.append((np.ascontiguousarray(corners, dtype=dtype), mode))
+        sets.append((np.ascontiguousarray(corners, dtype=dtype), mode, index))
     data = _native.subdivide_adaptive(
         mesh._cage,
         mesh.points,
@@ -241,3 +254,17 @@ def subdivide_adaptive(
         for name, values in zip(names, data["face_varying"], strict=True)
     ]
     return AdaptiveResult(data, degree, max_level, tol, uv_mode, tuple(names))
+
+
+def _face_varying_set(given: Any, uv_mode: str) -> tuple[Any, str, Any]:
+    """A ``face_varying`` entry as ``(values, mode, indices or None)``."""
+    if not isinstance(given, tuple):
+        return given, uv_mode, None
+    if len(given) == 2:
+        return given[0], given[1], None
+    if len(given) == 3:
+        return given
+    raise InvalidInputError(
+        f"a face_varying set is values, (values, mode) or (values, mode, indices), not a "
+        f"tuple of {len(given)}"
+    )
