@@ -14,8 +14,10 @@ What each domain does (Blender's Subdivision Surface, ``subdiv_mesh.cc``, is the
   into the angular sector of its quadrant's corner.
 * **Corner** (UV maps, corner colours, generic corner attributes): face-varying through
   ``Plan.evaluate_face_varying`` with the UV mode (:data:`UV_SMOOTH` maps Blender's six names;
-  Subsurf smooths only UV maps and mixes the others bilinearly). Integers and booleans: the
-  value of the quadrant's cage corner.
+  Subsurf smooths only UV maps and mixes the others bilinearly). UV maps weld as Blender's
+  Subsurf welds them (within ``STD_UV_CONNECT_LIMIT`` per axis and by UV winding:
+  :meth:`.mesh_io.CageArrays.uv_indices`), the other corner values by exact equality.
+  Integers and booleans: the value of the quadrant's cage corner.
 * **Face** (generic; material indices and flat/smooth stay in :mod:`.mesh_io`): copied from the
   origin face.
 * **Edge** (sharp edges, seams, generic): copied onto the child edges of each cage edge
