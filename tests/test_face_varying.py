@@ -385,3 +385,28 @@ def test_usd_cage_uvs_are_indexed_by_their_topology(tmp_path: Path) -> None:
             bidegree.subdivide(again, degree=3, levels=1).uvs, result.uvs, rtol=0, atol=1e-6
         )
         assert usd.validate(path) == []
+
+
+def test_blender_uv_indices_are_the_reference_weld() -> None:
+    """``bidegree.blender_uv_indices`` (vectorized) groups corners as the reference loop of
+    ``tests/opensubdiv_reference.py`` does, on the issue's UV cages and on them with UVs moved
+    by amounts around Blender's limit and faces' UVs mirrored (winding flipped)."""
+    import opensubdiv_reference as ref
+    from cages_dirty import issue_14_cages
+
+    rng = np.random.default_rng(14)
+    for cage in issue_14_cages(with_blender=False).values():
+        uvs = np.asarray(cage.uvs, dtype=np.float32)
+        moved = uvs + rng.choice([0.0, 5e-5, -9e-5, 2e-4], size=uvs.shape).astype(np.float32)
+        face = np.repeat(np.arange(len(cage.face_sizes)), cage.face_sizes)
+        mirrored = uvs.copy()
+        flip = np.isin(face, rng.choice(len(cage.face_sizes), 3, replace=False))
+        mirrored[flip, 0] = 1 - mirrored[flip, 0]
+        for given in (uvs, moved, mirrored):
+            ours = bidegree.blender_uv_indices(cage.face_sizes, cage.face_indices, given)
+            theirs = ref.blender_uv_values(cage, given)
+            # The same partition of the corners (numbered differently).
+            pairs = set(zip(ours.tolist(), theirs.tolist(), strict=True))
+            assert len(pairs) == len(set(ours.tolist())) == len(set(theirs.tolist())), cage.name
+    with pytest.raises(bidegree.InvalidInputError):
+        bidegree.blender_uv_indices([4], [0, 1, 2, 3], np.zeros((3, 2)))
