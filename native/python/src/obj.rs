@@ -117,10 +117,6 @@ fn write_obj(
 ) -> PyResult<()> {
     let offsets = contiguous(&face_offsets, "face_offsets")?;
     let vertices = contiguous(&face_indices, "face_indices")?;
-    let uv_indices = uv_indices
-        .as_ref()
-        .map(|a| contiguous(a, "uv_indices"))
-        .transpose()?;
     write_mesh(
         py,
         &path,
@@ -128,7 +124,7 @@ fn write_obj(
         offsets,
         vertices,
         [uvs, normals],
-        uv_indices,
+        uv_indices.as_ref(),
     )
 }
 
@@ -142,8 +138,9 @@ pub(crate) fn write_mesh(
     offsets: &[u32],
     vertices: &[u32],
     face_varying: FaceVarying<'_, '_>,
-    uv_indices: Option<&[u32]>,
+    uv_indices: Option<&PyReadonlyArray1<'_, u32>>,
 ) -> PyResult<()> {
+    let uv_indices = (uv_indices.map(|a| contiguous(a, "uv_indices"))).transpose()?;
     let [uvs, normals] = [(face_varying[0], "uvs"), (face_varying[1], "normals")]
         .map(|(a, what)| a.map(|a| floats(a, what)).transpose());
     let (uvs, normals) = (uvs?, normals?);

@@ -337,10 +337,6 @@ impl PyPlan {
         normals: Option<&Bound<'_, PyAny>>,
         uv_indices: Option<PyReadonlyArray1<'_, u32>>,
     ) -> PyResult<()> {
-        let uv_indices = uv_indices
-            .as_ref()
-            .map(|a| contiguous(a, "uv_indices"))
-            .transpose()?;
         let plan = &self.inner;
         let (offsets, vertices) = run(py, || {
             plan.complete_output()?;
@@ -353,7 +349,7 @@ impl PyPlan {
             offsets,
             vertices,
             [uvs, normals],
-            uv_indices,
+            uv_indices.as_ref(),
         )
     }
 }
