@@ -263,7 +263,9 @@ class Plan(_Output):
         OBJ's ``vt`` indices, USD's primvar indices) the values are given OpenSubdiv's way,
         ``values`` (N, C) indexed by them, and the indices are the topology: corners of one
         cage vertex with the same index share a value, different indices stay apart even where
-        their values are equal (a seam OpenSubdiv keeps).
+        their values are equal (a seam OpenSubdiv keeps). Blender's Subdivision Surface welds
+        by a tolerance and the UV winding instead: ``indices=blender_uv_indices(...)`` gives
+        its seams (:func:`bidegree.blender_uv_indices`).
         ``mode`` is OpenSubdiv's ``FVarLinearInterpolation`` (USD's
         ``faceVaryingLinearInterpolation``): ``"none"`` (smooth everywhere: Blender's *All*),
         ``"corners-only"``, ``"corners-plus1"``, ``"corners-plus2"``, ``"boundaries"`` (seams and
