@@ -117,19 +117,21 @@ fn write_obj(
 ) -> PyResult<()> {
     let offsets = contiguous(&face_offsets, "face_offsets")?;
     let vertices = contiguous(&face_indices, "face_indices")?;
-    write_mesh(
-        py,
-        &path,
-        points,
-        offsets,
-        vertices,
-        [uvs, normals],
-        uv_indices.as_ref(),
-    )
+    let extra = FaceVarying {
+        uvs,
+        normals,
+        uv_indices: uv_indices.as_ref(),
+    };
+    write_mesh(py, &path, points, offsets, vertices, extra)
 }
 
-/// Face-varying arrays of an OBJ write: uvs, normals.
-pub(crate) type FaceVarying<'a, 'py> = [Option<&'a Bound<'py, PyAny>>; 2];
+/// Face-varying arrays of an OBJ write: uvs (per corner, or the `vt` values `uv_indices`
+/// index), normals.
+pub(crate) struct FaceVarying<'a, 'py> {
+    pub(crate) uvs: Option<&'a Bound<'py, PyAny>>,
+    pub(crate) normals: Option<&'a Bound<'py, PyAny>>,
+    pub(crate) uv_indices: Option<&'a PyReadonlyArray1<'py, u32>>,
+}
 
 pub(crate) fn write_mesh(
     py: Python<'_>,
@@ -138,10 +140,11 @@ pub(crate) fn write_mesh(
     offsets: &[u32],
     vertices: &[u32],
     face_varying: FaceVarying<'_, '_>,
-    uv_indices: Option<&PyReadonlyArray1<'_, u32>>,
 ) -> PyResult<()> {
-    let uv_indices = (uv_indices.map(|a| contiguous(a, "uv_indices"))).transpose()?;
-    let [uvs, normals] = [(face_varying[0], "uvs"), (face_varying[1], "normals")]
+    let uv_indices = (face_varying.uv_indices)
+        .map(|a| contiguous(a, "uv_indices"))
+        .transpose()?;
+    let [uvs, normals] = [(face_varying.uvs, "uvs"), (face_varying.normals, "normals")]
         .map(|(a, what)| a.map(|a| floats(a, what)).transpose());
     let (uvs, normals) = (uvs?, normals?);
     match floats(points, "points")? {

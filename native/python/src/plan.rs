@@ -13,7 +13,7 @@ use pyo3::prelude::*;
 use crate::arrays::{array2, check_output, contiguous, floats, to_i32, Floats};
 use crate::cage::PyCage;
 use crate::errors::{guard, invalid, run, to_py_err};
-use crate::obj::write_mesh;
+use crate::obj::{write_mesh, FaceVarying};
 use crate::options::{boundary_name, options, output_name, parse_face_varying_mode, rules_name};
 
 /// Registers the plan class and the one-call functions in the extension module.
@@ -342,15 +342,12 @@ impl PyPlan {
             plan.complete_output()?;
             Ok((plan.output_face_offsets(), plan.output_face_vertices()))
         })?;
-        write_mesh(
-            py,
-            &path,
-            points,
-            offsets,
-            vertices,
-            [uvs, normals],
-            uv_indices.as_ref(),
-        )
+        let extra = FaceVarying {
+            uvs,
+            normals,
+            uv_indices: uv_indices.as_ref(),
+        };
+        write_mesh(py, &path, points, offsets, vertices, extra)
     }
 }
 
