@@ -334,7 +334,10 @@ def test_uvs_of_a_non_manifold_cage_and_the_obj_output(tmp_path: Path) -> None:
     path = tmp_path / "adaptive.obj"
     result.write_obj(path)
     lines = path.read_text().splitlines()
-    assert sum(line.startswith("vt ") for line in lines) == 3 * result.num_triangles
+    # One vt per distinct value: read back, the indices weld as the values do.
+    distinct = len(np.unique(result.uvs, axis=0))
+    assert sum(line.startswith("vt ") for line in lines) == distinct
+    np.testing.assert_allclose(bidegree.Mesh.from_obj(path).uvs, result.uvs, rtol=0, atol=1e-12)
     faces = [line for line in lines if line.startswith("f ")]
     assert len(faces) == result.num_triangles and "/" in faces[0]
     # Triangle edges along cage edges know them (checked against the uniform plans in Rust).
@@ -356,3 +359,99 @@ def test_uvs_of_a_non_manifold_cage_and_the_obj_output(tmp_path: Path) -> None:
         bidegree.subdivide_adaptive(
             mesh, face_varying={"uv": np.full((mesh.num_corners, 2), np.nan)}
         )
+
+
+def test_cage_vertices_and_their_corner_sharpness() -> None:
+    """``cage_vertex`` names each cage vertex's own output vertex (past an isolated vertex the
+    core drops), ``vertex_sharpness`` is its corner sharpness lowered by its level."""
+    prism = pyramid_prism()
+    points = np.concatenate([[[9.0, 9.0, 9.0]], prism.points])
+    faces = prism.face_indices + 1
+    given = {3: 10.0, 6: 2.5, 9: 1.5}
+    mesh = bidegree.Mesh(
+        points,
+        face_sizes=prism.face_sizes,
+        face_indices=faces,
+        corners=(np.array(list(given)), np.array(list(given.values()))),
+    )
+    with pytest.warns(bidegree.IsolatedVerticesWarning):
+        result = bidegree.subdivide_adaptive(mesh, degree=3, max_level=4, tolerance=0.003)
+    assert len(np.unique(result.vertex_level)) >= 2
+    assert result.cage_vertex.dtype == np.int32 and result.vertex_sharpness.dtype == np.float32
+    at = np.flatnonzero(result.cage_vertex >= 0)
+    np.testing.assert_array_equal(np.sort(result.cage_vertex[at]), np.arange(1, 12))
+    np.testing.assert_array_equal(result.cage_vertex[at], result.vertex_id[at] + 1)
+    assert (result.vertex_id[result.cage_vertex < 0] >= 11).all()
+    for i in at:
+        s = given.get(int(result.cage_vertex[i]), 0.0)
+        kept = 10.0 if s >= 10 else max(s - int(result.vertex_level[i]), 0.0)
+        assert result.vertex_sharpness[i] == np.float32(kept)
+    assert (result.vertex_sharpness[result.cage_vertex < 0] == 0).all()
+    corner = at[result.cage_vertex[at] == 3][0]
+    np.testing.assert_array_equal(result.points[corner], points[3])
+
+
+def test_one_dimensional_values_come_back_one_dimensional() -> None:
+    """As ``Plan.evaluate`` / ``evaluate_face_varying``: (vertices,) in, (N,) out; a (corners,)
+    set gives (3 T,); the same numbers as the (.., 1) form."""
+    base = bumped_grid()
+    weights = base.points[:, 0] * base.points[:, 1]
+    uvs = seamed_uvs(base)
+    mesh = bidegree.Mesh(
+        base.points, face_sizes=base.face_sizes, face_indices=base.face_indices, uvs=uvs
+    )
+    kwargs = {"degree": 3, "max_level": 3, "tolerance": 3e-3}
+    flat = bidegree.subdivide_adaptive(
+        mesh, vertex_values=weights, face_varying={"u": uvs[:, 0], "uv": uvs}, **kwargs
+    )
+    column = bidegree.subdivide_adaptive(
+        mesh, vertex_values=weights[:, None], face_varying={"u": uvs[:, :1]}, **kwargs
+    )
+    assert flat.vertex_values.shape == (flat.num_vertices,)
+    assert flat.face_varying["u"].shape == (3 * flat.num_triangles,)
+    assert flat.face_varying["uv"].shape == (3 * flat.num_triangles, 2)
+    assert column.vertex_values.shape == (column.num_vertices, 1)
+    np.testing.assert_array_equal(flat.vertex_values, column.vertex_values[:, 0])
+    np.testing.assert_array_equal(flat.face_varying["u"], column.face_varying["u"][:, 0])
+
+
+@pytest.mark.parametrize("mode", ["boundaries", "none", "all"])
+def test_indexed_uvs_keep_their_seams(mode: str) -> None:
+    """The mesh's ``uv_indices`` (and ``(values, mode, indices)`` sets) are the topology on
+    adaptive output as on uniform output: a cut with equal coordinates on both sides stays a
+    seam; every triangle corner is the uniform (indexed) value at its vertex's level."""
+    base = bumped_grid()
+    n = 6
+    chart = np.column_stack([0.1 * base.points[:, 0], 0.1 * base.points[:, 1] ** 1.5])
+    corner_verts = np.asarray(base.face_indices)
+    face = np.repeat(np.arange(base.num_faces), base.face_sizes)
+    # Faces are column-major here (face = a * n + b, a the x index): cut along x = 3.
+    cut = corner_verts.copy()
+    on_cut = (face // n >= 3) & (base.points[corner_verts, 0] == 3)
+    cut[on_cut] += len(base.points)
+    values = np.concatenate([chart, chart])
+    mesh = bidegree.Mesh(
+        base.points,
+        face_sizes=base.face_sizes,
+        face_indices=base.face_indices,
+        uvs=values,
+        uv_indices=cut,
+    )
+    kwargs = {"degree": 3, "max_level": 3, "tolerance": 3e-3, "uv_mode": mode}
+    result = bidegree.subdivide_adaptive(
+        base, face_varying={"cut": (values, mode, cut), "welded": values[cut]}, **kwargs
+    )
+    from_mesh = bidegree.subdivide_adaptive(mesh, **kwargs)
+    np.testing.assert_array_equal(from_mesh.uvs, result.face_varying["cut"])
+    if mode != "all":
+        assert np.abs(result.face_varying["cut"] - result.face_varying["welded"]).max() > 1e-4
+    corner_vertex = result.triangles.reshape(-1)
+    corner_face = np.repeat(result.face_origin, 3)
+    for level in np.unique(result.vertex_level):
+        uniform = bidegree.subdivide(mesh, degree=3, levels=int(level), uv_mode=mode)
+        want = uniform_by_vertex_and_face(
+            uniform.uvs, uniform.face_indices, uniform.face_origin, uniform.face_sizes
+        )
+        for c in np.flatnonzero(result.vertex_level[corner_vertex] == level):
+            key = (int(result.vertex_id[corner_vertex[c]]), int(corner_face[c]))
+            assert result.face_varying["cut"][c].tobytes() == want[key], (level, key)

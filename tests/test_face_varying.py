@@ -216,7 +216,8 @@ def test_usd_writes_the_mode_and_every_uv_set(tmp_path: Path, mode: str) -> None
         for name, want in (("st", st), ("flat", more)):
             primvar = primvars.GetPrimvar(name)
             assert primvar.GetInterpolation() == pxr.UsdGeom.Tokens.faceVarying
-            got = np.asarray(primvar.Get())
+            assert primvar.IsIndexed() == (prim == "Cage")  # the cage's by its topology
+            got = np.asarray(primvar.ComputeFlattened())
             np.testing.assert_allclose(got, want, rtol=0, atol=1e-6)
     assert usd.validate(path) == []
     with pytest.raises(bidegree.InvalidInputError, match="UV set"):
@@ -237,3 +238,175 @@ def test_holes_leave_the_uvs_of_the_other_faces_as_they_are(degree: int, rules: 
         kept = full.face_origin != 1
         assert 0 < len(cut.face_sizes) == kept.sum() < len(full.face_sizes)
         np.testing.assert_array_equal(cut.uvs, full.uvs[np.repeat(kept, full.face_sizes)])
+
+
+def _with_uvs(mesh: bidegree.Mesh, **uvs: object) -> bidegree.Mesh:
+    """``mesh`` with ``uvs=`` / ``uv_indices=``."""
+    return bidegree.Mesh(
+        mesh.points, face_sizes=mesh.face_sizes, face_indices=mesh.face_indices, **uvs
+    )
+
+
+def _seamed_by_index() -> tuple[bidegree.Mesh, np.ndarray, np.ndarray, np.ndarray]:
+    """A bumped 4 x 4 grid whose uvs are one smooth chart, and vt-style indices that cut it
+    along the column x = 2: the corners right of it take a second index at those vertices,
+    with the same coordinates. Returns the plain mesh, the values, the cut indices and the
+    welded ones (one index per vertex)."""
+    n = 4
+    xs, ys = np.meshgrid(np.arange(n + 1.0), np.arange(n + 1.0))
+    points = np.column_stack([xs.ravel(), ys.ravel(), np.zeros(xs.size)])
+    points[12, 2] = 1.0
+    faces = [
+        [y * (n + 1) + x, y * (n + 1) + x + 1, (y + 1) * (n + 1) + x + 1, (y + 1) * (n + 1) + x]
+        for y in range(n)
+        for x in range(n)
+    ]
+    mesh = bidegree.Mesh(points, faces)
+    x, y = points[:, 0], points[:, 1]
+    chart = np.column_stack([x / n + 0.05 * np.sin(y), y / n + 0.03 * x**2 / n**2])
+    nv = len(points)
+    values = np.concatenate([chart, chart])  # rows nv.. repeat the coordinates
+    welded = mesh.face_indices.copy()
+    cut = welded.copy()
+    right = np.repeat([(f % n) >= 2 for f in range(len(faces))], 4)
+    on_cut = right & (points[welded, 0] == 2)
+    cut[on_cut] = nv + welded[on_cut]
+    return mesh, values, cut, welded
+
+
+def test_indices_are_the_topology() -> None:
+    """Values + per-corner indices (OpenSubdiv's way): two indices with equal coordinates at
+    one vertex stay apart (a seam), one index is one value; the same topology as distinct
+    values welded by value, bitwise."""
+    mesh, values, cut, welded = _seamed_by_index()
+    plan = bidegree.Plan(mesh, degree=3, levels=2)
+    for mode in MODES:
+        seam = plan.evaluate_face_varying(values, mode, indices=cut)
+        joined = plan.evaluate_face_varying(values, mode, indices=welded)
+        by_value = plan.evaluate_face_varying(values[cut], mode)
+        np.testing.assert_array_equal(joined, by_value)  # equal coordinates weld by value
+        if mode == "all":
+            np.testing.assert_array_equal(seam, joined)
+        else:
+            assert np.abs(seam - joined).max() > 1e-4, mode
+        # The cut as distinct values, welded by value: the same face-varying mesh.
+        moved = values.copy()
+        moved[len(mesh.points) :] += 1.0
+        np.testing.assert_array_equal(
+            plan.evaluate_face_varying(moved, mode, indices=cut),
+            plan.evaluate_face_varying(moved[cut], mode),
+        )
+    # Several sets at once, one of them indexed; 1-D values come back 1-D.
+    both = plan.evaluate_face_varying({"cut": (values, cut), "flat": values[cut]}, "none")
+    np.testing.assert_array_equal(
+        both["cut"], plan.evaluate_face_varying(values, "none", indices=cut)
+    )
+    u = plan.evaluate_face_varying(values[:, 0], "none", indices=cut)
+    np.testing.assert_array_equal(u, both["cut"][:, 0])
+    # The mesh's uv_indices are its uvs' topology, in subdivide and in Plan.result.
+    indexed = _with_uvs(mesh, uvs=values, uv_indices=cut)
+    np.testing.assert_array_equal(indexed.uvs, values[cut])
+    np.testing.assert_array_equal(indexed.uv_indices, cut)
+    result = bidegree.subdivide(indexed, degree=3, levels=2, uv_mode="boundaries")
+    np.testing.assert_array_equal(result.uvs, plan.evaluate_face_varying(values, indices=cut))
+
+
+def test_bad_indices_are_typed_errors() -> None:
+    mesh, values, cut, _ = _seamed_by_index()
+    plan = bidegree.Plan(mesh, degree=3, levels=1)
+    with pytest.raises(bidegree.IndexOutOfRangeError, match="out of range"):
+        plan.evaluate_face_varying(values[:10], indices=cut)
+    with pytest.raises(bidegree.IndexOutOfRangeError):
+        plan.evaluate_face_varying(values, indices=-cut - 1)
+    with pytest.raises(bidegree.InvalidInputError, match="one index per face corner"):
+        plan.evaluate_face_varying(values, indices=cut[1:])
+    with pytest.raises(bidegree.InvalidInputError, match="integers"):
+        plan.evaluate_face_varying(values, indices=cut.astype(float))
+    with pytest.raises(bidegree.InvalidInputError, match="mapping"):
+        plan.evaluate_face_varying({"a": values[cut]}, indices=cut)
+    with pytest.raises(bidegree.InvalidInputError, match="give the uvs"):
+        _with_uvs(mesh, uv_indices=cut)
+    with pytest.raises(bidegree.IndexOutOfRangeError):
+        _with_uvs(mesh, uvs=values[:10], uv_indices=cut)
+
+
+def test_obj_vt_indices_are_the_topology(tmp_path: Path) -> None:
+    """An OBJ with two ``vt`` of identical coordinates at one vertex keeps the seam (as
+    OpenSubdiv); one ``vt`` there welds. Writing a mesh keeps its topology through a read."""
+    mesh, values, cut, welded = _seamed_by_index()
+    plan = bidegree.Plan(mesh, degree=3, levels=2)
+    for indices in (cut, welded):
+        cage = _with_uvs(mesh, uvs=values, uv_indices=indices)
+        path = tmp_path / "cage.obj"
+        cage.write_obj(path)
+        vt = [line for line in path.read_text().splitlines() if line.startswith("vt ")]
+        assert len(vt) == len(values) and vt[:25] == vt[25:]  # the coordinates repeat
+        back = bidegree.Mesh.from_obj(path)
+        np.testing.assert_array_equal(back.uv_indices, indices)
+        got = bidegree.subdivide(back, degree=3, levels=2).uvs
+        np.testing.assert_array_equal(got, plan.evaluate_face_varying(values, indices=indices))
+    # Per-corner uvs (welded by value) are written one vt per distinct value: the same seams.
+    plain = _with_uvs(mesh, uvs=values[cut])
+    plain.write_obj(tmp_path / "plain.obj")
+    back = bidegree.Mesh.from_obj(tmp_path / "plain.obj")
+    np.testing.assert_array_equal(
+        bidegree.subdivide(back, degree=3, levels=2).uvs,
+        bidegree.subdivide(plain, degree=3, levels=2).uvs,
+    )
+    # A result written and read back subdivides with the result's seams.
+    result = bidegree.subdivide(plain, degree=3, levels=1)
+    result.write_obj(tmp_path / "result.obj")
+    again = bidegree.Mesh.from_obj(tmp_path / "result.obj")
+    by_value = bidegree.Mesh(result.points, face_sizes=result.face_sizes,
+                             face_indices=result.face_indices, uvs=result.uvs)  # fmt: skip
+    np.testing.assert_allclose(
+        bidegree.subdivide(again, degree=3, levels=1).uvs,
+        bidegree.subdivide(by_value, degree=3, levels=1).uvs,
+        rtol=0,
+        atol=1e-12,
+    )
+
+
+def test_usd_cage_uvs_are_indexed_by_their_topology(tmp_path: Path) -> None:
+    pxr = pytest.importorskip("pxr")
+    mesh, values, cut, _ = _seamed_by_index()
+    for uvs, indices in ((values, cut), (values[cut], None)):
+        cage = _with_uvs(mesh, uvs=uvs, uv_indices=indices)
+        result = bidegree.subdivide(cage, degree=3, levels=1)
+        path = tmp_path / "cage.usda"
+        usd.export(path, cage, result)
+        stage = pxr.Usd.Stage.Open(str(path))
+        st = pxr.UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/Bidegree/Cage")).GetPrimvar("st")
+        written = np.asarray(st.GetIndices())
+        np.testing.assert_allclose(np.asarray(st.ComputeFlattened()), values[cut], atol=1e-7)
+        # The written indices are the topology subdivided (the cut's seam, or the weld).
+        again = _with_uvs(mesh, uvs=np.asarray(st.Get()), uv_indices=written)
+        np.testing.assert_allclose(
+            bidegree.subdivide(again, degree=3, levels=1).uvs, result.uvs, rtol=0, atol=1e-6
+        )
+        assert usd.validate(path) == []
+
+
+def test_blender_uv_indices_are_the_reference_weld() -> None:
+    """``bidegree.blender_uv_indices`` (vectorized) groups corners as the reference loop of
+    ``tests/opensubdiv_reference.py`` does, on the issue's UV cages and on them with UVs moved
+    by amounts around Blender's limit and faces' UVs mirrored (winding flipped)."""
+    import opensubdiv_reference as ref
+    from cages_dirty import issue_14_cages
+
+    rng = np.random.default_rng(14)
+    for cage in issue_14_cages(with_blender=False).values():
+        uvs = np.asarray(cage.uvs, dtype=np.float32)
+        moved = uvs + rng.choice([0.0, 5e-5, -9e-5, 2e-4], size=uvs.shape).astype(np.float32)
+        face = np.repeat(np.arange(len(cage.face_sizes)), cage.face_sizes)
+        mirrored = uvs.copy()
+        flip = np.isin(face, rng.choice(len(cage.face_sizes), 3, replace=False))
+        mirrored[flip, 0] = 1 - mirrored[flip, 0]
+        for given in (uvs, moved, mirrored):
+            ours = bidegree.blender_uv_indices(cage.face_sizes, cage.face_indices, given)
+            theirs = ref.blender_uv_values(cage, given)
+            # The same partition of the corners (numbered differently).
+            pairs = set(zip(ours.tolist(), theirs.tolist(), strict=True))
+            assert len(pairs) == len(set(ours.tolist())) == len(set(theirs.tolist())), cage.name
+    with pytest.raises(bidegree.InvalidInputError):
+        bidegree.blender_uv_indices([4], [0, 1, 2, 3], np.zeros((3, 2)))

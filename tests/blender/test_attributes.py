@@ -409,6 +409,48 @@ def test_adaptive_output_carries_point_corner_face_attributes(scene: Any) -> Non
     np.testing.assert_allclose(surface.vertex_groups["group"], ref.vertex_values[:, 1], atol=1e-6)
 
 
+def test_adaptive_vertex_creases_are_the_uniform_ones_at_each_vertex_level(scene: Any) -> None:
+    """Each vertex of the adaptive surface has, bit for bit, the vertex crease of the uniform
+    surface at its level (the cage vertex's crease lowered by that level; 0 elsewhere)."""
+    obj = grid(scene, 4)
+    me = obj.data
+    me.vertices[12].co.z = 1.5  # a bump in the middle: uneven refinement
+    crease = np.zeros(len(me.vertices), dtype=np.float32)
+    crease[[6, 12, 18, 3]] = (1.0, 0.8, 0.8, 0.25)  # sharpness 10, 6.4, 6.4, 0.625
+    put(me, "crease_vert", "FLOAT", "POINT", crease)
+    from bidegree.options import Options
+
+    options = Options(degree=3, levels=3, adaptive=True, tolerance=0.01)
+    result = subdivided(obj, options=options)
+    got = get(result, "crease_vert").astype(np.float32)
+    plain = plain_cage(me)
+    at = np.flatnonzero(crease)
+    cage = bidegree.Mesh(
+        plain.points,
+        face_sizes=plain.face_sizes,
+        face_indices=plain.face_indices,
+        corners=(at, 10 * crease[at].astype(np.float64) ** 2),
+    )
+    ref = bidegree.subdivide_adaptive(cage, degree=3, max_level=3, tolerance=0.01)
+    assert len(result.polygons) == ref.num_triangles
+    points = np.array([tuple(v.co) for v in result.vertices])
+    np.testing.assert_allclose(points, ref.points, atol=1e-5)
+    levels = np.unique(ref.vertex_level[ref.cage_vertex >= 0])
+    assert len(levels) >= 2  # the creased vertices sit at different levels
+    for level in np.unique(ref.vertex_level):
+        uniform = subdivided(obj, degree=3, levels=int(level))
+        want = get(uniform, "crease_vert").astype(np.float32)
+        bpy.data.meshes.remove(uniform)
+        mine = ref.vertex_level == level
+        np.testing.assert_array_equal(
+            got[mine].view(np.uint32), want[ref.vertex_id[mine]].view(np.uint32)
+        )
+    centre = got[np.flatnonzero(ref.cage_vertex == 12)]
+    assert 0 < centre[0] < 0.75  # 6.4 lowered by its level, not the cage's crease
+    assert (got > 0).sum() == 3  # 0.625 is gone after one level
+    bpy.data.meshes.remove(result)
+
+
 # --------------------------------------------------------------------------- the modifier
 
 

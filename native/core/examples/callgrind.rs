@@ -12,7 +12,7 @@
 //!             fresh-averaging-4 cached-averaging-4 fresh-averaging-9 cached-averaging-9 \
 //!             limit-surface-4 adaptive-4 limit-ico-4 limit-first-ico-4 limit-first-fan-400-9 \
 //!             limit-first-ngon-1000-9 limit-semisharp-4 limit-sharp-4 \
-//!             uvs-classic-3 uvs-averaging-4; do
+//!             uvs-classic-3 uvs-averaging-4 uvs-first-classic-3 uvs-first-averaging-4; do
 //!   echo "$case $(( $(ir $case 2) - $(ir $case 1) ))"
 //! done
 //! ```
@@ -22,7 +22,9 @@
 //! already evaluated once (its kept buffers warm); the limit case is `limit_surface` on a new
 //! plan (stencils built on the first call) and the adaptive case one `subdivide_adaptive` at
 //! tolerance 1e-4, max level 3. "uvs" is a cached `evaluate_face_varying` of UVs with a seam
-//! around every base patch (mode `boundaries`), to compare with "cached" of the same scheme.
+//! around every base patch (mode `boundaries`), to compare with "cached" of the same scheme;
+//! "uvs-first" is a new plan's first `evaluate_face_varying` (the face-varying mesh built), to
+//! compare with "fresh".
 //!
 //! Generic code is instantiated in this binary, so LLVM's inlining of the library's steps
 //! depends on every case here: an A/B of a change compares two builds of the same file.
@@ -120,6 +122,15 @@ fn main() {
                 black_box(plan.limit_surface(&points).unwrap());
             });
         }
+    } else if let Some(o) = case.strip_prefix("uvs-first-").and_then(scheme) {
+        // The first smooth UVs of a new plan: the plan, the face-varying topology (weld, M^fv,
+        // its refinement) and one evaluation; minus "fresh" of the same scheme, M^fv's cost.
+        let uvs = cages::ico_patch_uvs(8, &cage_indices, &points);
+        measured(&|| {
+            let plan = Plan::new(&cage, &o).unwrap();
+            let mode = FaceVaryingMode::Boundaries;
+            black_box(plan.evaluate_face_varying(&uvs, 2, mode, false).unwrap());
+        });
     } else if let Some(o) = case.strip_prefix("uvs-").and_then(scheme) {
         // Smooth UVs (mode `boundaries`) of the face-varying bench's layout: every base patch of
         // the sphere its own island; cached (the face-varying topology built before).

@@ -81,7 +81,7 @@ use std::hash::{BuildHasherDefault, Hasher};
 
 use crate::curves::{CageFeatures, Curve, CurveNetwork};
 use crate::error::{AdaptiveStage, Error, Result};
-use crate::face_varying::{face_varying_mesh, FaceVaryingMode};
+use crate::face_varying::{face_varying_mesh, FaceVaryingMode, Topology};
 use crate::memory;
 use crate::mesh::{check_values, validate_geometry, Cage};
 use crate::options::{check_degree, check_levels, Boundary, Options};
@@ -163,6 +163,14 @@ pub struct AdaptiveMesh<T> {
     /// Uniform vertex id of each vertex at its level: vertex `i` is vertex `vertex_id[i]` of the
     /// uniform level `vertex_level[i]`, which has the same point bit for bit.
     pub vertex_id: Vec<u64>,
+    /// Per vertex: the cage vertex (the user's numbering) it is, [`crate::Level::NONE`] for a
+    /// vertex made by refinement (for vertex attributes such as Blender's vertex crease).
+    pub cage_vertex: Vec<u32>,
+    /// Per vertex: the corner sharpness it keeps at its level (OpenSubdiv's convention, 10
+    /// infinitely sharp; the cage's corners and the topological ones of the boundary rule and
+    /// of non-manifold vertices, lowered once per level as the edges' in `edge_sharpness`):
+    /// what one more level would use; 0 for a vertex that is not a cage corner.
+    pub vertex_sharpness: Vec<f32>,
     /// Number of leaves at each level (index = level; index 0 is always 0).
     pub leaves_per_level: Vec<u64>,
     /// With [`AdaptiveOptions::measure_leaves`], the largest error measure over all leaves
@@ -202,6 +210,11 @@ pub struct AdaptiveData<'a, T> {
     /// Face-varying sets (UVs): values per cage face corner, their channel count and the mode
     /// (as [`crate::Plan::evaluate_face_varying`]; each set is welded on its own).
     pub face_varying: Vec<(&'a [T], usize, FaceVaryingMode)>,
+    /// The face-varying topology of the sets of `face_varying` (one entry per set, or none at
+    /// all): one index per cage corner, corners of one cage vertex with the same index share
+    /// one value (OpenSubdiv's index buffer, as [`crate::Plan::evaluate_face_varying_indexed`]);
+    /// `None` welds the set by value.
+    pub face_varying_indices: Vec<Option<&'a [u32]>>,
 }
 
 impl<T> AdaptiveMesh<T> {
@@ -348,6 +361,23 @@ fn adaptive<T: Scalar>(
     for &(values, channels, _) in &extra.face_varying {
         check_values(values, channels, cage.face_vertices().len())?;
     }
+    let topologies = &extra.face_varying_indices;
+    if !topologies.is_empty() && topologies.len() != extra.face_varying.len() {
+        return Err(Error::InvalidInput(format!(
+            "{} face-varying topologies for {} face-varying sets",
+            topologies.len(),
+            extra.face_varying.len()
+        )));
+    }
+    for indices in topologies.iter().flatten() {
+        if indices.len() != cage.face_vertices().len() {
+            return Err(Error::InvalidInput(format!(
+                "{} face-varying indices for a cage of {} face corners",
+                indices.len(),
+                cage.face_vertices().len()
+            )));
+        }
+    }
     // The cage level, its vertex compaction and its curve features, as the uniform plan has
     // them.
     let options0 = Options {
@@ -489,6 +519,7 @@ fn adaptive<T: Scalar>(
     let drawn = triangulate(&ctx, &parts, &refined, &leaves)?;
     let mut mesh = drawn.mesh;
     mesh.max_error = max_error;
+    vertex_creases(&ctx, &base, &mut mesh);
     mesh.cage_edges = (ctx.level0.edge_verts().iter())
         .map(|&[a, b]| {
             let (a, b) = (base.cage_vertex(a), base.cage_vertex(b));
@@ -507,7 +538,11 @@ fn adaptive<T: Scalar>(
             held,
         )?;
     }
-    for &(values, channels, mode) in &extra.face_varying {
+    for (i, &(values, channels, mode)) in extra.face_varying.iter().enumerate() {
+        let topology = match topologies.get(i) {
+            Some(Some(indices)) => Topology::Indexed(indices),
+            _ => Topology::ByValue,
+        };
         let carried = if mode == FaceVaryingMode::All {
             linear_face_varying(&ctx, &parts, &drawn.corner_at, values, channels)?
         } else {
@@ -519,6 +554,7 @@ fn adaptive<T: Scalar>(
                 &drawn.corner_at,
                 values,
                 channels,
+                topology,
                 mode,
                 held,
             )?
@@ -526,6 +562,34 @@ fn adaptive<T: Scalar>(
         mesh.face_varying.push(carried);
     }
     Ok(mesh)
+}
+
+/// [`AdaptiveMesh::cage_vertex`] and [`AdaptiveMesh::vertex_sharpness`]: an old vertex keeps
+/// its uniform id from level to level, so the vertices of `M_0` are the ids below its count.
+fn vertex_creases<T>(ctx: &Context<T>, base: &Refinement, mesh: &mut AdaptiveMesh<T>) {
+    let nv0 = ctx.level0.num_vertices as u64;
+    let mut corner = vec![0.0f32; ctx.level0.num_vertices];
+    for &(v, s) in &ctx.features.corners {
+        corner[v as usize] = s;
+    }
+    mesh.cage_vertex = (mesh.vertex_id.iter())
+        .map(|&u| {
+            if u < nv0 {
+                base.cage_vertex(u as u32)
+            } else {
+                NONE
+            }
+        })
+        .collect();
+    mesh.vertex_sharpness = (mesh.vertex_id.iter().zip(&mesh.vertex_level))
+        .map(|(&u, &level)| {
+            if u < nv0 {
+                (0..level).fold(corner[u as usize], |s, _| decrement(s))
+            } else {
+                0.0
+            }
+        })
+        .collect();
 }
 
 /// The values of groups of 3 channels (the last padded) as the points of a cage, compacted
@@ -610,10 +674,11 @@ fn carry_face_varying<T: Scalar>(
     corner_at: &[(u32, u32, u8)],
     values: &[T],
     channels: usize,
+    topology: Topology,
     mode: FaceVaryingMode,
     held: f64,
 ) -> Result<Vec<T>> {
-    let (fv_cage, per_value) = face_varying_mesh(base, values, channels, mode)?;
+    let (fv_cage, per_value) = face_varying_mesh(base, values, channels, mode, topology)?;
     let fv_options = Options {
         degree: ctx.degree,
         levels: 0,
@@ -1585,6 +1650,8 @@ fn triangulate<T: Scalar>(
         triangle_level,
         vertex_level,
         vertex_id,
+        cage_vertex: Vec::new(),
+        vertex_sharpness: Vec::new(),
         leaves_per_level,
         max_error: None,
         edge_origin,

@@ -13,6 +13,7 @@
 //! [`crate::INFINITELY_SHARP`] sharp at every level; boundary edges are infinitely sharp.
 
 use crate::error::{Error, Result};
+use crate::memory;
 use crate::mesh::{Cage, INFINITELY_SHARP};
 use crate::options::{Boundary, Creasing};
 use crate::parallel::gather_hinted;
@@ -505,13 +506,37 @@ impl LevelSharpness {
                 next.vertices = Vec::new();
             }
         }
-        if !(next.edges.is_empty() && next.vertices.is_empty()) {
-            // The rules need the edges at each vertex (a plan's last level has no edge or
-            // vertex -> corner tables yet).
-            fine.complete_from(coarse)?;
-        }
-        next.classify(fine)?;
+        next.classify_from(coarse, fine)?;
         Ok(next)
+    }
+
+    /// The rules of `fine` (this table's level) from its sharpness, counting the sharp edges
+    /// at each vertex on `coarse`: the only edges of `fine` that can be sharp are the halves of
+    /// coarse edges, half `2e + k` running from end `k` of edge `e` to its edge point. So the
+    /// fine level's own edge and vertex -> corner tables are not needed (a plan's last level
+    /// does not have them; building them cost more than the rest of its sharpness).
+    fn classify_from(&mut self, coarse: &Level, fine: &Level) -> Result<()> {
+        if self.edges.is_empty() && self.vertices.is_empty() {
+            self.rules = Vec::new();
+            return Ok(());
+        }
+        let mut sharp = memory::filled(fine.num_vertices, 0u32)?;
+        if !self.edges.is_empty() {
+            let nv = coarse.num_vertices;
+            for (e, ends) in coarse.edge_verts().iter().enumerate() {
+                for (k, &v) in ends.iter().enumerate() {
+                    if is_sharp(self.edges[2 * e + k]) {
+                        sharp[v as usize] += 1;
+                        sharp[nv + e] += 1;
+                    }
+                }
+            }
+        }
+        let this = &*self;
+        self.rules = gather_hinted(fine.num_vertices, |w| {
+            vertex_rule(this.vertex(w), sharp[w] as usize)
+        })?;
+        Ok(())
     }
 
     /// True when no edge or vertex of the level is sharp.

@@ -51,13 +51,30 @@ pub enum FaceVaryingMode {
     All,
 }
 
+/// The face-varying topology of a set of values: how corners of one cage vertex share values.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Topology<'a> {
+    /// Corners of one cage vertex whose values are equal (every channel) share one.
+    ByValue,
+    /// One index per cage corner (OpenSubdiv's face-varying index buffer, OBJ's `vt` indices):
+    /// corners of one cage vertex with the same index share one value, whatever the values.
+    Indexed(&'a [u32]),
+}
+
 /// Welds values given per cage corner (`channels` interleaved per corner) into the
-/// face-varying topology: corners of one cage vertex whose values are equal (every channel)
-/// share one value. Returns the value of each corner (numbered vertex by vertex, in order of
-/// first appearance) and the number of values.
-fn weld<T: Scalar>(level0: &Level, values: &[T], channels: usize) -> (Vec<u32>, usize) {
+/// face-varying topology `topology`. Returns the value of each corner (numbered vertex by
+/// vertex, in order of first appearance) and the number of values.
+fn weld<T: Scalar>(
+    level0: &Level,
+    values: &[T],
+    channels: usize,
+    topology: Topology,
+) -> (Vec<u32>, usize) {
     let row = |c: u32| &values[c as usize * channels..(c as usize + 1) * channels];
-    let equal = |a: u32, b: u32| row(a).iter().zip(row(b)).all(|(x, y)| x == y);
+    let equal = |a: u32, b: u32| match topology {
+        Topology::ByValue => row(a).iter().zip(row(b)).all(|(x, y)| x == y),
+        Topology::Indexed(index) => index[a as usize] == index[b as usize],
+    };
     let mut value_of = vec![NONE; level0.num_corners()];
     let mut count = 0u32;
     for v in 0..level0.num_vertices {
@@ -74,6 +91,27 @@ fn weld<T: Scalar>(level0: &Level, values: &[T], channels: usize) -> (Vec<u32>, 
         }
     }
     (value_of, count as usize)
+}
+
+/// Values given OpenSubdiv's way (`channels` interleaved per value, and one index into them
+/// per cage corner, checked) as values per cage corner.
+pub(crate) fn per_corner_values<T: Scalar>(
+    values: &[T],
+    channels: usize,
+    indices: &[u32],
+) -> Result<Vec<T>> {
+    let count = values.len() / channels.max(1);
+    if let Some(c) = indices.iter().position(|&i| i as usize >= count) {
+        return Err(Error::InvalidInput(format!(
+            "face-varying index {} of corner {c} is out of range: there are {count} values",
+            indices[c]
+        )));
+    }
+    let mut out = memory::with_capacity(indices.len() * channels)?;
+    for &i in indices {
+        out.extend_from_slice(&values[i as usize * channels..][..channels]);
+    }
+    Ok(out)
 }
 
 /// For each corner of `level`, a representative of the fan of faces around its vertex it is
@@ -276,9 +314,10 @@ pub(crate) fn face_varying_mesh<T: Scalar>(
     values: &[T],
     channels: usize,
     mode: FaceVaryingMode,
+    topology: Topology,
 ) -> Result<(Cage, Vec<T>)> {
     let level0 = &cage_refinement.levels_as_built()[0];
-    let (value_of, num_values) = weld(level0, values, channels);
+    let (value_of, num_values) = weld(level0, values, channels, topology);
     let cage = face_varying_cage(cage_refinement, &value_of, num_values, mode)?;
     let per_value = values_of(&first_corners(&value_of, num_values), values, channels);
     Ok((cage, per_value))
@@ -437,15 +476,18 @@ impl FaceVaryingCache {
     }
 }
 
-/// Face-varying values (one per cage corner, `channels` interleaved, checked) through the
-/// plan's refinement in `mode`: one value per output face corner. `limit`: limit values (the
-/// same masks as limit positions; `All` is bilinear per face, its refined values are its limit).
+/// Face-varying values (one per cage corner, `channels` interleaved, checked) with the
+/// face-varying `topology` through the plan's refinement in `mode`: one value per output face
+/// corner. `limit`: limit values (the same masks as limit positions; `All` is bilinear per
+/// face, its refined values are its limit).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn evaluate<T: Scalar>(
     refinement: &Refinement,
     output: &OutputMesh,
     cache: &FaceVaryingCache,
     values: &[T],
     channels: usize,
+    topology: Topology,
     mode: FaceVaryingMode,
     limit: bool,
 ) -> Result<Vec<T>> {
@@ -462,7 +504,7 @@ pub(crate) fn evaluate<T: Scalar>(
     }
     in_pool(|| {
         let level0 = &refinement.levels_as_built()[0];
-        let (value_of, num_values) = weld(level0, values, channels);
+        let (value_of, num_values) = weld(level0, values, channels, topology);
         let fv = cache.get(refinement, value_of, num_values, mode)?;
         let per_corner = fv.evaluate(values, channels, limit)?;
         output.face_varying(per_corner, channels)

@@ -6,9 +6,9 @@
 //! module that owns the work; none of those modules knows the plan.
 
 use crate::curves::CurveNetwork;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::evaluate;
-use crate::face_varying::{self, FaceVaryingCache, FaceVaryingMode};
+use crate::face_varying::{self, FaceVaryingCache, FaceVaryingMode, Topology};
 use crate::limit::{self, LimitCache};
 use crate::mesh::{check_values, Cage};
 use crate::options::Options;
@@ -188,6 +188,42 @@ impl Plan {
             &self.face_varying,
             values,
             channels,
+            Topology::ByValue,
+            mode,
+            limit,
+        )
+    }
+
+    /// [`Plan::evaluate_face_varying`] with the values given OpenSubdiv's way: `values`
+    /// (`channels` interleaved per value) and one index into them per cage corner (`indices`,
+    /// the face-varying index buffer, e.g. OBJ's `vt` indices or USD's primvar indices). The
+    /// indices are the face-varying topology: corners of one cage vertex with the same index
+    /// share one value, corners with different indices stay apart even where the values are
+    /// equal (OpenSubdiv's rule).
+    pub fn evaluate_face_varying_indexed<T: Scalar>(
+        &self,
+        values: &[T],
+        channels: usize,
+        indices: &[u32],
+        mode: FaceVaryingMode,
+        limit: bool,
+    ) -> Result<Vec<T>> {
+        let corners = self.refinement.levels_as_built()[0].num_corners();
+        if indices.len() != corners {
+            return Err(Error::InvalidInput(format!(
+                "{} face-varying indices for a cage of {corners} face corners",
+                indices.len()
+            )));
+        }
+        check_values(values, channels, values.len() / channels.max(1))?;
+        let per_corner = face_varying::per_corner_values(values, channels, indices)?;
+        face_varying::evaluate(
+            &self.refinement,
+            &self.output,
+            &self.face_varying,
+            &per_corner,
+            channels,
+            Topology::Indexed(indices),
             mode,
             limit,
         )

@@ -788,6 +788,7 @@ fn non_manifold_and_holed_cages_give_uniform_points_bitwise() {
             let data = AdaptiveData {
                 vertex_values: Some((&squared, 3)),
                 face_varying: Vec::new(),
+                ..Default::default()
             };
             let mesh = subdivide_adaptive_with_data(cage, points, &options, &data).unwrap();
             assert!(
@@ -843,6 +844,7 @@ fn adaptive_face_varying_values_equal_uniform_ones_bitwise() {
         let data = AdaptiveData {
             vertex_values: None,
             face_varying: sets.clone(),
+            ..Default::default()
         };
         let tolerance = if degree < 6 { 3e-3 } else { 5e-4 };
         let mesh =
@@ -875,6 +877,7 @@ fn adaptive_face_varying_values_equal_uniform_ones_bitwise() {
         let data = AdaptiveData {
             vertex_values: None,
             face_varying: sets.clone(),
+            ..Default::default()
         };
         let mesh =
             subdivide_adaptive_with_data(&finned, &finned_points, &options(degree, 3, 3e-3), &data)
@@ -893,6 +896,7 @@ fn adaptive_face_varying_values_equal_uniform_ones_bitwise() {
     let short = AdaptiveData {
         vertex_values: None,
         face_varying: vec![(&uvs[1..], 2, FaceVaryingMode::None)],
+        ..Default::default()
     };
     assert!(matches!(
         subdivide_adaptive_with_data(&grid, &points, &options(3, 3, 3e-3), &short),
@@ -903,6 +907,7 @@ fn adaptive_face_varying_values_equal_uniform_ones_bitwise() {
     let nan = AdaptiveData {
         vertex_values: None,
         face_varying: vec![(&bad, 2, FaceVaryingMode::None)],
+        ..Default::default()
     };
     assert!(matches!(
         subdivide_adaptive_with_data(&grid, &points, &options(3, 3, 3e-3), &nan),
@@ -951,4 +956,162 @@ fn triangle_edges_know_their_cage_edge_and_sharpness() {
         assert!(checked > 100, "{checked}");
         assert!(mesh.edge_sharpness.iter().any(|&s| s > 0.0 && s < 10.0));
     }
+}
+
+/// Vertex creases: each cage vertex's own output vertex knows it (`cage_vertex`, in the
+/// user's numbering, past an isolated vertex the compaction drops) and the corner sharpness it
+/// keeps at its level, and an infinitely sharp corner stays at its cage point.
+#[test]
+fn cage_vertices_know_their_corner_sharpness_at_their_level() {
+    let (prism, prism_points) = roofed_prism();
+    // The prism's vertices shifted by one: vertex 0 is in no face.
+    let offsets = prism.face_offsets();
+    let faces: Vec<Vec<usize>> = (offsets.windows(2))
+        .map(|w| {
+            (prism.face_vertices()[w[0] as usize..w[1] as usize].iter())
+                .map(|&v| v as usize + 1)
+                .collect()
+        })
+        .collect();
+    let corners = [(3i64, 10.0f32), (6, 2.5), (9, 1.5)];
+    let shifted = cage(12, &faces).with_corners(&corners).unwrap();
+    let mut points = vec![9.0, 9.0, 9.0];
+    points.extend_from_slice(&prism_points);
+    for degree in 1..=5 {
+        let mesh = subdivide_adaptive(&shifted, &points, &options(degree, 4, 0.003)).unwrap();
+        assert!(levels_used(&mesh) >= 2 || degree == 1, "degree {degree}");
+        assert_uniform_points(&shifted, &points, degree, Boundary::EdgeOnly, &mesh);
+        let mut seen = [0; 12];
+        for i in 0..mesh.vertex_id.len() {
+            let (id, level, c) = (mesh.vertex_id[i], mesh.vertex_level[i], mesh.cage_vertex[i]);
+            if id >= 11 {
+                assert_eq!(c, Level::NONE, "degree {degree}: vertex {i} (uniform {id})");
+                assert_eq!(mesh.vertex_sharpness[i], 0.0);
+                continue;
+            }
+            assert_eq!(c as u64, id + 1, "degree {degree}: vertex {i}");
+            seen[c as usize] += 1;
+            let given = corners
+                .iter()
+                .find(|k| k.0 == c as i64)
+                .map_or(0.0, |k| k.1);
+            let kept = if given >= 10.0 {
+                10.0
+            } else {
+                (given - level as f32).max(0.0)
+            };
+            assert_eq!(
+                mesh.vertex_sharpness[i].to_bits(),
+                kept.to_bits(),
+                "degree {degree}: cage vertex {c} at level {level}"
+            );
+            if given >= 10.0 {
+                let at = &mesh.points[3 * i..3 * i + 3];
+                assert_eq!(
+                    at,
+                    &points[3 * c as usize..3 * c as usize + 3],
+                    "degree {degree}"
+                );
+            }
+        }
+        assert_eq!(
+            seen,
+            [0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1],
+            "degree {degree}"
+        );
+    }
+}
+
+/// Face-varying values given OpenSubdiv's way (values and one index per cage corner): the
+/// indices are the topology, uniform and adaptive; bad indices are typed errors.
+#[test]
+fn indexed_face_varying_values_follow_their_indices() {
+    let n = 4;
+    let (grid, mut points) = grid(n, n);
+    points[3 * 12 + 2] = 1.0;
+    let corners = grid.face_vertices();
+    let nv = grid.num_vertices();
+    // One value per vertex, twice: corners right of x = 2 take the second copy there.
+    let chart: Vec<f64> = (0..nv)
+        .flat_map(|v| {
+            let (x, y) = (points[3 * v], points[3 * v + 1]);
+            [x / 4.0 + 0.2 * y * y / 16.0, y / 4.0 + 0.1 * x * x / 16.0]
+        })
+        .collect();
+    let values: Vec<f64> = chart.iter().chain(&chart).copied().collect();
+    let cut: Vec<u32> = (0..corners.len())
+        .map(|c| {
+            let v = corners[c] as usize;
+            let right = (c / 4) % n >= 2;
+            if right && points[3 * v] == 2.0 {
+                (nv + v) as u32
+            } else {
+                v as u32
+            }
+        })
+        .collect();
+    let welded: Vec<u32> = corners.to_vec();
+    let per_corner = |indices: &[u32], shift: f64| -> Vec<f64> {
+        (indices.iter())
+            .flat_map(|&i| {
+                let s = if i as usize >= nv { shift } else { 0.0 };
+                [values[2 * i as usize] + s, values[2 * i as usize + 1]]
+            })
+            .collect()
+    };
+    let plan = uniform_plan(&grid, 3, 2, Boundary::EdgeOnly);
+    let mode = FaceVaryingMode::Boundaries;
+    let seam = plan
+        .evaluate_face_varying_indexed(&values, 2, &cut, mode, false)
+        .unwrap();
+    let joined = plan
+        .evaluate_face_varying_indexed(&values, 2, &welded, mode, false)
+        .unwrap();
+    // Equal coordinates under one index are the weld by value; under two, a seam.
+    let by_value = plan
+        .evaluate_face_varying(&per_corner(&cut, 0.0), 2, mode, false)
+        .unwrap();
+    assert_eq!(joined, by_value);
+    assert!(seam.iter().zip(&joined).any(|(a, b)| (a - b).abs() > 1e-4));
+    // The cut as distinct values welded by value is the same face-varying mesh, bitwise.
+    let mut moved = values.clone();
+    for x in moved[2 * nv..].iter_mut().step_by(2) {
+        *x += 1.0;
+    }
+    assert_eq!(
+        plan.evaluate_face_varying_indexed(&moved, 2, &cut, mode, false)
+            .unwrap(),
+        plan.evaluate_face_varying(&per_corner(&cut, 1.0), 2, mode, false)
+            .unwrap()
+    );
+    // Adaptive: the same topology through the forest.
+    let cut_values = per_corner(&cut, 0.0);
+    let data = AdaptiveData {
+        face_varying: vec![(&cut_values[..], 2, mode)],
+        face_varying_indices: vec![Some(&cut[..])],
+        ..Default::default()
+    };
+    let plain = AdaptiveData {
+        face_varying: vec![(&cut_values[..], 2, mode)],
+        ..Default::default()
+    };
+    let opts = options(3, 3, 3e-3);
+    let indexed = subdivide_adaptive_with_data(&grid, &points, &opts, &data).unwrap();
+    let welded_mesh = subdivide_adaptive_with_data(&grid, &points, &opts, &plain).unwrap();
+    assert_eq!(indexed.points, welded_mesh.points);
+    assert_ne!(indexed.face_varying[0], welded_mesh.face_varying[0]);
+    // Typed errors.
+    let bad = |r: bidegree::Result<Vec<f64>>| assert!(matches!(r, Err(Error::InvalidInput(_))));
+    bad(plan.evaluate_face_varying_indexed(&values[..20], 2, &cut, mode, false));
+    bad(plan.evaluate_face_varying_indexed(&values, 2, &cut[1..], mode, false));
+    bad(plan.evaluate_face_varying_indexed(&values[1..], 2, &cut, mode, false));
+    let short = AdaptiveData {
+        face_varying: vec![(&cut_values[..], 2, mode)],
+        face_varying_indices: vec![Some(&cut[1..])],
+        ..Default::default()
+    };
+    assert!(matches!(
+        subdivide_adaptive_with_data(&grid, &points, &opts, &short),
+        Err(Error::InvalidInput(_))
+    ));
 }

@@ -6,7 +6,10 @@ use bidegree::{
     subdivide_adaptive_with_data as core_adaptive, AdaptiveData, AdaptiveMesh, AdaptiveOptions,
     FaceVaryingMode, Scalar,
 };
-use numpy::{Element, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{
+    Element, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2,
+    PyUntypedArrayMethods,
+};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
@@ -14,6 +17,21 @@ use crate::arrays::{array2, check_output, contiguous, floats, to_i32, Floats};
 use crate::cage::PyCage;
 use crate::errors::{invalid, to_py_err};
 use crate::options::{degree, levels, memory_budget, parse_boundary, parse_face_varying_mode};
+
+/// A face-varying set from Python: values (cage corners, C), its mode, and its topology
+/// (uint32 per cage corner) or None (welded by value).
+type FaceVaryingSet<'py> = (
+    Bound<'py, PyAny>,
+    FaceVaryingMode,
+    Option<PyReadonlyArray1<'py, u32>>,
+);
+
+/// A face-varying set as Python gives it: values, mode name, indices or None.
+type GivenSet<'py> = (
+    Bound<'py, PyAny>,
+    String,
+    Option<PyReadonlyArray1<'py, u32>>,
+);
 
 /// Registers the adaptive functions in the extension module.
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -46,8 +64,9 @@ fn adaptive_options(
 /// inside cage faces), `edge_level` (int32 (3 T,)), `edge_sharpness` (float32 (3 T,)),
 /// `cage_edges` (int32 (E0, 2)), `vertex_values` ((N, C) for
 /// `vertex_values` (cage vertices, C) in the points' dtype, else None) and `face_varying` (a
-/// list: for each `(values (cage corners, C), mode)` of `face_varying`, (3 T, C) at the
-/// triangle corners).
+/// list: for each `(values (cage corners, C), mode, indices)` of `face_varying`, (3 T, C) at
+/// the triangle corners; `indices`, uint32 per cage corner or None, is the set's face-varying
+/// topology).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 #[pyo3(signature = (cage, points, degree, max_level, tolerance, boundary, memory_budget=None, measure_leaves=false, vertex_values=None, face_varying=None))]
@@ -62,7 +81,7 @@ fn subdivide_adaptive<'py>(
     memory_budget: Option<u64>,
     measure_leaves: bool,
     vertex_values: Option<&Bound<'py, PyAny>>,
-    face_varying: Option<Vec<(Bound<'py, PyAny>, String)>>,
+    face_varying: Option<Vec<GivenSet<'py>>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let cage = cage.get();
     let options = adaptive_options(
@@ -75,10 +94,11 @@ fn subdivide_adaptive<'py>(
     )
     .map_err(|e| to_py_err(py, e))?;
     let mut sets = Vec::new();
-    for (values, mode) in face_varying.unwrap_or_default() {
+    for (values, mode, indices) in face_varying.unwrap_or_default() {
         sets.push((
             values,
             parse_face_varying_mode(&mode).map_err(|e| to_py_err(py, e))?,
+            indices,
         ));
     }
     match floats(points, "points")? {
@@ -112,17 +132,24 @@ fn adaptive<'py, T: Scalar + Element>(
     points: &PyReadonlyArray2<'_, T>,
     options: AdaptiveOptions,
     vertex_values: Option<&Bound<'py, PyAny>>,
-    face_varying: &[(Bound<'py, PyAny>, FaceVaryingMode)],
+    face_varying: &[FaceVaryingSet<'py>],
 ) -> PyResult<Bound<'py, PyDict>> {
     let channels = points.shape()[1];
     let data = contiguous(points, "points")?;
     let vertex_values = vertex_values
         .map(|v| same_dtype::<T>(v, "vertex_values"))
         .transpose()?;
-    let sets = (face_varying.iter())
-        .map(|(v, mode)| Ok((same_dtype::<T>(v, "face_varying values")?, *mode)))
-        .collect::<PyResult<Vec<_>>>()?;
     let mut extra = AdaptiveData::default();
+    let sets = (face_varying.iter())
+        .map(|(v, mode, _)| Ok((same_dtype::<T>(v, "face_varying values")?, *mode)))
+        .collect::<PyResult<Vec<_>>>()?;
+    for (_, _, indices) in face_varying {
+        let indices = (indices.as_ref())
+            .map(|a| a.as_slice())
+            .transpose()
+            .map_err(|_| to_py_err(py, invalid("indices must be a contiguous uint32 array")))?;
+        extra.face_varying_indices.push(indices);
+    }
     let mut vertex_channels = 0;
     if let Some(values) = &vertex_values {
         vertex_channels = values.shape()[1];
@@ -178,19 +205,15 @@ fn adaptive<'py, T: Scalar + Element>(
         edge_level,
         edge_sharpness,
         cage_edges,
+        cage_vertex,
+        vertex_sharpness,
         ..
     } = mesh;
-    let edge_origin: Vec<i32> = (edge_origin.iter())
-        .map(|&e| {
-            if e == bidegree::Level::NONE {
-                Ok(-1)
-            } else {
-                to_i32(&[e]).map(|x| x[0])
-            }
-        })
-        .collect::<bidegree::Result<_>>()
-        .map_err(|e| to_py_err(py, e))?;
+    let edge_origin = none_as_minus_one(&edge_origin).map_err(|e| to_py_err(py, e))?;
     out.set_item("edge_origin", PyArray1::from_vec(py, edge_origin))?;
+    let cage_vertex = none_as_minus_one(&cage_vertex).map_err(|e| to_py_err(py, e))?;
+    out.set_item("cage_vertex", PyArray1::from_vec(py, cage_vertex))?;
+    out.set_item("vertex_sharpness", PyArray1::from_vec(py, vertex_sharpness))?;
     let edge_level = to_i32(&edge_level).map_err(|e| to_py_err(py, e))?;
     out.set_item("edge_level", PyArray1::from_vec(py, edge_level))?;
     out.set_item("edge_sharpness", PyArray1::from_vec(py, edge_sharpness))?;
@@ -207,4 +230,17 @@ fn adaptive<'py, T: Scalar + Element>(
     }
     out.set_item("face_varying", sets)?;
     Ok(out)
+}
+
+/// Indices as int32, [`bidegree::Level::NONE`] as -1.
+fn none_as_minus_one(values: &[u32]) -> bidegree::Result<Vec<i32>> {
+    (values.iter())
+        .map(|&e| {
+            if e == bidegree::Level::NONE {
+                Ok(-1)
+            } else {
+                to_i32(&[e]).map(|x| x[0])
+            }
+        })
+        .collect()
 }

@@ -100,9 +100,11 @@ fn read_obj<'py>(
 /// Writes a polygon mesh as OBJ, atomically (a temporary file renamed over `path` when
 /// complete; nothing is left on an error or a signal): `points` (V,3) float32|float64,
 /// `face_offsets` uint32 (F+1), `face_indices` uint32, optional face-varying `uvs` (corners,2)
-/// and `normals` (corners,3) of the same dtype as `points`.
+/// and `normals` (corners,3) of the same dtype as `points`; with `uv_indices` (uint32 per face
+/// corner) the `uvs` are (N,2) shared `vt` lines and the corners' `vt` indices are those.
 #[pyfunction]
-#[pyo3(signature = (path, points, face_offsets, face_indices, uvs=None, normals=None))]
+#[pyo3(signature = (path, points, face_offsets, face_indices, uvs=None, normals=None, uv_indices=None))]
+#[allow(clippy::too_many_arguments)]
 fn write_obj(
     py: Python<'_>,
     path: PathBuf,
@@ -111,14 +113,25 @@ fn write_obj(
     face_indices: PyReadonlyArray1<'_, u32>,
     uvs: Option<&Bound<'_, PyAny>>,
     normals: Option<&Bound<'_, PyAny>>,
+    uv_indices: Option<PyReadonlyArray1<'_, u32>>,
 ) -> PyResult<()> {
     let offsets = contiguous(&face_offsets, "face_offsets")?;
     let vertices = contiguous(&face_indices, "face_indices")?;
-    write_mesh(py, &path, points, offsets, vertices, [uvs, normals])
+    let extra = FaceVarying {
+        uvs,
+        normals,
+        uv_indices: uv_indices.as_ref(),
+    };
+    write_mesh(py, &path, points, offsets, vertices, extra)
 }
 
-/// Face-varying arrays of an OBJ write: uvs, normals.
-pub(crate) type FaceVarying<'a, 'py> = [Option<&'a Bound<'py, PyAny>>; 2];
+/// Face-varying arrays of an OBJ write: uvs (per corner, or the `vt` values `uv_indices`
+/// index), normals.
+pub(crate) struct FaceVarying<'a, 'py> {
+    pub(crate) uvs: Option<&'a Bound<'py, PyAny>>,
+    pub(crate) normals: Option<&'a Bound<'py, PyAny>>,
+    pub(crate) uv_indices: Option<&'a PyReadonlyArray1<'py, u32>>,
+}
 
 pub(crate) fn write_mesh(
     py: Python<'_>,
@@ -128,17 +141,20 @@ pub(crate) fn write_mesh(
     vertices: &[u32],
     face_varying: FaceVarying<'_, '_>,
 ) -> PyResult<()> {
-    let [uvs, normals] = [(face_varying[0], "uvs"), (face_varying[1], "normals")]
+    let uv_indices = (face_varying.uv_indices)
+        .map(|a| contiguous(a, "uv_indices"))
+        .transpose()?;
+    let [uvs, normals] = [(face_varying.uvs, "uvs"), (face_varying.normals, "normals")]
         .map(|(a, what)| a.map(|a| floats(a, what)).transpose());
     let (uvs, normals) = (uvs?, normals?);
     match floats(points, "points")? {
         Floats::F32(p) => {
             let extra = [same_dtype(py, &uvs, f32s)?, same_dtype(py, &normals, f32s)?];
-            write_typed(py, path, &p, offsets, vertices, extra)
+            write_typed(py, path, &p, offsets, vertices, extra, uv_indices)
         }
         Floats::F64(p) => {
             let extra = [same_dtype(py, &uvs, f64s)?, same_dtype(py, &normals, f64s)?];
-            write_typed(py, path, &p, offsets, vertices, extra)
+            write_typed(py, path, &p, offsets, vertices, extra, uv_indices)
         }
     }
 }
@@ -180,6 +196,7 @@ fn write_typed<T: Element + ObjFloat>(
     offsets: &[u32],
     vertices: &[u32],
     [uvs, normals]: [Option<PyReadonlyArray2<'_, T>>; 2],
+    uv_indices: Option<&[u32]>,
 ) -> PyResult<()> {
     if points.shape()[1] != 3 {
         return Err(to_py_err(
@@ -194,7 +211,7 @@ fn write_typed<T: Element + ObjFloat>(
     let uv = match &uvs {
         Some(u) => {
             if u.shape()[1] != 2 {
-                return Err(to_py_err(py, invalid("uvs must have shape (corners, 2)")));
+                return Err(to_py_err(py, invalid("uvs must have shape (N, 2)")));
             }
             Some(contiguous(u, "uvs")?)
         }
@@ -216,7 +233,10 @@ fn write_typed<T: Element + ObjFloat>(
         points: data,
         face_offsets: offsets,
         face_vertices: vertices,
-        uvs: uv.map(Uvs::PerCorner),
+        uvs: uv.map(|values| match uv_indices {
+            Some(indices) => Uvs::Indexed { values, indices },
+            None => Uvs::PerCorner(values),
+        }),
         normals,
     };
     run_interruptible(py, |interrupt| io::write_obj(path, &mesh, interrupt))

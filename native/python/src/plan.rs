@@ -5,13 +5,15 @@
 use std::path::PathBuf;
 
 use bidegree::{Error, FaceVaryingMode, Options, Plan, Scalar};
-use numpy::{Element, PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{
+    Element, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
+};
 use pyo3::prelude::*;
 
 use crate::arrays::{array2, check_output, contiguous, floats, to_i32, Floats};
 use crate::cage::PyCage;
 use crate::errors::{guard, invalid, run, to_py_err};
-use crate::obj::write_mesh;
+use crate::obj::{write_mesh, FaceVarying};
 use crate::options::{boundary_name, options, output_name, parse_face_varying_mode, rules_name};
 
 /// Registers the plan class and the one-call functions in the extension module.
@@ -170,16 +172,27 @@ impl PyPlan {
 
     /// Per cage face corner values `(corners, C)` -> per output face corner values, in the
     /// face-varying `mode` (one of OpenSubdiv's six names), optionally on the limit surface.
-    #[pyo3(signature = (values, mode="all", limit=false))]
+    /// With `indices` (uint32, one per cage corner): `values` `(N, C)` are indexed by them and
+    /// they are the face-varying topology (OpenSubdiv's index buffer).
+    #[pyo3(signature = (values, mode="all", limit=false, indices=None))]
     fn evaluate_face_varying<'py>(
         &self,
         py: Python<'py>,
         values: &Bound<'py, PyAny>,
         mode: &str,
         limit: bool,
+        indices: Option<PyReadonlyArray1<'py, u32>>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let mode = parse_face_varying_mode(mode).map_err(|e| to_py_err(py, e))?;
-        let how = Evaluation::FaceVarying { mode, limit };
+        let indices = (indices.as_ref())
+            .map(|a| a.as_slice())
+            .transpose()
+            .map_err(|_| to_py_err(py, invalid("indices must be a contiguous uint32 array")))?;
+        let how = Evaluation::FaceVarying {
+            mode,
+            limit,
+            indices,
+        };
         match floats(values, "values")? {
             Floats::F32(a) => Ok(evaluate(py, &self.inner, &a, how)?.into_any()),
             Floats::F64(a) => Ok(evaluate(py, &self.inner, &a, how)?.into_any()),
@@ -312,8 +325,9 @@ impl PyPlan {
     }
 
     /// Writes the output mesh with `points` `(N, 3)` and optional face-varying `uvs`
-    /// `(corners, 2)` and `normals` `(corners, 3)` (same dtype as `points`) as OBJ.
-    #[pyo3(signature = (path, points, uvs=None, normals=None))]
+    /// `(corners, 2)` and `normals` `(corners, 3)` (same dtype as `points`) as OBJ; with
+    /// `uv_indices` (uint32 per output corner) the `uvs` are (N, 2) shared `vt` lines.
+    #[pyo3(signature = (path, points, uvs=None, normals=None, uv_indices=None))]
     fn write_obj(
         &self,
         py: Python<'_>,
@@ -321,28 +335,38 @@ impl PyPlan {
         points: &Bound<'_, PyAny>,
         uvs: Option<&Bound<'_, PyAny>>,
         normals: Option<&Bound<'_, PyAny>>,
+        uv_indices: Option<PyReadonlyArray1<'_, u32>>,
     ) -> PyResult<()> {
         let plan = &self.inner;
         let (offsets, vertices) = run(py, || {
             plan.complete_output()?;
             Ok((plan.output_face_offsets(), plan.output_face_vertices()))
         })?;
-        write_mesh(py, &path, points, offsets, vertices, [uvs, normals])
+        let extra = FaceVarying {
+            uvs,
+            normals,
+            uv_indices: uv_indices.as_ref(),
+        };
+        write_mesh(py, &path, points, offsets, vertices, extra)
     }
 }
 
 /// What `evaluate` computes: per-vertex values, or face-varying values in a mode.
 #[derive(Clone, Copy)]
-enum Evaluation {
+enum Evaluation<'a> {
     Vertex,
-    FaceVarying { mode: FaceVaryingMode, limit: bool },
+    FaceVarying {
+        mode: FaceVaryingMode,
+        limit: bool,
+        indices: Option<&'a [u32]>,
+    },
 }
 
 fn evaluate<'py, T: Scalar + Element>(
     py: Python<'py>,
     plan: &Plan,
     values: &PyReadonlyArray2<'_, T>,
-    how: Evaluation,
+    how: Evaluation<'_>,
 ) -> PyResult<Bound<'py, PyArray2<T>>> {
     let channels = values.shape()[1];
     let data = contiguous(values, "values")?;
@@ -351,9 +375,16 @@ fn evaluate<'py, T: Scalar + Element>(
             return Err(invalid("values need at least one channel"));
         }
         let out = match how {
-            Evaluation::FaceVarying { mode, limit } => {
-                plan.evaluate_face_varying(data, channels, mode, limit)?
-            }
+            Evaluation::FaceVarying {
+                mode,
+                limit,
+                indices: None,
+            } => plan.evaluate_face_varying(data, channels, mode, limit)?,
+            Evaluation::FaceVarying {
+                mode,
+                limit,
+                indices: Some(indices),
+            } => plan.evaluate_face_varying_indexed(data, channels, indices, mode, limit)?,
             Evaluation::Vertex => plan.evaluate(data, channels)?,
         };
         check_output(&out, channels, data)?;

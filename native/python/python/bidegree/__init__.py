@@ -49,8 +49,10 @@ from ._errors import (
 )
 from ._mesh import DEFAULT_MAX_INPUT_BYTES, Mesh
 from ._plan import Plan, Result, estimate, subdivide
+from ._uv_weld import BLENDER_UV_LIMIT, blender_uv_indices
 
 __all__ = [
+    "BLENDER_UV_LIMIT",
     "DEFAULT_MAX_INPUT_BYTES",
     "DEFAULT_MEMORY_BUDGET",
     "INFINITELY_SHARP",
@@ -79,6 +81,7 @@ __all__ = [
     "RepeatedVertexError",
     "Result",
     "__version__",
+    "blender_uv_indices",
     "estimate",
     "subdivide",
     "subdivide_adaptive",

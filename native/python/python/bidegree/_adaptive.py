@@ -30,6 +30,11 @@ class AdaptiveResult:
         vertex_level: int32 (N,), the level whose point each vertex carries (the finest level
             of the leaves around it).
         vertex_id: int64 (N,), the vertex's id in the uniform level ``vertex_level``.
+        cage_vertex: int32 (N,), the cage vertex each vertex is, -1 for a vertex made by
+            refinement (for vertex attributes such as vertex creases).
+        vertex_sharpness: float32 (N,), the corner sharpness each vertex keeps at its level
+            (the cage's corners, and the boundary rule's and non-manifold vertices' infinitely
+            sharp ones, lowered by one per level; 10 stays 10; 0 elsewhere).
         leaves_per_level: int64 (max_level + 1,), quadtree leaves at each level.
         max_error: with ``measure_leaves=True``, the largest flatness error of any leaf
             (relative to the cage's bounding-box diagonal), else None.
@@ -38,8 +43,9 @@ class AdaptiveResult:
             that vertex's level, on the triangle's side of a seam; None without cage uvs.
         uv_mode: the face-varying mode of ``uvs`` and ``face_varying``.
         vertex_values: (N, C) the ``vertex_values`` given, at the output vertices (each at
-            its level, as the points), or None.
-        face_varying: name -> (3 T, C) for each set of ``face_varying`` given, as ``uvs``.
+            its level, as the points), or None; (N,) for values given as (cage vertices,).
+        face_varying: name -> (3 T, C) for each set of ``face_varying`` given, as ``uvs``;
+            (3 T,) for a set given as (cage corners,).
         edge_origin: int32 (3 T,), per triangle corner ``3 t + k``: the cage edge (row of
             ``cage_edges``) under the triangle's edge from corner ``k`` to ``k + 1``, -1 inside
             a cage face (as ``Plan.edge_origin``).
@@ -65,6 +71,8 @@ class AdaptiveResult:
         self.triangle_level: NDArray[np.int32] = convert.readonly(data["triangle_level"])
         self.vertex_level: NDArray[np.int32] = convert.readonly(data["vertex_level"])
         self.vertex_id: NDArray[np.int64] = convert.readonly(data["vertex_id"])
+        self.cage_vertex: NDArray[np.int32] = convert.readonly(data["cage_vertex"])
+        self.vertex_sharpness: NDArray[np.float32] = convert.readonly(data["vertex_sharpness"])
         self.leaves_per_level: NDArray[np.int64] = convert.readonly(data["leaves_per_level"])
         self.max_error: float | None = data["max_error"]
         self.degree = degree
@@ -130,7 +138,10 @@ def subdivide_adaptive(
     *,
     uv_mode: UvMode = "boundaries",
     vertex_values: ArrayLike | None = None,
-    face_varying: Mapping[str, ArrayLike | tuple[ArrayLike, UvMode]] | None = None,
+    face_varying: Mapping[
+        str, ArrayLike | tuple[ArrayLike, UvMode] | tuple[ArrayLike, UvMode, ArrayLike]
+    ]
+    | None = None,
 ) -> AdaptiveResult:
     """Subdivides ``mesh`` adaptively (the paper's §3): a quadtree per quad of level 1, refined
     while a node is not flat enough, up to ``max_level``, with neighbouring leaves (sharing an
@@ -152,7 +163,10 @@ def subdivide_adaptive(
             levels as the points (``AdaptiveResult.vertex_values``).
         face_varying: name -> (cage corners, C) further face-varying sets (each welded on its
             own), at the triangle corners (``AdaptiveResult.face_varying``); a set given as
-            ``(values, mode)`` has its own mode instead of ``uv_mode``.
+            ``(values, mode)`` has its own mode instead of ``uv_mode``, one given as
+            ``(values, mode, indices)`` is indexed as in :meth:`Plan.evaluate_face_varying`
+            (``values`` (N, C), ``indices`` per face corner: the set's topology). The mesh's
+            :attr:`Mesh.uv_indices` are its uvs' topology.
 
     Every vertex is bit for bit the vertex of the uniform result at its level, and so are its
     values; face-varying values are those of the uniform result at the vertex's level. Holes
@@ -184,26 +198,40 @@ def subdivide_adaptive(
     uv_mode = convert.choice(uv_mode, convert.UV_MODES, "uv_mode")  # type: ignore[assignment]
     dtype = mesh.points.dtype
     values = None
+    # Inputs given 1-D ((vertices,) / (corners,)) come back 1-D, as from Plan.evaluate.
+    flat_values = False
     if vertex_values is not None:
-        values, _ = convert.values_2d(vertex_values, mesh.num_vertices, "vertex_values", "vertices")
+        values, flat_values = convert.values_2d(
+            vertex_values, mesh.num_vertices, "vertex_values", "vertices"
+        )
         values = np.ascontiguousarray(values, dtype=dtype)
     names: list[str | None] = []
-    sets: list[tuple[FloatArray, str]] = []
+    sets: list[tuple[FloatArray, str, NDArray[np.uint32] | None]] = []
+    flat_sets: set[str] = set()
     if mesh.uvs is not None:
         names.append(None)
-        sets.append((np.ascontiguousarray(mesh.uvs, dtype=dtype), uv_mode))
+        sets.append((np.ascontiguousarray(mesh.uvs, dtype=dtype), uv_mode, mesh.uv_indices))
     if face_varying is not None and not isinstance(face_varying, Mapping):
         raise InvalidInputError(
             f"face_varying must be a mapping of name -> values, not {type(face_varying).__name__}"
         )
     for name, given in (face_varying or {}).items():
-        array, mode = given if isinstance(given, tuple) else (given, uv_mode)
+        array, mode, indices = _face_varying_set(given, uv_mode)
         mode = convert.choice(mode, convert.UV_MODES, "uv_mode")
-        corners, _ = convert.values_2d(
-            array, mesh.num_corners, f"face_varying[{name!r}]", "face corners"
-        )
+        what = f"face_varying[{name!r}]"
+        index = None
+        if indices is not None:
+            table = convert.float_array(array, what)
+            rows = len(table) if table.ndim else 0
+            table, flat = convert.values_2d(table, rows, what, "indexed values")
+            index = convert.face_varying_indices(indices, mesh.num_corners, rows, f"{what} indices")
+            corners = table[index]
+        else:
+            corners, flat = convert.values_2d(array, mesh.num_corners, what, "face corners")
+        if flat:
+            flat_sets.add(str(name))
         names.append(str(name))
-        sets.append((np.ascontiguousarray(corners, dtype=dtype), mode))
+        sets.append((np.ascontiguousarray(corners, dtype=dtype), mode, index))
     data = _native.subdivide_adaptive(
         mesh._cage,
         mesh.points,
@@ -219,4 +247,24 @@ def subdivide_adaptive(
     used = np.zeros(mesh.num_vertices, dtype=bool)
     used[mesh.face_indices] = True
     convert.warn_isolated(np.flatnonzero(~used).astype(np.int32))
+    if flat_values:
+        data["vertex_values"] = data["vertex_values"].reshape(-1)
+    data["face_varying"] = [
+        values.reshape(-1) if name in flat_sets else values
+        for name, values in zip(names, data["face_varying"], strict=True)
+    ]
     return AdaptiveResult(data, degree, max_level, tol, uv_mode, tuple(names))
+
+
+def _face_varying_set(given: Any, uv_mode: str) -> tuple[Any, str, Any]:
+    """A ``face_varying`` entry as ``(values, mode, indices or None)``."""
+    if not isinstance(given, tuple):
+        return given, uv_mode, None
+    if len(given) == 2:
+        return given[0], given[1], None
+    if len(given) == 3:
+        return given
+    raise InvalidInputError(
+        f"a face_varying set is values, (values, mode) or (values, mode, indices), not a "
+        f"tuple of {len(given)}"
+    )

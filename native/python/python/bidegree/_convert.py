@@ -168,6 +168,27 @@ def values_2d(values: ArrayLike, rows: int, what: str, expected: str) -> tuple[F
     return array, flat
 
 
+def face_varying_indices(
+    indices: ArrayLike, corners: int, num_values: int, what: str
+) -> NDArray[np.uint32]:
+    """One index per face corner into ``num_values`` face-varying values (OpenSubdiv's index
+    buffer, OBJ's ``vt`` indices), as the uint32 array the core reads."""
+    array = int_array(indices, what)
+    if array.ndim != 1 or len(array) != corners:
+        raise InvalidInputError(
+            f"{what} must have one index per face corner ({corners}), not shape {array.shape}"
+        )
+    bad = np.flatnonzero((array < 0) | (array >= num_values))
+    if len(bad):
+        error = IndexOutOfRangeError(
+            f"{what}: face corner {bad[0]} has index {array[bad[0]]}, out of range "
+            f"[0, {num_values})"
+        )
+        error.what, error.index, error.num_vertices = what, int(array[bad[0]]), num_values
+        raise error
+    return np.ascontiguousarray(array, dtype=np.uint32)
+
+
 def tolerance(value: Any) -> float:
     """An adaptive flatness tolerance: a finite number >= 0."""
     if isinstance(value, bool):

@@ -40,7 +40,13 @@ class Mesh:
         creases: ``(edges, sharpness)``: (K, 2) vertex pairs that are mesh edges and (K,)
             sharpness values (or one for all); ``>= 10`` or ``inf`` is infinitely sharp.
         corners: ``(vertices, sharpness)``: (K,) vertices and (K,) sharpness values (or one).
-        uvs: (corners, 2) face-varying texture coordinates, one per face corner.
+        uvs: (corners, 2) face-varying texture coordinates, one per face corner; the corners
+            of one vertex with equal uvs share one face-varying value (a seam is where they
+            differ). With ``uv_indices``: the (N, 2) texture coordinates they index.
+        uv_indices: (corners,) one index into ``uvs`` per face corner (OpenSubdiv's
+            face-varying index buffer, OBJ's ``vt`` indices, USD's ``primvars:st:indices``):
+            the face-varying topology. Corners of one vertex with the same index share a value;
+            different indices stay apart even where their coordinates are equal.
         holes: (H,) faces that are holes: refined (they shape their neighbours) but left out
             of the output, as OpenSubdiv's ``holeIndices``.
         boundary: ``"edge-only"`` (boundary edges are sharp), ``"edge-and-corner"`` (also
@@ -68,6 +74,7 @@ class Mesh:
         creases: tuple[ArrayLike, ArrayLike] | None = None,
         corners: tuple[ArrayLike, ArrayLike] | None = None,
         uvs: ArrayLike | None = None,
+        uv_indices: ArrayLike | None = None,
         holes: ArrayLike | None = None,
         boundary: Boundary = "edge-only",
         creasing: Creasing = "uniform",
@@ -120,6 +127,8 @@ class Mesh:
                 raise InvalidInputError(
                     f"uvs must have shape (corners, 2) (face-varying), not {uv_array.shape}"
                 )
+        elif uv_indices is not None:
+            raise InvalidInputError("uv_indices index uvs: give the uvs too")
         hole_array = None
         if holes is not None:
             hole_array = convert.owned(convert.int_array(holes, "holes"), holes).reshape(-1)
@@ -133,6 +142,7 @@ class Mesh:
             boundary,
             creasing,
             holes=hole_array,
+            uv_indices=uv_indices,
         )
 
     def _finish(
@@ -147,11 +157,19 @@ class Mesh:
         creasing: Creasing,
         source: Any = None,
         holes: NDArray[np.int64] | None = None,
+        uv_indices: ArrayLike | None = None,
     ) -> None:
         """Checks and builds the cage from converted arrays that are the mesh's own (the
         constructor's copies, or what :meth:`from_obj` read, with the file's ``source``
         lines for its errors)."""
         _check_face_sizes(sizes)
+        uv_table: FloatArray | None = None
+        uv_index: NDArray[np.uint32] | None = None
+        if uv_array is not None and uv_indices is not None:
+            uv_index = convert.face_varying_indices(
+                uv_indices, len(indices), len(uv_array), "uv_indices"
+            )
+            uv_table, uv_array = uv_array, uv_array[uv_index]
         if uv_array is not None:
             if len(uv_array) != len(indices):
                 raise InvalidInputError(
@@ -197,6 +215,8 @@ class Mesh:
             else None
         )
         self._uvs = convert.readonly(uv_array) if uv_array is not None else None
+        self._uv_table = convert.readonly(uv_table) if uv_table is not None else None
+        self._uv_indices = convert.readonly(uv_index) if uv_index is not None else None
 
     @staticmethod
     def _faces_to_arrays(faces: Any) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -233,7 +253,9 @@ class Mesh:
         """Reads an OBJ file: ``v``, ``vt`` (as face-varying uvs when every face corner has
         one), ``f`` (any index form, negative indices), and OpenSubdiv's ``t crease``,
         ``t corner``, ``t hole``, ``t interpolateboundary`` (0 is ``"none"``) and
-        ``t creasemethod`` tags. The file is
+        ``t creasemethod`` tags; the ``vt`` indices are the uvs' face-varying topology
+        (:attr:`uv_indices`: two indices with equal coordinates at one vertex stay apart, as in
+        OpenSubdiv). The file is
         streamed; LF, CRLF and CR line ends and a UTF-8 byte order mark are accepted.
 
         Errors found later in the mesh (by this constructor, :class:`Plan` or
@@ -267,9 +289,10 @@ class Mesh:
         )
         for message in data["warnings"]:
             convert.warn_at_caller(message, ObjWarning)
-        uvs = None
+        uvs = uv_indices = None
         if data["face_uvs"] is not None:
-            uvs = data["uvs"][data["face_uvs"]]
+            # The vt indices are the face-varying topology (OpenSubdiv's rule).
+            uvs, uv_indices = data["uvs"], data["face_uvs"]
         creases = None
         if len(data["crease_sharpness"]):
             creases = (data["crease_edges"], data["crease_sharpness"])
@@ -288,13 +311,22 @@ class Mesh:
             creasing if creasing is not None else (data["creasing"] or "uniform"),
             data["source"],
             holes=data["holes"] if len(data["holes"]) else None,
+            uv_indices=uv_indices,
         )
         return mesh
 
     @convert.memory_errors()
     def write_obj(self, path: str | os.PathLike[str]) -> None:
-        """Writes the cage's points, faces and uvs as OBJ (creases and corners are not kept)."""
-        write_obj_arrays(path, self._points, self._face_sizes, self._face_indices, self._uvs)
+        """Writes the cage's points, faces and uvs as OBJ (creases and corners are not kept;
+        the ``vt`` indices are :attr:`uv_indices`, or one per distinct value)."""
+        write_obj_arrays(
+            path,
+            self._points,
+            self._face_sizes,
+            self._face_indices,
+            self._uv_table if self._uv_indices is not None else self._uvs,
+            self._uv_indices,
+        )
 
     @property
     def points(self) -> FloatArray:
@@ -325,6 +357,18 @@ class Mesh:
     def uvs(self) -> FloatArray | None:
         """(corners, 2) face-varying uvs or None."""
         return self._uvs
+
+    @property
+    def uv_indices(self) -> NDArray[np.uint32] | None:
+        """(corners,) the uvs' face-varying topology (indices into :attr:`uv_values`), or None
+        when the uvs are welded by value."""
+        return self._uv_indices
+
+    @property
+    def uv_values(self) -> FloatArray | None:
+        """The (N, 2) texture coordinates :attr:`uv_indices` index; without indices the
+        per-corner :attr:`uvs`."""
+        return self._uv_table if self._uv_table is not None else self._uvs
 
     @property
     def holes(self) -> NDArray[np.int64]:
@@ -387,17 +431,29 @@ def _check_face_sizes(sizes: NDArray[np.int64]) -> None:
         raise error
 
 
+def shared_uvs(per_corner: FloatArray) -> tuple[FloatArray, NDArray[np.uint32]]:
+    """Per-corner uvs as OBJ's shared ``vt`` lines: one per distinct value and each corner's
+    index, so that reading the indices back as the face-varying topology
+    (:attr:`Mesh.uv_indices`) gives the seams the values had (the weld by value)."""
+    values, inverse = np.unique(per_corner, axis=0, return_inverse=True)
+    return np.ascontiguousarray(values), inverse.reshape(-1).astype(np.uint32)
+
+
 def write_obj_arrays(
     path: str | os.PathLike[str],
     points: FloatArray,
     face_sizes: NDArray[np.integer[Any]],
     face_indices: NDArray[np.integer[Any]],
     uvs: FloatArray | None,
+    uv_indices: NDArray[np.uint32] | None = None,
 ) -> None:
-    """Writes a polygon mesh given as numpy arrays as OBJ (through the core's writer)."""
+    """Writes a polygon mesh given as numpy arrays as OBJ (through the core's writer): ``uvs``
+    per corner (written as :func:`shared_uvs`), or the ``vt`` values ``uv_indices`` index."""
     offsets = np.zeros(len(face_sizes) + 1, dtype=np.uint32)
     np.cumsum(face_sizes, out=offsets[1:], dtype=np.uint32)
     indices = np.ascontiguousarray(face_indices, dtype=np.uint32)
     if uvs is not None:
         uvs = np.ascontiguousarray(uvs, dtype=points.dtype)
-    _native.write_obj(os.fspath(path), points, offsets, indices, uvs)
+        if uv_indices is None:
+            uvs, uv_indices = shared_uvs(uvs)
+    _native.write_obj(os.fspath(path), points, offsets, indices, uvs, None, uv_indices)

@@ -59,7 +59,13 @@ class Plan:
     def limit_surface(self, points: _Float) -> tuple[Any, Any]: ...
     @property
     def limit_extra_levels(self) -> int: ...
-    def evaluate_face_varying(self, values: _Float, mode: str = ..., limit: bool = ...) -> Any: ...
+    def evaluate_face_varying(
+        self,
+        values: _Float,
+        mode: str = ...,
+        limit: bool = ...,
+        indices: NDArray[np.uint32] | None = ...,
+    ) -> Any: ...
     @property
     def degree(self) -> int: ...
     @property
@@ -93,6 +99,7 @@ class Plan:
         points: _Float,
         uvs: _Float | None = None,
         normals: _Float | None = None,
+        uv_indices: NDArray[np.uint32] | None = None,
     ) -> None: ...
 
 class _ObjData(TypedDict):
@@ -141,6 +148,7 @@ def write_obj(
     face_indices: NDArray[np.uint32],
     uvs: _Float | None = None,
     normals: _Float | None = None,
+    uv_indices: NDArray[np.uint32] | None = None,
 ) -> None: ...
 def _panic_for_tests() -> None: ...
 
@@ -165,6 +173,8 @@ class _AdaptiveData(TypedDict):
     triangle_level: NDArray[np.int32]
     vertex_level: NDArray[np.int32]
     vertex_id: NDArray[np.int64]
+    cage_vertex: NDArray[np.int32]
+    vertex_sharpness: NDArray[np.float32]
     leaves_per_level: NDArray[np.int64]
     max_error: float | None
     vertex_values: _Float | None
@@ -184,5 +194,5 @@ def subdivide_adaptive(
     memory_budget: int | None = None,
     measure_leaves: bool = False,
     vertex_values: _Float | None = None,
-    face_varying: list[tuple[_Float, str]] | None = None,
+    face_varying: list[tuple[_Float, str, NDArray[np.uint32] | None]] | None = None,
 ) -> _AdaptiveData: ...

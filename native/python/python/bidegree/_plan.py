@@ -15,7 +15,7 @@ from . import _convert as convert
 from . import _native
 from ._convert import Boundary, Creasing, FloatArray, Output, Rules, UvMode
 from ._errors import InvalidInputError
-from ._mesh import Mesh
+from ._mesh import Mesh, shared_uvs
 
 
 class _Output:
@@ -226,29 +226,46 @@ class Plan(_Output):
 
     @overload
     def evaluate_face_varying(
-        self, values: Mapping[str, ArrayLike], mode: UvMode = ..., *, limit: bool = ...
+        self,
+        values: Mapping[str, ArrayLike | tuple[ArrayLike, ArrayLike]],
+        mode: UvMode = ...,
+        *,
+        limit: bool = ...,
     ) -> dict[str, FloatArray]: ...
 
     @overload
     def evaluate_face_varying(
-        self, values: ArrayLike, mode: UvMode = ..., *, limit: bool = ...
+        self,
+        values: ArrayLike,
+        mode: UvMode = ...,
+        *,
+        limit: bool = ...,
+        indices: ArrayLike | None = ...,
     ) -> FloatArray: ...
 
     @convert.memory_errors()
     def evaluate_face_varying(
         self,
-        values: ArrayLike | Mapping[str, ArrayLike],
+        values: ArrayLike | Mapping[str, ArrayLike | tuple[ArrayLike, ArrayLike]],
         mode: UvMode = "boundaries",
         *,
         limit: bool = False,
+        indices: ArrayLike | None = None,
     ) -> FloatArray | dict[str, FloatArray]:
         """Subdivides per-face-corner values (UVs, any channel count): (corners, C) ->
         (output corners, C) in the order of :attr:`face_indices`; a (corners,) array gives
         (output corners,). A mapping of name -> array (several UV sets, each its own seams)
-        gives a dict of the results.
+        gives a dict of the results; a set given as ``(values, indices)`` is indexed.
 
         The corners of one cage vertex with equal values (every channel) share one
         face-varying value; where they differ is a seam, a boundary of the face-varying mesh.
+        With ``indices`` (one int per face corner, OpenSubdiv's face-varying index buffer,
+        OBJ's ``vt`` indices, USD's primvar indices) the values are given OpenSubdiv's way,
+        ``values`` (N, C) indexed by them, and the indices are the topology: corners of one
+        cage vertex with the same index share a value, different indices stay apart even where
+        their values are equal (a seam OpenSubdiv keeps). Blender's Subdivision Surface welds
+        by a tolerance and the UV winding instead: ``indices=blender_uv_indices(...)`` gives
+        its seams (:func:`bidegree.blender_uv_indices`).
         ``mode`` is OpenSubdiv's ``FVarLinearInterpolation`` (USD's
         ``faceVaryingLinearInterpolation``): ``"none"`` (smooth everywhere: Blender's *All*),
         ``"corners-only"``, ``"corners-plus1"``, ``"corners-plus2"``, ``"boundaries"`` (seams and
@@ -260,16 +277,29 @@ class Plan(_Output):
 
         Raises:
             InvalidInputError: wrong shape, unknown mode. NonFiniteError: a non-finite value.
+            IndexOutOfRangeError: an index outside ``values``.
         """
         if isinstance(values, Mapping):
-            return {
-                name: self.evaluate_face_varying(v, mode, limit=limit) for name, v in values.items()
-            }
+            if indices is not None:
+                raise InvalidInputError("indices go with each set of a mapping: (values, indices)")
+            out = {}
+            for name, given in values.items():
+                array, index = given if isinstance(given, tuple) else (given, None)
+                out[name] = self.evaluate_face_varying(array, mode, limit=limit, indices=index)
+            return out
         mode = convert.choice(mode, convert.UV_MODES, "uv_mode")  # type: ignore[assignment]
         if not isinstance(limit, bool):
             raise InvalidInputError(f"limit must be True or False, not {limit!r}")
-        array, flat = convert.values_2d(values, self._mesh.num_corners, "values", "face corners")
-        out = self._native_plan.evaluate_face_varying(array, mode, limit)
+        corners = self._mesh.num_corners
+        if indices is None:
+            array, flat = convert.values_2d(values, corners, "values", "face corners")
+            out = self._native_plan.evaluate_face_varying(array, mode, limit)
+        else:
+            given = convert.float_array(values, "values")
+            rows = len(given) if given.ndim else 0
+            array, flat = convert.values_2d(given, rows, "values", "indexed values")
+            index = convert.face_varying_indices(indices, corners, rows, "indices")
+            out = self._native_plan.evaluate_face_varying(array, mode, limit, index)
         return out.reshape(-1) if flat else out
 
     def result(
@@ -353,12 +383,14 @@ class Result(_Output):
         self.normals: FloatArray | None = normals
         #: The face-varying mode the uvs were subdivided in.
         self.uv_mode: UvMode = uv_mode
-        mesh_uvs = plan.mesh.uvs
-        self.uvs: FloatArray | None = (
-            plan.evaluate_face_varying(mesh_uvs, uv_mode, limit=limit)
-            if mesh_uvs is not None
-            else None
-        )
+        mesh = plan.mesh
+        self.uvs: FloatArray | None = None
+        if mesh.uv_indices is not None:
+            self.uvs = plan.evaluate_face_varying(
+                mesh.uv_values, uv_mode, limit=limit, indices=mesh.uv_indices
+            )
+        elif mesh.uvs is not None:
+            self.uvs = plan.evaluate_face_varying(mesh.uvs, uv_mode, limit=limit)
 
     @property
     def plan(self) -> Plan:
@@ -377,7 +409,8 @@ class Result(_Output):
 
     @convert.memory_errors()
     def write_obj(self, path: str | os.PathLike[str]) -> None:
-        """Writes the result as OBJ (``v``, ``vt`` when there are uvs, ``vn`` per face corner
+        """Writes the result as OBJ (``v``, ``vt`` when there are uvs: one per distinct
+        value, so that the ``vt`` indices read back as the same seams; ``vn`` per face corner
         when there are normals, ``f``), fast.
 
         Raises:
@@ -387,12 +420,12 @@ class Result(_Output):
         points = np.ascontiguousarray(self.points)
         if points.dtype not in (np.float32, np.float64):
             points = points.astype(np.float64)
-        uvs = normals = None
+        uvs = normals = uv_indices = None
         if self.uvs is not None:
-            uvs = np.ascontiguousarray(self.uvs, dtype=points.dtype)
+            uvs, uv_indices = shared_uvs(np.ascontiguousarray(self.uvs, dtype=points.dtype))
         if self.normals is not None:
             normals = np.ascontiguousarray(self.normals, dtype=points.dtype)
-        self._native_plan.write_obj(os.fspath(path), points, uvs, normals)
+        self._native_plan.write_obj(os.fspath(path), points, uvs, normals, uv_indices)
 
     def __repr__(self) -> str:
         return (

@@ -23,8 +23,11 @@ Conventions:
   *area-weighted vertex normals* (``vertex`` interpolation): each face contributes its vector
   area (Newell's formula, exact for planar faces) to each of its vertices and the sums are
   normalised.  A vertex whose sum vanishes gets a zero normal.
-- UVs are face-varying ``primvars:st`` (``texCoord2f[]``), one value per face corner, on both the
-  cage and the result; further UV sets (``uv_sets``) are primvars of their own names.  The cage's
+- UVs are face-varying ``primvars:st`` (``texCoord2f[]``), on both the cage and the result;
+  further UV sets (``uv_sets``) are primvars of their own names.  The cage's are indexed
+  primvars whose indices are the face-varying topology bidegree used (``Mesh.uv_indices``, or
+  one index per distinct value at each vertex), which OpenSubdiv takes as the topology; the
+  result's have one value per face corner.  The cage's
   ``faceVaryingLinearInterpolation`` is the result's ``uv_mode`` (OpenSubdiv's names:
   :data:`UV_MODE_TO_USD`; ``all``, linear, for a result without one), so a renderer subdividing
   the cage gets the same UV layout.
@@ -263,6 +266,24 @@ def _face_varying(
     return uv
 
 
+def _indexed(
+    per_corner: np.ndarray, indices: np.ndarray | None, topo: _Topology
+) -> tuple[np.ndarray, np.ndarray]:
+    """A cage's face-varying values as an indexed primvar whose indices are the face-varying
+    topology bidegree subdivided: the given ``indices`` (``Mesh.uv_indices``) with the values
+    they index, or else one index per distinct value at each vertex (the weld by value), so
+    that a reader refining the cage (OpenSubdiv takes the indices as the topology) gets the
+    same seams."""
+    if indices is not None:
+        indices = np.asarray(indices, dtype=np.int64)
+        values = np.zeros((int(indices.max()) + 1 if len(indices) else 0, per_corner.shape[1]))
+        values[indices] = per_corner
+        return values, indices
+    keys = np.column_stack([topo.face_indices.astype(np.float64), per_corner])
+    first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)[1:]
+    return per_corner[first], inverse.reshape(-1)
+
+
 def _vec3f(pxr: Any, a: np.ndarray) -> Any:
     return pxr.Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(a, dtype=np.float32))
 
@@ -477,7 +498,9 @@ def _build_stage(
         st = UsdGeom.PrimvarsAPI(cmesh.GetPrim()).CreatePrimvar(
             "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying
         )
-        st.Set(_vec2f(pxr, cage_uvs))
+        values, indices = _indexed(cage_uvs, getattr(cage, "uv_indices", None), cage_topo)
+        st.Set(_vec2f(pxr, values))
+        st.SetIndices(_ints(pxr, indices))
 
     # result: the bidegree surface as a plain polygon mesh
     rmesh = _define_polymesh(
@@ -501,9 +524,13 @@ def _build_stage(
 
     for name, cage_values, result_values in more_uvs:
         for mesh, values in ((cmesh, cage_values), (rmesh, result_values)):
-            UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
+            primvar = UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
                 name, Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying
-            ).Set(_vec2f(pxr, values))
+            )
+            if mesh is cmesh:
+                values, indices = _indexed(values, None, cage_topo)
+                primvar.SetIndices(_ints(pxr, indices))
+            primvar.Set(_vec2f(pxr, values))
 
     for name, topo, extra_dist in extras:
         _define_polymesh(pxr, stage, f"/Bidegree/{name}", topo, normals=True, distances=extra_dist)

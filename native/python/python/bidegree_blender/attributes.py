@@ -14,8 +14,10 @@ What each domain does (Blender's Subdivision Surface, ``subdiv_mesh.cc``, is the
   into the angular sector of its quadrant's corner.
 * **Corner** (UV maps, corner colours, generic corner attributes): face-varying through
   ``Plan.evaluate_face_varying`` with the UV mode (:data:`UV_SMOOTH` maps Blender's six names;
-  Subsurf smooths only UV maps and mixes the others bilinearly). Integers and booleans: the
-  value of the quadrant's cage corner.
+  Subsurf smooths only UV maps and mixes the others bilinearly). UV maps weld as Blender's
+  Subsurf welds them (within ``STD_UV_CONNECT_LIMIT`` per axis and by UV winding:
+  :meth:`.mesh_io.CageArrays.uv_indices`), the other corner values by exact equality.
+  Integers and booleans: the value of the quadrant's cage corner.
 * **Face** (generic; material indices and flat/smooth stay in :mod:`.mesh_io`): copied from the
   origin face.
 * **Edge** (sharp edges, seams, generic): copied onto the child edges of each cage edge
@@ -36,9 +38,10 @@ defaults.
 Adaptive output (:func:`adaptive_request`, :func:`adaptive_attributes`): point floats, vertex
 groups, corner floats (UV maps included, in the UV mode), custom normals, face attributes and
 edge attributes (on the triangle edges along their cage edge, the crease lowered by each
-edge's level) and integers and booleans (the quadrant's cage corner, from the unit vectors
-carried linearly) come through as on uniform output (each at its vertex's level); vertex
-creases are not carried.
+edge's level), vertex creases (on the cage vertices' own output vertices,
+``AdaptiveResult.cage_vertex``, lowered by each vertex's level) and integers and booleans (the
+quadrant's cage corner, from the unit vectors carried linearly) come through as on uniform
+output (each at its vertex's level).
 """
 
 from __future__ import annotations
@@ -280,7 +283,10 @@ def transfer(
         elif id(a) in by_value:
             assert corners is not None
             if a.name == CREASE_VERT and a.domain == "POINT":
-                out.append(_vertex_crease(a, plan, corners, use_creases))
+                at = corners.face_indices[corners.exact]
+                source = corners.corner_verts[corners.quadrant[corners.exact]]
+                count = int(plan.num_output_vertices)
+                out.append(_vertex_crease(a, count, at, source, int(plan.levels), use_creases))
             elif a.domain == "POINT":
                 out.append(_like(a, a.values[corners.point_source()]))
             else:
@@ -351,10 +357,17 @@ def adaptive_attributes(
     and the edge attributes on the triangle edges along their cage edge (the crease as
     ``result.edge_sharpness`` keeps it), integer and boolean values from the quadrant's cage
     corner (as uniform output), and the custom normals per triangle corner (renormalized) or
-    ``None``. Not carried: vertex creases."""
+    ``None``; vertex creases on the cage vertices' own output vertices, lowered by their
+    level."""
     cage_attributes = cage.attributes
     origin = np.asarray(result.face_origin, dtype=np.int64)
     out = [_like(a, a.values[origin]) for a in cage_attributes.attributes if a.domain == "FACE"]
+    at = np.flatnonzero(np.asarray(result.cage_vertex) >= 0)
+    source = np.asarray(result.cage_vertex, dtype=np.int64)[at]
+    levels = np.asarray(result.vertex_level)[at]
+    for a in cage_attributes.attributes:
+        if (a.domain, a.name) == ("POINT", CREASE_VERT):
+            out.append(_vertex_crease(a, result.num_vertices, at, source, levels, use_creases))
     edge_attrs = [a for a in cage_attributes.attributes if a.domain == "EDGE"]
     if edge_attrs:
         corner_edges = np.asarray(corner_edges, dtype=np.int64)
@@ -432,8 +445,10 @@ def _split(attrs: list[Attribute], values: np.ndarray) -> list[Attribute]:
 
 
 def _lowered(sharpness: np.ndarray, levels: int | np.ndarray) -> np.ndarray:
-    """OpenSubdiv's uniform decrement, ``levels`` times: minus one per level, 10 stays."""
-    return np.where(sharpness >= _CREASE_SCALE, _CREASE_SCALE, np.maximum(sharpness - levels, 0))
+    """OpenSubdiv's uniform decrement, ``levels`` times: minus one per level, 10 stays (in the
+    dtype of ``sharpness``, so that per-element levels give the bits of one level for all)."""
+    lowered = sharpness - np.asarray(levels, dtype=sharpness.dtype)
+    return np.where(sharpness >= _CREASE_SCALE, _CREASE_SCALE, np.maximum(lowered, 0))
 
 
 def _to_crease(sharpness: np.ndarray) -> np.ndarray:
@@ -441,15 +456,21 @@ def _to_crease(sharpness: np.ndarray) -> np.ndarray:
 
 
 def _vertex_crease(
-    attr: Attribute, plan: bidegree.Plan, corners: _Corners, use_creases: bool
+    attr: Attribute,
+    count: int,
+    at: np.ndarray,
+    source: np.ndarray,
+    levels: int | np.ndarray,
+    use_creases: bool,
 ) -> Attribute:
-    """The crease of each cage vertex on its own output vertex (lowered per level), 0 elsewhere."""
-    values = np.zeros(int(plan.num_output_vertices), dtype=np.float32)
-    crease = attr.values[corners.corner_verts[corners.quadrant[corners.exact]]]
+    """The crease of cage vertex ``source[i]`` on output vertex ``at[i]`` (lowered by its level,
+    ``levels``: one for all or per vertex), 0 on the other of the ``count`` output vertices."""
+    values = np.zeros(count, dtype=np.float32)
+    crease = attr.values[source]
     if use_creases:
         sharpness = _CREASE_SCALE * np.clip(crease, 0.0, 1.0) ** 2
-        crease = _to_crease(_lowered(sharpness, int(plan.levels)))
-    values[corners.face_indices[corners.exact]] = crease
+        crease = _to_crease(_lowered(sharpness, levels))
+    values[at] = crease
     return _like(attr, values)
 
 

@@ -86,15 +86,21 @@ def _add_object_data(
     meshes = {label: stage.GetPrimAtPath(f"/Bidegree/{label}") for label in ("Cage", "Result")}
     plan = result.plan
     names = {"st", "normals", "displayColor", "distance"}  # bidegree.usd's own primvars
-    for name, uvs in cage.uv_maps.items():
+    for name, (uvs, indices) in cage.uv_sets().items():
         if name == cage.active_uv:
             continue  # written as ``st`` by bidegree.usd
         primvar = _identifier(name, names)
         for label, prim in meshes.items():
-            values = uvs if label == "Cage" else plan.evaluate_face_varying(uvs, result.uv_mode)
-            UsdGeom.PrimvarsAPI(prim).CreatePrimvar(
+            created = UsdGeom.PrimvarsAPI(prim).CreatePrimvar(
                 primvar, Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying
-            ).Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(values, dtype=np.float32)))
+            )
+            if label == "Cage":
+                # Indexed by Blender's UV topology, as the active map's ``st``.
+                values = uvs
+                created.SetIndices(Vt.IntArray.FromNumpy(indices.astype(np.int32)))
+            else:
+                values = plan.evaluate_face_varying(uvs, result.uv_mode, indices=indices)
+            created.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(values, dtype=np.float32)))
 
     materials = pipeline.object_materials(obj)
     if any(m is not None for m in materials):

@@ -72,11 +72,30 @@ class CageArrays:
     sharp_face: np.ndarray | None = None
     vertex_groups: dict[str, np.ndarray] = field(default_factory=dict)
     attributes: CageAttributes = field(default_factory=lambda: CageAttributes([]))
+    _uv_indices: dict[str, np.ndarray] = field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
 
     @property
     def num_vertices(self) -> int:
         """Number of cage vertices."""
         return int(self.points.shape[0])
+
+    def uv_indices(self, name: str) -> np.ndarray:
+        """The face-varying topology Blender's Subdivision Surface gives UV map ``name``: its
+        weld within ``STD_UV_CONNECT_LIMIT`` and by UV winding
+        (:func:`bidegree.blender_uv_indices`), as indices into the map's corners (computed
+        once per read)."""
+        if name not in self._uv_indices:
+            self._uv_indices[name] = bidegree.blender_uv_indices(
+                self.face_sizes, self.corner_verts, self.uv_maps[name]
+            )
+        return self._uv_indices[name]
+
+    def uv_sets(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Every UV map as ``(uvs, indices)``: what ``Plan.evaluate_face_varying`` takes to give
+        Blender's seams."""
+        return {name: (uv, self.uv_indices(name)) for name, uv in self.uv_maps.items()}
 
     @property
     def num_faces(self) -> int:
@@ -294,7 +313,8 @@ def to_bidegree_mesh(
         cage: The arrays read by :func:`read_mesh`.
         boundary: ``"edge-only"``, ``"edge-and-corner"`` or ``"none"``.
         use_creases: Pass edge/vertex creases (sharpness ``10 * c**2``).
-        uv_map: Name of the UV map to attach as the mesh's ``uvs`` (or ``None``).
+        uv_map: Name of the UV map to attach as the mesh's ``uvs`` (or ``None``), with Blender's
+            UV topology as its ``uv_indices`` (:meth:`CageArrays.uv_indices`).
 
     Warns:
         LooseEdgesWarning: the mesh has loose edges.
@@ -324,6 +344,7 @@ def to_bidegree_mesh(
         if len(sel):
             corners = (sel.astype(np.int64), sharpness[sel])
     uvs = cage.uv_maps.get(uv_map) if uv_map is not None else None
+    uv_indices = cage.uv_indices(uv_map) if uvs is not None and uv_map is not None else None
     return bidegree.Mesh(
         cage.points,
         face_sizes=cage.face_sizes,
@@ -331,6 +352,7 @@ def to_bidegree_mesh(
         creases=creases,
         corners=corners,
         uvs=uvs,
+        uv_indices=uv_indices,
         boundary=boundary,
     )
 

@@ -163,11 +163,11 @@ class Surface:
 def _plan_uv_maps(
     plan: bidegree.Plan, cage: mesh_io.CageArrays, options: Options
 ) -> dict[str, np.ndarray]:
-    """Every UV map of ``cage`` through ``plan`` (face-varying in the options' mode), in one
-    pass."""
+    """Every UV map of ``cage`` through ``plan`` (face-varying in the options' mode, on
+    Blender's UV topology: :meth:`.mesh_io.CageArrays.uv_indices`), in one pass."""
     if not cage.uv_maps:
         return {}
-    return attributes.face_varying(plan, dict(cage.uv_maps), options.uv_mode)
+    return attributes.face_varying(plan, cage.uv_sets(), options.uv_mode)
 
 
 def plan_vertex_groups(plan: bidegree.Plan, cage: mesh_io.CageArrays) -> dict[str, np.ndarray]:
@@ -234,11 +234,12 @@ def adaptive_surface(cage: mesh_io.CageArrays, options: Options) -> tuple[Surfac
     points, custom normals (linear, renormalized; the limit normals of ``options.normals``
     are not available on adaptive output), face data through ``face_origin``, edge data on
     the triangle edges along their cage edge, integers and booleans from the quadrant's cage
-    corner. Vertex creases are not carried (:func:`attributes.adaptive_attributes`)."""
+    corner, vertex creases on the cage vertices' own output vertices
+    (:func:`attributes.adaptive_attributes`)."""
     bmesh = cage_mesh(cage, options)
     points, sets = attributes.adaptive_request(cage, options.uv_mode)
-    for name, uv in cage.uv_maps.items():
-        sets[f"uv:{name}"] = (uv, options.uv_mode)
+    for name, (uv, indices) in cage.uv_sets().items():
+        sets[f"uv:{name}"] = (uv, options.uv_mode, indices)
     groups = list(cage.vertex_groups)
     columns = [cage.vertex_groups[n].reshape(-1, 1) for n in groups]
     columns += [a.values.reshape(len(a.values), -1) for a in points]
