@@ -418,21 +418,22 @@ def double_cone() -> DirtyCage:
 
 def valence_two(sharpness: float) -> DirtyCage:
     """A cube whose edge 1-2 is split by vertex 8 (valence 2: two faces, two edges), both halves
-    creased with ``sharpness``: Blender adds min(sharpness) to vertex 8's sharpness
-    (``topology_refiner_factory.cc``, ``assignComponentTags``); OpenSubdiv alone does not."""
+    creased with ``sharpness`` (none at 0: an interior vertex of valence 2): Blender adds
+    min(sharpness) to vertex 8's sharpness (``topology_refiner_factory.cc``,
+    ``assignComponentTags``); OpenSubdiv alone does not."""
     c = cube()
     points = np.vstack([c.points, (c.points[1] + c.points[2]) / 2 + [0.08, 0.0, 0.03]])
     faces = [list(f) for f in c.faces]
     faces[0] = [0, 3, 2, 8, 1]  # bottom: 0 3 2 1 with 8 between 2 and 1
     faces[3] = [1, 8, 2, 6, 5]  # side: 1 2 6 5 with 8 between 1 and 2
-    creases = ((1, 8, sharpness), (8, 2, sharpness))
+    creases = ((1, 8, sharpness), (8, 2, sharpness)) if sharpness > 0 else ()
     label = "inf" if sharpness >= INF else f"{sharpness:g}"
     return DirtyCage(
-        f"valence-2-crease-{label}",
+        f"valence-2-crease-{label}" if creases else "valence-2-smooth",
         _f32(points),
         tuple(tuple(f) for f in faces),
         sharp_edges=creases,
-        note="vertex 8 has two edges, both creased",
+        note="vertex 8 has two edges, both creased" if creases else "vertex 8 has two edges",
     )
 
 
@@ -467,6 +468,7 @@ def issue_13_cages(*, with_blender: bool = True) -> dict[str, DirtyCage]:
         bowtie("edge-only"),
         bowtie("edge-and-corner"),
         double_cone(),
+        valence_two(0.0),
         valence_two(INF),
         valence_two(SHARP_2_5),
         valence_two(SHARP_0_6),
