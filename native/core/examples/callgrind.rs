@@ -13,7 +13,7 @@
 //!             limit-surface-4 adaptive-4 limit-ico-4 limit-first-ico-4 limit-first-fan-400-9 \
 //!             limit-first-ngon-1000-9 limit-semisharp-4 limit-sharp-4 \
 //!             uvs-classic-3 uvs-averaging-4 fresh-fins-averaging-3 fresh-flipped-averaging-3 \
-//!             fresh-fins-classic-3 fresh-flipped-classic-3; do
+//!             fresh-loose-fins-averaging-3 fresh-fins-classic-3 fresh-flipped-classic-3; do
 //!   echo "$case $(( $(ir $case 2) - $(ir $case 1) ))"
 //! done
 //! ```
@@ -70,7 +70,8 @@ fn main() {
     // the cost of the non-manifold tables against the manifold "fresh" case of the same build:
     // "fins" adds a quad (two new points, pushed out) on the first edge of every 40th face (96
     // edges of 3 faces, 2.5 % more faces); "flipped" reverses every 40th face (the same faces,
-    // 384 edges whose two faces run the same way).
+    // 384 edges whose two faces run the same way); "loose-fins" the same fins on their own
+    // copies of the edge's points (the same faces and boundary curves, nothing non-manifold).
     let dirty = |how: &str| -> (Cage, Vec<f32>) {
         let (mut indices, mut points) = (cage_indices.clone(), points.clone());
         let quads = indices.len() / 4;
@@ -81,6 +82,18 @@ fn main() {
                 continue;
             }
             let first = (points.len() / 3) as u32;
+            let [a, b] = if how == "loose-fins" {
+                // The same quads on their own copies of the edge: no non-manifold edge.
+                let copy = (points.len() / 3) as u32;
+                for v in [a, b] {
+                    let p: Vec<f32> = points[3 * v as usize..3 * v as usize + 3].to_vec();
+                    points.extend(p);
+                }
+                [copy, copy + 1]
+            } else {
+                [a, b]
+            };
+            let first = first + if how == "loose-fins" { 2 } else { 0 };
             for v in [b, a] {
                 let p: Vec<f32> = points[3 * v as usize..3 * v as usize + 3].to_vec();
                 points.extend(p.iter().map(|x| 1.2 * x));
@@ -94,13 +107,15 @@ fn main() {
             points,
         )
     };
-    let dirty_case = ["fins", "flipped"].into_iter().find_map(|how| {
-        let o = case
-            .strip_prefix("fresh-")?
-            .strip_prefix(how)?
-            .strip_prefix('-')?;
-        Some((how, scheme(o)?))
-    });
+    let dirty_case = ["fins", "loose-fins", "flipped"]
+        .into_iter()
+        .find_map(|how| {
+            let o = case
+                .strip_prefix("fresh-")?
+                .strip_prefix(how)?
+                .strip_prefix('-')?;
+            Some((how, scheme(o)?))
+        });
     if let Some((how, o)) = dirty_case {
         let (cage, points) = dirty(how);
         measured(&|| {
