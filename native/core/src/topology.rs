@@ -817,12 +817,32 @@ impl Level {
         increasing: bool,
     ) -> Result<(Vec<u32>, Vec<u32>)> {
         let (nv, ne) = (self.num_vertices, self.num_edges());
-        let manifold = self.edges().more.is_empty();
+        // Where each edge's extra slots start in `more` (a search per edge would cost more than
+        // the rest of the table on a non-manifold level); empty on a manifold level.
+        let more = &self.edges().more;
+        let mut more_at: Vec<u32> = Vec::new();
+        if !more.is_empty() {
+            more_at = memory::zeroed(ne + 1)?;
+            for &(e, _) in more {
+                more_at[e as usize + 1] += 1;
+            }
+            for e in 0..ne {
+                more_at[e + 1] += more_at[e];
+            }
+        }
+        let extra = |e: usize| {
+            if more_at.is_empty() {
+                &more[..0]
+            } else {
+                &more[more_at[e] as usize..more_at[e + 1] as usize]
+            }
+        };
         let offsets = prefix_offsets(new_vertices, |w| {
             if w < nv {
                 self.corners_of_vertex(w).len() as u32
             } else if w < nv + ne {
-                2 * self.edge_valence(w - nv) as u32
+                let [_, c1] = self.edge_corners()[w - nv];
+                2 * (1 + u32::from(c1 != NONE) + extra(w - nv).len() as u32)
             } else {
                 self.face_corners(w - nv - ne).len() as u32
             }
@@ -834,21 +854,21 @@ impl Level {
                     *o = 4 * c;
                 }
             } else if w < nv + ne {
-                if manifold {
-                    // At most two slots, the second maybe missing (the common case, without
-                    // the slot iterator).
-                    let [c0, c1] = self.edge_corners()[w - nv];
-                    out[0] = 4 * c0 + 1;
-                    out[1] = 4 * self.next(c0 as usize) as u32 + 3;
-                    if c1 != NONE {
-                        out[2] = 4 * c1 + 1;
-                        out[3] = 4 * self.next(c1 as usize) as u32 + 3;
-                    }
-                } else {
-                    for (pair, c) in out.chunks_exact_mut(2).zip(self.edge_slots(w - nv)) {
-                        pair[0] = 4 * c + 1;
-                        pair[1] = 4 * self.next(c as usize) as u32 + 3;
-                    }
+                // The slots in `edge_slots` order: the first two (the second maybe missing),
+                // then the extra ones, written out (the slot iterator does not inline).
+                let [c0, c1] = self.edge_corners()[w - nv];
+                out[0] = 4 * c0 + 1;
+                out[1] = 4 * self.next(c0 as usize) as u32 + 3;
+                let mut k = 2;
+                if c1 != NONE {
+                    out[2] = 4 * c1 + 1;
+                    out[3] = 4 * self.next(c1 as usize) as u32 + 3;
+                    k = 4;
+                }
+                for &(_, c) in extra(w - nv) {
+                    out[k] = 4 * c + 1;
+                    out[k + 1] = 4 * self.next(c as usize) as u32 + 3;
+                    k += 2;
                 }
             } else {
                 for (o, c) in out.iter_mut().zip(self.face_corners(w - nv - ne)) {
