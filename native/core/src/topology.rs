@@ -820,8 +820,9 @@ impl Level {
         // Where each edge's extra slots start in `more` (a search per edge would cost more than
         // the rest of the table on a non-manifold level); empty on a manifold level.
         let more = &self.edges().more;
+        let manifold = more.is_empty();
         let mut more_at: Vec<u32> = Vec::new();
-        if !more.is_empty() {
+        if !manifold {
             more_at = memory::zeroed(ne + 1)?;
             for &(e, _) in more {
                 more_at[e as usize + 1] += 1;
@@ -842,7 +843,12 @@ impl Level {
                 self.corners_of_vertex(w).len() as u32
             } else if w < nv + ne {
                 let [_, c1] = self.edge_corners()[w - nv];
-                2 * (1 + u32::from(c1 != NONE) + extra(w - nv).len() as u32)
+                let extra = if manifold {
+                    0
+                } else {
+                    extra(w - nv).len() as u32
+                };
+                2 * (1 + u32::from(c1 != NONE) + extra)
             } else {
                 self.face_corners(w - nv - ne).len() as u32
             }
@@ -859,16 +865,17 @@ impl Level {
                 let [c0, c1] = self.edge_corners()[w - nv];
                 out[0] = 4 * c0 + 1;
                 out[1] = 4 * self.next(c0 as usize) as u32 + 3;
-                let mut k = 2;
                 if c1 != NONE {
                     out[2] = 4 * c1 + 1;
                     out[3] = 4 * self.next(c1 as usize) as u32 + 3;
-                    k = 4;
                 }
-                for &(_, c) in extra(w - nv) {
-                    out[k] = 4 * c + 1;
-                    out[k + 1] = 4 * self.next(c as usize) as u32 + 3;
-                    k += 2;
+                if !manifold {
+                    let mut k = if c1 != NONE { 4 } else { 2 };
+                    for &(_, c) in extra(w - nv) {
+                        out[k] = 4 * c + 1;
+                        out[k + 1] = 4 * self.next(c as usize) as u32 + 3;
+                        k += 2;
+                    }
                 }
             } else {
                 for (o, c) in out.iter_mut().zip(self.face_corners(w - nv - ne)) {
