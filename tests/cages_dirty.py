@@ -17,6 +17,7 @@ attribute (``10 c^2`` with ``c`` a float32): 10 (infinite), 2.5, 1.40625 and 0.6
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -418,21 +419,22 @@ def double_cone() -> DirtyCage:
 
 def valence_two(sharpness: float) -> DirtyCage:
     """A cube whose edge 1-2 is split by vertex 8 (valence 2: two faces, two edges), both halves
-    creased with ``sharpness``: Blender adds min(sharpness) to vertex 8's sharpness
-    (``topology_refiner_factory.cc``, ``assignComponentTags``); OpenSubdiv alone does not."""
+    creased with ``sharpness`` (none at 0: an interior vertex of valence 2): Blender adds
+    min(sharpness) to vertex 8's sharpness (``topology_refiner_factory.cc``,
+    ``assignComponentTags``); OpenSubdiv alone does not."""
     c = cube()
     points = np.vstack([c.points, (c.points[1] + c.points[2]) / 2 + [0.08, 0.0, 0.03]])
     faces = [list(f) for f in c.faces]
     faces[0] = [0, 3, 2, 8, 1]  # bottom: 0 3 2 1 with 8 between 2 and 1
     faces[3] = [1, 8, 2, 6, 5]  # side: 1 2 6 5 with 8 between 1 and 2
-    creases = ((1, 8, sharpness), (8, 2, sharpness))
+    creases = ((1, 8, sharpness), (8, 2, sharpness)) if sharpness > 0 else ()
     label = "inf" if sharpness >= INF else f"{sharpness:g}"
     return DirtyCage(
-        f"valence-2-crease-{label}",
+        f"valence-2-crease-{label}" if creases else "valence-2-smooth",
         _f32(points),
         tuple(tuple(f) for f in faces),
         sharp_edges=creases,
-        note="vertex 8 has two edges, both creased",
+        note="vertex 8 has two edges, both creased" if creases else "vertex 8 has two edges",
     )
 
 
@@ -467,6 +469,7 @@ def issue_13_cages(*, with_blender: bool = True) -> dict[str, DirtyCage]:
         bowtie("edge-only"),
         bowtie("edge-and-corner"),
         double_cone(),
+        valence_two(0.0),
         valence_two(INF),
         valence_two(SHARP_2_5),
         valence_two(SHARP_0_6),
@@ -597,6 +600,58 @@ def suzanne() -> DirtyCage:
     finally:
         bm.free()
     return DirtyCage("uv-suzanne", _f32(points), faces, uvs=_f32(uvs), note="Blender's own UVs")
+
+
+def _sheet_uvs(cage: DirtyCage, name: str, cut: tuple[int, ...] = ()) -> DirtyCage:
+    """``cage`` with a UV island per sheet: faces joined across manifold edges (two faces running
+    opposite ways) share an island, flattened on its two principal axes and shifted apart, so
+    every non-manifold edge and vertex is a seam between sheets; the faces in ``cut`` are an
+    island of their own (a seam inside a sheet)."""
+    faces = [list(f) for f in cage.faces]
+    uses: dict[tuple[int, int], list[tuple[int, bool]]] = {}
+    for f, face in enumerate(faces):
+        for a, b in itertools.pairwise([*face, face[0]]):
+            uses.setdefault((min(a, b), max(a, b)), []).append((f, a < b))
+    island = list(range(len(faces)))
+
+    def root(f: int) -> int:
+        while island[f] != f:
+            f = island[f]
+        return f
+
+    for pair in uses.values():
+        if (
+            len(pair) == 2
+            and pair[0][1] != pair[1][1]
+            and (pair[0][0] in cut) == (pair[1][0] in cut)
+        ):
+            island[root(pair[0][0])] = root(pair[1][0])
+    roots = sorted({root(f) for f in range(len(faces))})
+    points = np.asarray(cage.points, dtype=np.float64)
+    uvs = np.zeros((sum(len(f) for f in faces), 2))
+    starts = np.cumsum([0] + [len(f) for f in faces])
+    for k, r in enumerate(roots):
+        members = [f for f in range(len(faces)) if root(f) == r]
+        verts = sorted({v for f in members for v in faces[f]})
+        centre = points[verts].mean(axis=0)
+        axes = np.linalg.svd(points[verts] - centre)[2][:2]
+        for f in members:
+            flat = (points[faces[f]] - centre) @ axes.T
+            uvs[starts[f] : starts[f + 1]] = 0.25 * flat + [0.8 * k, 0.0]
+    return cage.with_changes(
+        name, uvs=_uv_jitter(uvs), note=f"{len(roots)} UV islands, one per sheet"
+    )
+
+
+def non_manifold_uv_cages() -> dict[str, DirtyCage]:
+    """Issue 13's non-manifold cages with UVs (issue 14's modes on them): a 3-face fin, a book of
+    4 pages, a bowtie whose second fan is cut by a seam."""
+    cages = [
+        _sheet_uvs(fin(3), "uv-fin-3"),
+        _sheet_uvs(book(4), "uv-book-4"),
+        _sheet_uvs(bowtie("edge-only"), "uv-bowtie-seam", cut=(4, 5)),
+    ]
+    return {c.name: c for c in cages}
 
 
 def issue_14_cages(*, with_blender: bool = True) -> dict[str, DirtyCage]:

@@ -38,6 +38,10 @@ TOLERANCE = 1e-5
 LEVELS = (1, 2, 3)
 DIRTY = cages_dirty.issue_13_cages()
 UV_CAGES = cages_dirty.issue_14_cages()
+# The manifold ones: the face-varying-cage mapping of the research note covers only those.
+MANIFOLD_UV_CAGES = sorted(UV_CAGES)
+# Issue 13 x 14: UVs on non-manifold cages (fins, a book, a bowtie with a seam).
+UV_CAGES.update(cages_dirty.non_manifold_uv_cages())
 UV_MODES = ("none", "corners-only", "corners-plus1", "corners-plus2", "boundaries", "all")
 
 DIFFERS = AssertionError  # the comparison's own failure
@@ -292,11 +296,13 @@ def test_uvs_match_opensubdiv(name: str, mode: str) -> None:
 
 
 @pytest.mark.parametrize("mode", ref.SMOOTH_MODES)
-@pytest.mark.parametrize("name", sorted(UV_CAGES))
+@pytest.mark.parametrize("name", MANIFOLD_UV_CAGES)
 def test_face_varying_cage_reproduces_opensubdiv(name: str, mode: str) -> None:
     """The mapping of ``docs/research/face-varying.md`` with today's core: the UVs as positions
     of the face-varying mesh, the mode as its corners, refined by the classic rules. Its
-    faces are the cage's, so its output corners are the cage result's, in the same order."""
+    faces are the cage's, so its output corners are the cage result's, in the same order.
+    (Manifold cages only: the mapping does not make a geometric non-manifold vertex's values
+    corners, so it is 1.4e-3 off on the bowtie; ``subdivide`` itself matches there.)"""
     fv_cage, values = ref.face_varying_cage(UV_CAGES[name], mode)
     mesh = _mesh(fv_cage)
 
@@ -311,7 +317,7 @@ def test_uv_cages_tell_the_modes_apart() -> None:
     """Every cage moves the UVs in every smooth mode away from linear, and together the cages
     separate every pair of neighbouring modes (so a mode mixed up with another fails a test)."""
     separated = set()
-    for cage in UV_CAGES.values():
+    for cage in cages_dirty.issue_14_cages().values():
         uvs = {m: compare.opensubdiv_surface(cage, 2, uv_mode=m).uvs for m in UV_MODES}
         for m in UV_MODES[:-1]:
             assert np.abs(uvs[m] - uvs["all"]).max() > 1e-3, (cage.name, m)

@@ -12,7 +12,9 @@
 //!             fresh-averaging-4 cached-averaging-4 fresh-averaging-9 cached-averaging-9 \
 //!             limit-surface-4 adaptive-4 limit-ico-4 limit-first-ico-4 limit-first-fan-400-9 \
 //!             limit-first-ngon-1000-9 limit-semisharp-4 limit-sharp-4 \
-//!             uvs-classic-3 uvs-averaging-4 uvs-first-classic-3 uvs-first-averaging-4; do
+//!             uvs-classic-3 uvs-averaging-4 uvs-first-classic-3 uvs-first-averaging-4 \
+//!             fresh-fins-averaging-3 fresh-flipped-averaging-3 fresh-loose-fins-averaging-3 \
+//!             fresh-fins-classic-3 fresh-flipped-classic-3; do
 //!   echo "$case $(( $(ir $case 2) - $(ir $case 1) ))"
 //! done
 //! ```
@@ -31,7 +33,7 @@
 
 use std::hint::black_box;
 
-use bidegree::{subdivide_adaptive, AdaptiveOptions, FaceVaryingMode, Options, Plan, Rules};
+use bidegree::{subdivide_adaptive, AdaptiveOptions, Cage, FaceVaryingMode, Options, Plan, Rules};
 
 #[path = "../benches/cages/mod.rs"]
 mod cages;
@@ -67,7 +69,63 @@ fn main() {
             _ => return None,
         })
     };
-    if let Some(o) = case.strip_prefix("fresh-").and_then(scheme) {
+    // fresh-fins-SCHEME, fresh-flipped-SCHEME: the same sphere made non-manifold (issue 13), for
+    // the cost of the non-manifold tables against the manifold "fresh" case of the same build:
+    // "fins" adds a quad (two new points, pushed out) on the first edge of every 40th face (96
+    // edges of 3 faces, 2.5 % more faces); "flipped" reverses every 40th face (the same faces,
+    // 384 edges whose two faces run the same way); "loose-fins" the same fins on their own
+    // copies of the edge's points (the same faces and boundary curves, nothing non-manifold).
+    let dirty = |how: &str| -> (Cage, Vec<f32>) {
+        let (mut indices, mut points) = (cage_indices.clone(), points.clone());
+        let quads = indices.len() / 4;
+        for q in (0..quads).step_by(40) {
+            let [a, b] = [indices[4 * q], indices[4 * q + 1]];
+            if how == "flipped" {
+                indices[4 * q..4 * q + 4].reverse();
+                continue;
+            }
+            let first = (points.len() / 3) as u32;
+            let [a, b] = if how == "loose-fins" {
+                // The same quads on their own copies of the edge: no non-manifold edge.
+                let copy = (points.len() / 3) as u32;
+                for v in [a, b] {
+                    let p: Vec<f32> = points[3 * v as usize..3 * v as usize + 3].to_vec();
+                    points.extend(p);
+                }
+                [copy, copy + 1]
+            } else {
+                [a, b]
+            };
+            let first = first + if how == "loose-fins" { 2 } else { 0 };
+            for v in [b, a] {
+                let p: Vec<f32> = points[3 * v as usize..3 * v as usize + 3].to_vec();
+                points.extend(p.iter().map(|x| 1.2 * x));
+            }
+            indices.extend([a, b, first, first + 1]);
+        }
+        let sizes = vec![4i64; indices.len() / 4];
+        let faces: Vec<i64> = indices.iter().map(|&i| i as i64).collect();
+        (
+            Cage::from_indices(points.len() / 3, &sizes, &faces).unwrap(),
+            points,
+        )
+    };
+    let dirty_case = ["fins", "loose-fins", "flipped"]
+        .into_iter()
+        .find_map(|how| {
+            let o = case
+                .strip_prefix("fresh-")?
+                .strip_prefix(how)?
+                .strip_prefix('-')?;
+            Some((how, scheme(o)?))
+        });
+    if let Some((how, o)) = dirty_case {
+        let (cage, points) = dirty(how);
+        measured(&|| {
+            let plan = Plan::new(&cage, &o).unwrap();
+            black_box(plan.evaluate(&points, 3).unwrap());
+        });
+    } else if let Some(o) = case.strip_prefix("fresh-").and_then(scheme) {
         measured(&|| {
             let plan = Plan::new(&cage, &o).unwrap();
             black_box(plan.evaluate(&points, 3).unwrap());

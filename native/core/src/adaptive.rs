@@ -1321,28 +1321,36 @@ fn restrict(fine: &Level, keep: &[bool]) -> Sub {
         .iter()
         .map(|&e| fine.edge_verts()[e as usize].map(|v| vert_map[v as usize]))
         .collect();
-    let mut edge_corners = Vec::with_capacity(edges.len());
     let mut more = Vec::new();
-    let manifold = fine.edges().more.is_empty();
-    for (i, &e) in edges.iter().enumerate() {
-        if manifold {
-            // Two slots at most: the common case, without the slot iterator.
-            let [a, b] = fine.edge_corners()[e as usize].map(|c| {
-                if c == NONE {
-                    NONE
+    let edge_corners: Vec<[u32; 2]> = if fine.edges().more.is_empty() {
+        // Two slots at most: the common case, without the slot iterator.
+        (edges.iter())
+            .map(|&e| {
+                let [a, b] = fine.edge_corners()[e as usize].map(|c| {
+                    if c == NONE {
+                        NONE
+                    } else {
+                        corner_map[c as usize]
+                    }
+                });
+                if a == NONE {
+                    [b, NONE]
                 } else {
-                    corner_map[c as usize]
+                    [a, b]
                 }
-            });
-            edge_corners.push(if a == NONE { [b, NONE] } else { [a, b] });
-            continue;
+            })
+            .collect()
+    } else {
+        let mut edge_corners = Vec::with_capacity(edges.len());
+        for (i, &e) in edges.iter().enumerate() {
+            let mut slots = (fine.edge_slots(e as usize))
+                .map(|c| corner_map[c as usize])
+                .filter(|&c| c != NONE);
+            edge_corners.push([slots.next().unwrap_or(NONE), slots.next().unwrap_or(NONE)]);
+            more.extend(slots.map(|c| (i as u32, c)));
         }
-        let mut slots = (fine.edge_slots(e as usize))
-            .map(|c| corner_map[c as usize])
-            .filter(|&c| c != NONE);
-        edge_corners.push([slots.next().unwrap_or(NONE), slots.next().unwrap_or(NONE)]);
-        more.extend(slots.map(|c| (i as u32, c)));
-    }
+        edge_corners
+    };
     let mut vert_corner_offsets = Vec::with_capacity(vertices.len() + 1);
     let mut vert_corners = Vec::with_capacity(corner_verts.len());
     vert_corner_offsets.push(0u32);
@@ -1564,6 +1572,14 @@ fn triangulate<T: Scalar>(
         }
     }
     let templates: Vec<Vec<[u8; 3]>> = (0..16).map(triangle_template).collect();
+    // The side `k` of the leaf a template edge between slots `p` and `q` lies on (both among
+    // its corners `2k`, `2k + 2` and midpoint `2k + 1`), 4 for an edge inside the leaf.
+    let side_of: [[u8; 8]; 8] = std::array::from_fn(|p| {
+        std::array::from_fn(|q| {
+            let on = |x: usize, k: usize| (x + 8 - 2 * k) % 8 <= 2;
+            (0..4).find(|&k| on(p, k) && on(q, k)).unwrap_or(4) as u8
+        })
+    });
     let mut triangles = Vec::new();
     let mut face_origin = Vec::new();
     let mut triangle_level = Vec::new();
@@ -1573,6 +1589,7 @@ fn triangulate<T: Scalar>(
     for t in 1..=max_level {
         let part = &parts[t];
         let level = &part.level;
+        let manifold = level.edges().more.is_empty();
         for f in leaf_faces(t)? {
             let mut slots = [NONE; 8];
             let mut mask = 0u8;
@@ -1585,12 +1602,19 @@ fn triangulate<T: Scalar>(
                 let e = level.corner_edges()[corner] as usize;
                 // Any drawn face across the edge (one, or several on a non-manifold edge) that
                 // is refined once more has the edge's midpoint; a hole has nothing drawn.
-                let finer = level.edge_slots(e).any(|other| {
+                let finer_across = |other: u32| {
+                    if other == NONE || other as usize == corner {
+                        return false;
+                    }
                     let neighbour = part.face_uid[(other >> 2) as usize];
-                    other as usize != corner
-                        && !ctx.is_hole(t, neighbour)
-                        && refined[t].contains(&neighbour)
-                });
+                    !ctx.is_hole(t, neighbour) && refined[t].contains(&neighbour)
+                };
+                let finer = if manifold {
+                    // Two slots at most, without the slot iterator.
+                    level.edge_corners()[e].into_iter().any(finer_across)
+                } else {
+                    level.edge_slots(e).any(finer_across)
+                };
                 if finer {
                     let uid = part.counts[0] + part.edge_uid[e];
                     slots[2 * k + 1] = *index.get(&uid).ok_or_else(|| {
@@ -1616,19 +1640,20 @@ fn triangulate<T: Scalar>(
                 corner_at.extend(tri.map(|p| (t as u32, f as u32, p)));
                 for i in 0..3 {
                     let (p, q) = (tri[i], tri[(i + 1) % 3]);
-                    // On side k when both slots are among its corners and midpoint.
-                    let side = (0..4u8).find(|&k| {
-                        let on = |x: u8| (x + 8 - 2 * k) % 8 <= 2;
-                        on(p) && on(q)
-                    });
-                    let origin = side.map_or(NONE, |k| sides[k as usize]);
+                    let side = side_of[p as usize][q as usize];
+                    let origin = sides.get(side as usize).copied().unwrap_or(NONE);
                     let depth = t as u32 + (p % 2 == 1 || q % 2 == 1) as u32;
                     edge_origin.push(origin);
                     edge_level.push(depth);
-                    edge_sharpness.push(if origin == NONE {
+                    let cage = if origin == NONE {
                         0.0
                     } else {
-                        let cage = ctx.features.edge_sharpness[origin as usize];
+                        ctx.features.edge_sharpness[origin as usize]
+                    };
+                    // Decrementing keeps 0 (and makes anything not positive 0): skip it there.
+                    edge_sharpness.push(if cage <= 0.0 {
+                        0.0
+                    } else {
                         (0..depth).fold(cage, |s, _| decrement(s))
                     });
                 }

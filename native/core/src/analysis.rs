@@ -288,8 +288,8 @@ fn impulse_responses(
     wanted: impl Fn((usize, usize, usize)) -> bool,
     bytes_per_entry: u64,
 ) -> Result<(Vec<Label>, Vec<Vec<f64>>)> {
-    if valence < 3 {
-        return Err(Error::InvalidInput(format!("valence {valence} is below 3")));
+    if valence < 2 {
+        return Err(Error::InvalidInput(format!("valence {valence} is below 2")));
     }
     let cage = polar_cage(valence, analysis_rings(degree))?;
     let plan = Refinement::new(
@@ -489,7 +489,8 @@ pub struct VertexMasks {
     /// Limit position mask (dominant left eigenvector, summing to 1).
     pub position: Vec<f64>,
     /// Two tangent masks (subdominant left eigenvectors), ordered so that their cross product
-    /// points to the side the faces' orientation makes the outside.
+    /// points to the side the faces' orientation makes the outside; empty at valence 2, where
+    /// the limit surface has no tangent plane in general (see [`vertex_masks`]).
     pub tangents: [Vec<f64>; 2],
 }
 
@@ -510,6 +511,11 @@ fn planar(label: (usize, usize, usize), valence: usize, primal: bool) -> [f64; 2
 /// Computes the masks of `degree` at valence `valence` from the engine's subdivision matrix
 /// (its Fourier blocks 0 and 1, built from the centre's and one sector's columns,
 /// [`SectorColumns`]). Every eigenvector is checked against the measured columns.
+///
+/// Valence 2 (an interior vertex on two faces) gives the position mask only: there the leading
+/// eigenvalue after 1 is 1/4 three times over (twice in mode 1, which is real, once in mode 0;
+/// every degree), so the first terms after the limit point are three functions decaying alike,
+/// whose coefficients span a cone rather than a plane: no tangent masks exist.
 pub fn vertex_masks(degree: u32, valence: usize) -> Result<VertexMasks> {
     let internal = |what: &str| {
         Error::Internal(format!(
@@ -568,6 +574,39 @@ pub fn vertex_masks(degree: u32, valence: usize) -> Result<VertexMasks> {
         return Err(internal("the subdominant eigenvalue is not real"));
     }
     let lambda1 = lambda1.re;
+    let n = neighbourhood_size(degree);
+    let minimal = |&(_, i, j): &(usize, usize, usize)| {
+        if primal {
+            i <= n && j <= n
+        } else {
+            i < n && j < n
+        }
+    };
+    // Each mask restricted to the minimal neighbourhood; what lies outside must vanish.
+    let restrict = |mask: &[f64]| -> Result<Vec<f64>> {
+        let mut out = Vec::new();
+        for (&m, label) in mask.iter().zip(&sm.labels) {
+            if minimal(label) {
+                out.push(m);
+            } else if m.abs() > 1e-9 {
+                return Err(internal("a mask reaches beyond the minimal neighbourhood"));
+            }
+        }
+        Ok(out)
+    };
+    if k == 2 {
+        // Valence 2: mode 1 is real (its eigenvectors have no imaginary part to give a second
+        // tangent), and its leading eigenvalue is that of mode 0's second one (1/4 for every
+        // degree: the three leading terms after the limit point decay alike), so the limit
+        // surface has no tangent plane there in general: the position only.
+        return Ok(VertexMasks {
+            degree,
+            valence,
+            lambda1,
+            position: restrict(&position)?,
+            tangents: [Vec::new(), Vec::new()],
+        });
+    }
     let mut t0: Vec<f64> = sub.iter().map(|z| z.re).collect();
     let mut t1: Vec<f64> = sub.iter().map(|z| z.im).collect();
     for t in [&t0, &t1] {
@@ -598,33 +637,12 @@ pub fn vertex_masks(degree: u32, valence: usize) -> Result<VertexMasks> {
     t0.iter_mut().for_each(|x| *x /= la);
     t1.iter_mut().for_each(|x| *x /= lb);
 
-    // Restrict to the minimal neighbourhood; what lies outside must vanish.
-    let n = neighbourhood_size(degree);
-    let minimal = |&(_, i, j): &(usize, usize, usize)| {
-        if primal {
-            i <= n && j <= n
-        } else {
-            i < n && j < n
-        }
-    };
-    let mut restricted = [Vec::new(), Vec::new(), Vec::new()];
-    for (idx, label) in sm.labels.iter().enumerate() {
-        let masks = [&position, &t0, &t1];
-        if minimal(label) {
-            for (r, m) in restricted.iter_mut().zip(masks) {
-                r.push(m[idx]);
-            }
-        } else if masks.iter().any(|m| m[idx].abs() > 1e-9) {
-            return Err(internal("a mask reaches beyond the minimal neighbourhood"));
-        }
-    }
-    let [position, t0, t1] = restricted;
     Ok(VertexMasks {
         degree,
         valence,
         lambda1,
-        position,
-        tangents: [t0, t1],
+        position: restrict(&position)?,
+        tangents: [restrict(&t0)?, restrict(&t1)?],
     })
 }
 

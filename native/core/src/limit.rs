@@ -28,7 +28,12 @@
 //! corners keep their cage point. Normals there are one-sided: one per side of the curve (a
 //! crease vertex has two), from the fan of refined control points on that side at the extended
 //! level (first-order accurate in the level's spacing, not exact: the exact one would need the
-//! eigenvectors of the boundary subdivision matrices). Degree 1 is bilinear: positions are the
+//! eigenvectors of the boundary subdivision matrices). An interior vertex of valence 2 (on two
+//! faces) has its exact limit position from the dominant eigenvector of its valence, but no
+//! tangent masks: there the eigenvalue after 1 is 1/4 three times over, so the limit surface
+//! has in general a conical point and no tangent plane ([`crate::analysis::vertex_masks`]);
+//! its normal is the fan normal of its two faces, as at a curve vertex (a closed fan: one
+//! normal for both corners). Degree 1 is bilinear: positions are the
 //! refined points, normals those of each face's bilinear patch at its corner.
 //!
 //! The stencils and fans are built on first use and kept in the plan ([`LimitCache`]), so
@@ -80,6 +85,10 @@ const LOCAL_SHARE: usize = 8;
 enum LimitMask {
     /// An interior vertex: masks of its valence (index into `Stencils::masks`).
     Interior(u32),
+    /// An interior vertex of valence 2: the position mask of its valence (index into
+    /// `Stencils::masks`); its normal comes from its fan, as at a curve vertex (there is no
+    /// tangent plane to take it from, see [`crate::analysis::vertex_masks`]).
+    Valence2(u32),
     /// A curve vertex: the 1-D B-spline mask along the curve.
     Curve,
     /// A corner: its cage point.
@@ -251,10 +260,11 @@ fn build_stencils(
             frame_items(last, &frames, n, n, true)
         };
         let valence = frames.len() / ((n + 1) * (n + 1));
-        Some((
-            LimitMask::Interior(valence as u32),
-            items.iter().map(|&(_, i)| i as u32).collect(),
-        ))
+        let mask = match valence {
+            2 => LimitMask::Valence2(valence as u32),
+            _ => LimitMask::Interior(valence as u32),
+        };
+        Some((mask, items.iter().map(|&(_, i)| i as u32).collect()))
     };
     // The tables are allocated fallibly; the per-vertex stencils are gathered a block of
     // vertices at a time, so that what is held besides the tables stays small.
@@ -284,17 +294,19 @@ fn build_stencils(
                 offsets.push(items.len() as u32);
                 continue;
             };
+            let mut index_of = |k: u32| {
+                let at = match valences.iter().position(|&x| x == k as usize) {
+                    Some(at) => at,
+                    None => {
+                        valences.push(k as usize);
+                        valences.len() - 1
+                    }
+                };
+                at as u32
+            };
             let mask = match mask {
-                LimitMask::Interior(k) => {
-                    let at = match valences.iter().position(|&x| x == k as usize) {
-                        Some(at) => at,
-                        None => {
-                            valences.push(k as usize);
-                            valences.len() - 1
-                        }
-                    };
-                    LimitMask::Interior(at as u32)
-                }
+                LimitMask::Interior(k) => LimitMask::Interior(index_of(k)),
+                LimitMask::Valence2(k) => LimitMask::Valence2(index_of(k)),
                 m => m,
             };
             masks_of.push(mask);
@@ -303,10 +315,13 @@ fn build_stencils(
         }
     }
     if !local.is_empty() {
-        // Curve vertices and corners go with them: their normals come from fans at the level
+        // Curve vertices, corners and valence-2 vertices go with them: their normals come from fans at the level
         // where every vertex is clean (the local extension's), as with the whole plan extended.
         for (i, mask) in masks_of.iter_mut().enumerate() {
-            if matches!(mask, LimitMask::Curve | LimitMask::Corner) {
+            if matches!(
+                mask,
+                LimitMask::Curve | LimitMask::Corner | LimitMask::Valence2(_)
+            ) {
                 *mask = LimitMask::Local;
                 local.push(i as u32);
             }
@@ -323,7 +338,11 @@ fn build_stencils(
     let on_curve = |c: usize| {
         let d = (targets.corner)(c)?;
         let i = (targets.index)(last.corner_verts[d] as usize)?;
-        matches!(masks_of[i], LimitMask::Curve | LimitMask::Corner).then_some((d, i))
+        let fan = matches!(
+            masks_of[i],
+            LimitMask::Curve | LimitMask::Corner | LimitMask::Valence2(_)
+        );
+        fan.then_some((d, i))
     };
     // At most one fan per such corner, and at most three items per corner of a fan (its
     // outline, or its faces and two curve edges).
@@ -388,6 +407,18 @@ fn build_stencils(
             for &x in &corners {
                 fan_items.push(last.corner_verts[last.next(last.next(x))]);
                 fan_items.push(last.corner_verts[last.prev(x)]);
+            }
+        } else if closed && corners.len() == 2 {
+            // Valence 2 (dual data): the two face points alone would span no area; take the
+            // four faces across the far edges of the two faces instead, counter-clockwise (the
+            // neighbourhood is clean, so they are there).
+            for &x in &corners {
+                for y in [last.next(x), last.next(last.next(x))] {
+                    let across = last
+                        .opposite(last.corner_edges()[y] as usize, y)
+                        .expect("a clean neighbourhood");
+                    fan_items.push(last.face_of(across) as u32);
+                }
             }
         } else {
             let curve_item = |e: u32| nf as u32 + curve_index(e).expect("a curve edge of the step");
@@ -902,7 +933,7 @@ fn stencil_positions<T: Scalar, const N: usize>(
     gather_hinted(st.masks_of.len(), |v| {
         let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
         let weights: &[f64] = match st.masks_of[v] {
-            LimitMask::Interior(m) => &st.masks[m as usize].position,
+            LimitMask::Interior(m) | LimitMask::Valence2(m) => &st.masks[m as usize].position,
             LimitMask::Curve => &st.curve_mask,
             LimitMask::Corner => return data[items[0] as usize],
             LimitMask::Local => return zero(),

@@ -503,13 +503,12 @@ impl Level {
                 None => edge(&[c0 as u32], false),
                 Some(&(_, c1)) => {
                     let c1 = c1 as usize;
-                    let nm = self.face_of(c0) == self.face_of(c1)
-                        || self.corner_verts[c0] == self.corner_verts[c1];
                     if self.face_of(c0) == self.face_of(c1) {
                         edge(&[c0 as u32], true);
                         edge(&[c1 as u32], true);
                     } else {
-                        edge(&[c0 as u32, c1 as u32], nm);
+                        let same_way = self.corner_verts[c0] == self.corner_verts[c1];
+                        edge(&[c0 as u32, c1 as u32], same_way);
                     }
                 }
             }
@@ -728,6 +727,18 @@ impl Level {
         })
     }
 
+    /// The child slot of the slot `c` of an edge whose first vertex is `first`, in its half
+    /// `k`: the corner leaving the first vertex starts half 0 and ends half 1.
+    #[inline(always)]
+    fn half_slot(&self, first: u32, k: usize, c: u32) -> u32 {
+        let c = c as usize;
+        if (self.corner_verts[c] == first) == (k == 0) {
+            4 * c as u32
+        } else {
+            4 * self.next(c) as u32 + 3
+        }
+    }
+
     /// The edge tables of this level's child (see [`Level::refine`] for their numbering).
     fn child_edges(&self) -> Result<Edges> {
         let nv = self.num_vertices as u32;
@@ -739,16 +750,6 @@ impl Level {
             corners: edge_corners,
             more,
         } = self.edges();
-        // The child slot of the slot `c` of edge `e` in its half `k`: the corner leaving the
-        // edge's first vertex starts half 0 and ends half 1.
-        let half_slot = |e: usize, k: usize, c: u32| {
-            let c = c as usize;
-            if (self.corner_verts[c] == edge_verts[e][0]) == (k == 0) {
-                4 * c as u32
-            } else {
-                4 * self.next(c) as u32 + 3
-            }
-        };
         let quad_edges = gather_hinted(nc, |c| {
             let v = self.corner_verts[c];
             let p = self.prev(c);
@@ -773,8 +774,14 @@ impl Level {
                     let [a, b] = edge_verts[e];
                     let mid = nv + e as u32;
                     let ends = if k == 0 { [a, mid] } else { [mid, b] };
-                    let slots =
-                        edge_corners[e].map(|c| if c == NONE { NONE } else { half_slot(e, k, c) });
+                    // The first slot is always there.
+                    let [c0, c1] = edge_corners[e];
+                    let second = if c1 == NONE {
+                        NONE
+                    } else {
+                        self.half_slot(a, k, c1)
+                    };
+                    let slots = [self.half_slot(a, k, c0), second];
                     (ends, slots)
                 } else {
                     let c = i - 2 * ne as usize;
@@ -788,7 +795,7 @@ impl Level {
         let mut child_more: Vec<(u32, u32)> = (more.iter())
             .flat_map(|&(e, c)| {
                 let e = e as usize;
-                [0, 1].map(|k| ((2 * e + k) as u32, half_slot(e, k, c)))
+                [0, 1].map(|k| ((2 * e + k) as u32, self.half_slot(edge_verts[e][0], k, c)))
             })
             .collect();
         child_more.sort_by_key(|m| m.0);
@@ -810,11 +817,38 @@ impl Level {
         increasing: bool,
     ) -> Result<(Vec<u32>, Vec<u32>)> {
         let (nv, ne) = (self.num_vertices, self.num_edges());
+        // Where each edge's extra slots start in `more` (a search per edge would cost more than
+        // the rest of the table on a non-manifold level); empty on a manifold level.
+        let more = &self.edges().more;
+        let manifold = more.is_empty();
+        let mut more_at: Vec<u32> = Vec::new();
+        if !manifold {
+            more_at = memory::zeroed(ne + 1)?;
+            for &(e, _) in more {
+                more_at[e as usize + 1] += 1;
+            }
+            for e in 0..ne {
+                more_at[e + 1] += more_at[e];
+            }
+        }
+        let extra = |e: usize| {
+            if more_at.is_empty() {
+                &more[..0]
+            } else {
+                &more[more_at[e] as usize..more_at[e + 1] as usize]
+            }
+        };
         let offsets = prefix_offsets(new_vertices, |w| {
             if w < nv {
                 self.corners_of_vertex(w).len() as u32
             } else if w < nv + ne {
-                2 * self.edge_valence(w - nv) as u32
+                let [_, c1] = self.edge_corners()[w - nv];
+                let extra = if manifold {
+                    0
+                } else {
+                    extra(w - nv).len() as u32
+                };
+                2 * (1 + u32::from(c1 != NONE) + extra)
             } else {
                 self.face_corners(w - nv - ne).len() as u32
             }
@@ -826,9 +860,22 @@ impl Level {
                     *o = 4 * c;
                 }
             } else if w < nv + ne {
-                for (pair, c) in out.chunks_exact_mut(2).zip(self.edge_slots(w - nv)) {
-                    pair[0] = 4 * c + 1;
-                    pair[1] = 4 * self.next(c as usize) as u32 + 3;
+                // The slots in `edge_slots` order: the first two (the second maybe missing),
+                // then the extra ones, written out (the slot iterator does not inline).
+                let [c0, c1] = self.edge_corners()[w - nv];
+                out[0] = 4 * c0 + 1;
+                out[1] = 4 * self.next(c0 as usize) as u32 + 3;
+                if c1 != NONE {
+                    out[2] = 4 * c1 + 1;
+                    out[3] = 4 * self.next(c1 as usize) as u32 + 3;
+                }
+                if !manifold {
+                    let mut k = if c1 != NONE { 4 } else { 2 };
+                    for &(_, c) in extra(w - nv) {
+                        out[k] = 4 * c + 1;
+                        out[k + 1] = 4 * self.next(c as usize) as u32 + 3;
+                        k += 2;
+                    }
                 }
             } else {
                 for (o, c) in out.iter_mut().zip(self.face_corners(w - nv - ne)) {

@@ -226,8 +226,9 @@ fn cases() -> Vec<Case> {
         points,
     });
 
-    // Two quads glued along two edges: interior vertices of valence 2 (the dual output and the
-    // limits refuse them; the hash records the refusal).
+    // Two quads glued along two edges: interior vertices of valence 2 (the dual output refuses
+    // them, the hash records the refusal; the limits take the valence-2 position mask and fan
+    // normals).
     let mut points = vec![
         0.0, 0.0, 0.0, 1.0, 0.0, 0.2, 1.0, 1.0, 0.0, 0.0, 1.0, 0.1, 0.5, 0.5, 1.0, 0.5, 0.5, -1.0,
     ];

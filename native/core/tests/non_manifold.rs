@@ -571,3 +571,116 @@ proptest! {
         }
     }
 }
+
+/// A cube whose edge 1-2 is split by vertex 8, which then lies on two faces only (an interior
+/// vertex of valence 2), its points jittered so that nothing is symmetric.
+fn split_cube() -> (Cage, Vec<f64>) {
+    let faces: [&[i64]; 6] = [
+        &[0, 3, 2, 8, 1],
+        &[4, 5, 6, 7],
+        &[0, 1, 5, 4],
+        &[1, 8, 2, 6, 5],
+        &[2, 3, 7, 6],
+        &[3, 0, 4, 7],
+    ];
+    let sizes: Vec<i64> = faces.iter().map(|f| f.len() as i64).collect();
+    let indices: Vec<i64> = faces.iter().flat_map(|f| f.iter().copied()).collect();
+    let mut points = Vec::new();
+    for v in 0..8 {
+        let (x, y, z) = ((v & 1) ^ ((v >> 1) & 1), (v >> 1) & 1, v >> 2);
+        points.extend([x as f64, y as f64, z as f64]);
+    }
+    points.extend([1.08, 0.5, 0.03]);
+    for (i, p) in points.iter_mut().enumerate() {
+        *p += 0.07 * ((i * 7 + 3) % 5) as f64 - 0.1;
+    }
+    (Cage::from_indices(9, &sizes, &indices).unwrap(), points)
+}
+
+/// The point of vertex 8 of the output (the cage's vertices keep their ids).
+fn at_8(values: &[f64]) -> [f64; 3] {
+    [values[24], values[25], values[26]]
+}
+
+fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>().sqrt()
+}
+
+#[test]
+fn limits_at_a_vertex_of_valence_2_are_the_limit_of_the_refined_points() {
+    let (cage, points) = split_cube();
+    for (degree, rules) in schemes().filter(|&(d, r)| r == Rules::Averaging || d == 3) {
+        let what = format!("degree {degree}, {rules:?}");
+        let plan = |levels: u32| {
+            let o = Options {
+                levels,
+                ..options(degree, rules)
+            };
+            Plan::new(&cage, &o).unwrap()
+        };
+        let limit = |levels: u32| at_8(&plan(levels).limit_positions(&points, 3).unwrap());
+        // The limit is the same whatever the level it is taken from (an exact mask, not an
+        // approximation by the refined point).
+        let lim = limit(1);
+        for levels in [2, 3] {
+            let d = distance(lim, limit(levels));
+            assert!(
+                d < 1e-12,
+                "{what}: the limit from level {levels} is {d:e} away"
+            );
+        }
+        // The refined points converge to it (by 1/4 per level: the subdominant eigenvalue).
+        let gap = |levels: u32| distance(lim, at_8(&plan(levels).evaluate(&points, 3).unwrap()));
+        let (g4, g5, g6) = (gap(4), gap(5), gap(6));
+        assert!(
+            g5 <= 0.3 * g4 && g6 <= 0.3 * g5 && g6 < 1e-3,
+            "{what}: refined points at levels 4, 5, 6 are {g4:e}, {g5:e}, {g6:e} from the limit"
+        );
+        if degree == 1 || rules == Rules::Classic {
+            continue;
+        }
+        // Normals at its corners: unit vectors, pointing out of the cube.
+        let p = plan(2);
+        let (positions, normals) = p.limit_surface(&points).unwrap();
+        let centre = [0.5, 0.5, 0.5];
+        let v = at_8(&positions);
+        for c in 0..p.output_face_vertices().len() {
+            if p.output_face_vertices()[c] != 8 {
+                continue;
+            }
+            let n = [normals[3 * c], normals[3 * c + 1], normals[3 * c + 2]];
+            let length = distance(n, [0.0; 3]);
+            let outward: f64 = (0..3).map(|i| n[i] * (v[i] - centre[i])).sum();
+            assert!(
+                (length - 1.0).abs() < 1e-9 && outward > 0.0,
+                "{what}: normal {n:?} at corner {c}"
+            );
+        }
+    }
+}
+
+#[test]
+fn at_valence_2_the_eigenvalue_after_1_is_a_quarter_three_times_over() {
+    // Why the limit has no tangent masks there (`analysis::vertex_masks`): mode 1 is real at
+    // valence 2 and its double leading eigenvalue 1/4 is also mode 0's second one, so three
+    // terms decay alike after the limit point (a cone, not a plane).
+    for degree in 2..=9 {
+        let blocks = bidegree::analysis::subdivision_matrix(degree, 2)
+            .unwrap()
+            .block_eigenvalues()
+            .unwrap();
+        let near = |z: &bidegree::analysis::C64| (z.re - 0.25).abs() < 1e-9 && z.im.abs() < 1e-9;
+        let (b0, b1) = (&blocks[0], &blocks[1]);
+        assert!((b0[0].re - 1.0).abs() < 1e-9, "degree {degree}: {b0:?}");
+        assert!(
+            near(&b0[1]) && near(&b1[0]) && near(&b1[1]),
+            "degree {degree}"
+        );
+        let rest = b0[2..].iter().chain(&b1[2..]).map(|z| z.norm());
+        assert!(rest.fold(0.0, f64::max) < 0.25 - 1e-6, "degree {degree}");
+        // And the masks: a position summing to 1, no tangents.
+        let masks = bidegree::analysis::vertex_masks(degree, 2).unwrap();
+        assert!((masks.position.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        assert!(masks.tangents.iter().all(Vec::is_empty));
+    }
+}
