@@ -17,12 +17,15 @@
 //! At valence 4 these are exactly the tensor-product B-spline masks (tested). Vertices that are
 //! not in such a clean neighbourhood (near another irregular vertex, a crease or a boundary) are
 //! handled by refining further, `m` levels, which doubles their distances `m` times while the old
-//! vertices keep their ids, until every one of them is clean. With the averaging rules this is
-//! local: only partial levels around those vertices are made (the adaptive module's
+//! vertices keep their ids, until every one of them is clean. With the averaging rules, when
+//! those vertices are a small part of the level (their seeds at most 1 / [`LOCAL_SHARE`] of its
+//! faces), this is local: only partial levels around them are made (the adaptive module's
 //! [`local_levels`], exact where their stencils reach), and every other vertex keeps the masks of
-//! the plan's own last level; when any vertex needs the extension, the curve vertices and corners
-//! take it too (their normals come from fans at the extended level). Semi-sharp creases (refined
-//! past the level where they become smooth) and the other rule sets extend the whole plan.
+//! the plan's own last level; the curve vertices, corners and valence-2 vertices then take the
+//! extension too (their normals come from fans at the extended level). Otherwise, and with
+//! semi-sharp creases (refined past the level where they become smooth) or the other rule sets,
+//! the whole plan is extended.
+//!
 //! Curve vertices (boundaries, infinitely sharp creases) lie on the curve's uniform B-spline of
 //! degree n (DESIGN.md §2): their limit position is the 1-D B-spline mask along the curve, exact;
 //! corners keep their cage point. Normals there are one-sided: one per side of the curve (a
