@@ -983,8 +983,18 @@ pub(crate) fn local_levels<T: Scalar>(
         diagonal: 0.0,
         holes: Vec::new(),
     };
+    // What the partial levels will hold at most (the seeds' descendants with their margins,
+    // taken as twice the descendants, at every level), asked for before any of it: a typed
+    // refusal under the budget, and room that the address space must have (the partial
+    // levels' own tables are not allocated fallibly one by one).
+    let ahead = (2 * seeds.len() as u64) << (2 * extra);
+    let bytes = ahead.saturating_mul(4 * BYTES_PER_CORNER) * 4 / 3;
+    memory::check_request(bytes, ahead, options.memory_budget)?;
+    drop(memory::with_capacity::<u8>(
+        usize::try_from(bytes).map_err(|_| memory::refused_bytes(bytes))?,
+    )?);
     // P_L: the margin rings around the seeds.
-    let mut keep = vec![false; last.num_faces()];
+    let mut keep = memory::filled(last.num_faces(), false)?;
     let mut frontier: Vec<usize> = seeds.iter().map(|&f| f as usize).collect();
     for &f in &frontier {
         keep[f] = true;
@@ -1004,7 +1014,7 @@ pub(crate) fn local_levels<T: Scalar>(
         }
         frontier = next;
     }
-    let sub = restrict(last, &keep);
+    let sub = restrict(last, &keep)?;
     let (network, kept_vertices, kept_edges) = network.restrict(&sub.vertex_map, &sub.edge_map);
     let odd = degree % 2 == 1;
     let widen = |ids: &[u32]| -> Vec<u64> { ids.iter().map(|&i| i as u64).collect() };
@@ -1229,7 +1239,7 @@ fn refine_part<T: Scalar>(
         frontier = next;
     }
 
-    let sub = restrict(&fine, &keep);
+    let sub = restrict(&fine, &keep)?;
     let (network, kept_vertices, kept_edges) = network.restrict(&sub.vertex_map, &sub.edge_map);
     let pick = |values: &[u64], map: &[u32]| -> Vec<u64> {
         map.iter().map(|&i| values[i as usize]).collect()
@@ -1277,18 +1287,19 @@ struct Sub {
 /// The quad level `fine` restricted to the faces marked in `keep`, numbered in the order of the
 /// old ids; each vertex keeps its corners in the old order, each edge its faces in the old slot
 /// order (a lone remaining face moves to the first slot).
-fn restrict(fine: &Level, keep: &[bool]) -> Sub {
+fn restrict(fine: &Level, keep: &[bool]) -> Result<Sub> {
     let faces: Vec<u32> = (0..keep.len() as u32)
         .filter(|&f| keep[f as usize])
         .collect();
-    let mut corner_map = vec![NONE; fine.num_corners()];
+    // The maps have the whole level's size (the limit restricts a plan's last level): fallible.
+    let mut corner_map = memory::filled(fine.num_corners(), NONE)?;
     for (i, &f) in faces.iter().enumerate() {
         for k in 0..4 {
             corner_map[4 * f as usize + k] = (4 * i + k) as u32;
         }
     }
-    let mut vert_map = vec![NONE; fine.num_vertices];
-    let mut edge_map = vec![NONE; fine.num_edges()];
+    let mut vert_map = memory::filled(fine.num_vertices, NONE)?;
+    let mut edge_map = memory::filled(fine.num_edges(), NONE)?;
     for &f in &faces {
         for k in 4 * f as usize..4 * f as usize + 4 {
             vert_map[fine.corner_verts[k] as usize] = 0;
@@ -1384,14 +1395,14 @@ fn restrict(fine: &Level, keep: &[bool]) -> Sub {
     };
     level.nm_edges = kept(&fine.nm_edges, &edge_map);
     level.nm_vertices = kept(&fine.nm_vertices, &vert_map);
-    Sub {
+    Ok(Sub {
         level,
         faces,
         vertices,
         edges,
         vertex_map: vert_map,
         edge_map,
-    }
+    })
 }
 
 /// Flatness of nodes at level `t` (see the module documentation), from their children's

@@ -625,19 +625,19 @@ fn local_stencils(
     let curves = refinement.curve_networks().last().expect("a step");
     let degree = refinement.options().degree;
     let odd = degree % 2 == 1;
-    // The topology does not depend on the data: zeros will do.
-    let zero3 = |count: usize| vec![[0.0f64; 3]; count];
-    let cage = zero3(refinement.levels()[0].num_vertices);
+    // The topology does not depend on the data: zeros will do (the level's size: fallible).
+    let zero3 = |count: usize| memory::filled(count, [0.0f64; 3]);
+    let cage = zero3(refinement.levels()[0].num_vertices)?;
     let data = zero3(if odd {
         last.num_vertices
     } else {
         last.num_faces()
-    });
+    })?;
     let curve = zero3(if odd {
         curves.vertices().len()
     } else {
         curves.edges().len()
-    });
+    })?;
     let local = local_levels(refinement, &cage, &data, &curve, &seeds, m)?;
     let mut at = Vec::with_capacity(vertices.len());
     for &v in vertices {
@@ -857,19 +857,21 @@ impl Limit<'_> {
         compact: &[[T; N]],
     ) -> Result<Vec<[T; N]>> {
         let even = self.refinement.options().degree.is_multiple_of(2);
-        let three = |x: &[[T; N]], first: usize| -> Vec<[T; 3]> {
-            x.iter()
-                .map(|v| std::array::from_fn(|k| v.get(first + k).copied().unwrap_or_default()))
-                .collect()
-        };
+        // The plan's whole last level goes through here: fallible.
+        let three =
+            |x: &[[T; N]], first: usize| -> Result<Vec<[T; 3]>> {
+                memory::collect(x.iter().map(|v| {
+                    std::array::from_fn(|k| v.get(first + k).copied().unwrap_or_default())
+                }))
+            };
         let mut out: Vec<[T; N]> = Vec::new();
         for first in (0..N).step_by(3) {
-            let cage = three(compact, first);
+            let cage = three(compact, first)?;
             let level = local_levels(
                 self.refinement,
                 &cage,
-                &three(two_d, first),
-                &three(curve, first),
+                &three(two_d, first)?,
+                &three(curve, first)?,
                 seeds,
                 extra,
             )?;
