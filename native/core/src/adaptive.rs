@@ -995,25 +995,11 @@ pub(crate) fn local_levels<T: Scalar>(
     )?);
     // P_L: the margin rings around the seeds.
     let mut keep = memory::filled(last.num_faces(), false)?;
-    let mut frontier: Vec<usize> = seeds.iter().map(|&f| f as usize).collect();
+    let frontier: Vec<usize> = seeds.iter().map(|&f| f as usize).collect();
     for &f in &frontier {
         keep[f] = true;
     }
-    for _ in 0..ctx.margin {
-        let mut next = Vec::new();
-        for &f in &frontier {
-            for k in 4 * f..4 * f + 4 {
-                for &d in last.corners_of_vertex(last.corner_verts[k] as usize) {
-                    let g = (d >> 2) as usize;
-                    if !keep[g] {
-                        keep[g] = true;
-                        next.push(g);
-                    }
-                }
-            }
-        }
-        frontier = next;
-    }
+    last.grow_face_rings(&mut keep, frontier, ctx.margin);
     let sub = restrict(last, &keep)?;
     let (network, kept_vertices, kept_edges) = network.restrict(&sub.vertex_map, &sub.edge_map);
     let odd = degree % 2 == 1;
@@ -1223,21 +1209,7 @@ fn refine_part<T: Scalar>(
             frontier.push(f);
         }
     }
-    for _ in 0..margin {
-        let mut next = Vec::new();
-        for &f in &frontier {
-            for k in 4 * f..4 * f + 4 {
-                for &d in fine.corners_of_vertex(fine.corner_verts[k] as usize) {
-                    let g = (d >> 2) as usize;
-                    if !keep[g] {
-                        keep[g] = true;
-                        next.push(g);
-                    }
-                }
-            }
-        }
-        frontier = next;
-    }
+    fine.grow_face_rings(&mut keep, frontier, margin);
 
     let sub = restrict(&fine, &keep)?;
     let (network, kept_vertices, kept_edges) = network.restrict(&sub.vertex_map, &sub.edge_map);

@@ -114,8 +114,6 @@ pub(crate) struct Stencils {
     local: Option<(Box<Stencils>, Vec<u64>)>,
     /// The stencils (indices into `masks_of`) that `local` gives, in order.
     local_vertices: Vec<u32>,
-    /// The output vertex of each stencil.
-    outputs: Vec<u32>,
     /// Mask of each output vertex.
     masks_of: Vec<LimitMask>,
     /// Offsets into `items` per output vertex.
@@ -132,7 +130,7 @@ pub(crate) struct Stencils {
     /// Offsets into `fan_items` per fan, and whether the fan closes on itself.
     fan_offsets: Vec<u32>,
     fan_closed: Vec<bool>,
-    /// The output vertex each fan turns around.
+    /// The stencil (the vertex) each fan turns around.
     fan_vertex: Vec<u32>,
     /// Data indices of each fan's points, counter-clockwise around its vertex.
     fan_items: Vec<u32>,
@@ -140,15 +138,14 @@ pub(crate) struct Stencils {
 
 /// Which vertices and corners of a level [`build_stencils`] makes stencils for: stencil `i` is
 /// at level vertex `vertex(i)`; output corner `c` is level corner `corner(c)` (`None`: not
-/// one of the target's); `index(w)` is the stencil of level vertex `w`, if any; `output(i)`
-/// the output vertex of stencil `i`.
+/// one of the target's); `index(w)` is the stencil of level vertex `w`, if any. (The plan's
+/// stencil `i` is output vertex `i`; a local one is its parent's `local_vertices[i]`.)
 struct Targets<'a> {
     count: usize,
     output_corners: usize,
     vertex: &'a (dyn Fn(usize) -> usize + Sync),
     corner: &'a (dyn Fn(usize) -> Option<usize> + Sync),
     index: &'a (dyn Fn(usize) -> Option<usize> + Sync),
-    output: &'a (dyn Fn(usize) -> usize + Sync),
 }
 
 /// Builds the stencils on `last` (a plan's last level, an extended one's, or a partial level
@@ -446,7 +443,6 @@ fn build_stencils(
         extra_levels: 0,
         local: None,
         local_vertices: local,
-        outputs: (0..outputs).map(|i| (targets.output)(i) as u32).collect(),
         masks_of,
         offsets,
         items,
@@ -520,7 +516,6 @@ fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
             vertex: &whole,
             corner: &Some,
             index: &below,
-            output: &whole,
         };
         if let Some(mut st) = build_stencils(last, curves, degree, &targets, share.is_some())? {
             if st.local_vertices.is_empty() {
@@ -560,7 +555,6 @@ fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
             vertex: &whole,
             corner: &corner,
             index: &below,
-            output: &whole,
         };
         let ext_last = extended.levels().last().expect("a level");
         let curves = extended.curve_networks().last().expect("a step");
@@ -592,21 +586,7 @@ fn local_seeds(last: &Level, degree: u32, vertices: &[u32], m: u32) -> Result<Ve
             }
         }
     }
-    for _ in 1..rings {
-        let mut next = Vec::new();
-        for &f in &frontier {
-            for c in last.face_corners(f) {
-                for &d in last.corners_of_vertex(last.corner_verts[c] as usize) {
-                    let g = last.face_of(d as usize);
-                    if !marked[g] {
-                        marked[g] = true;
-                        next.push(g);
-                    }
-                }
-            }
-        }
-        frontier = next;
-    }
+    last.grow_face_rings(&mut marked, frontier, rings - 1);
     Ok((0..marked.len() as u64)
         .filter(|&f| marked[f as usize])
         .collect())
@@ -659,14 +639,12 @@ fn local_stencils(
         let uid = local.vert_uid[w];
         (uid < outputs).then(|| slot(uid as usize)).flatten()
     };
-    let output = |i: usize| vertices[i] as usize;
     let targets = Targets {
         count: vertices.len(),
         output_corners: last.num_corners(),
         vertex: &vertex,
         corner: &corner,
         index: &index,
-        output: &output,
     };
     Ok(
         build_stencils(&local.level, &local.network, degree, &targets, false)?
@@ -807,7 +785,7 @@ impl Limit<'_> {
                         let ldata =
                             self.local_data(seeds, st.extra_levels, two_d, &curve, &compact)?;
                         let lpos = stencil_positions(local, &ldata)?;
-                        for (i, &v) in local.outputs.iter().enumerate() {
+                        for (i, &v) in st.local_vertices.iter().enumerate() {
                             positions[v as usize] = lpos[i];
                         }
                         Some((local.as_ref(), ldata, lpos))

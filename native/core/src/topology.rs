@@ -217,6 +217,42 @@ impl Level {
         }
     }
 
+    /// Marks in `marked` the faces within `rings` vertex rings of the faces of `frontier`
+    /// (marked already): each ring adds the faces sharing a vertex with the last one.
+    pub(crate) fn grow_face_rings(
+        &self,
+        marked: &mut [bool],
+        mut frontier: Vec<usize>,
+        rings: usize,
+    ) {
+        // Decided once: adaptive grows the rings of every partial level (quads) this way.
+        let quads = self.is_quads();
+        for _ in 0..rings {
+            let mut next = Vec::new();
+            for &f in &frontier {
+                let corners = if quads {
+                    4 * f..4 * f + 4
+                } else {
+                    self.face_corners(f)
+                };
+                for c in corners {
+                    for &d in self.corners_of_vertex(self.corner_verts[c] as usize) {
+                        let g = if quads {
+                            d as usize >> 2
+                        } else {
+                            self.face_of(d as usize)
+                        };
+                        if !marked[g] {
+                            marked[g] = true;
+                            next.push(g);
+                        }
+                    }
+                }
+            }
+            frontier = next;
+        }
+    }
+
     /// The corners of face `f`.
     #[inline]
     pub fn face_corners(&self, f: usize) -> std::ops::Range<usize> {

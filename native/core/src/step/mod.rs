@@ -356,21 +356,9 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
                 _ => {}
             }
         }
-        let scratch = self.scratch.map(|s| s.0);
-        let give = |v: Vec<Value<T, N>>| {
-            if let Some(scratch) = scratch {
-                scratch.give(v);
-            }
-        };
-        give(std::mem::take(&mut self.spare));
+        self.give_back_unused();
         if self.primal {
-            if let Cow::Owned(f) = std::mem::replace(&mut self.faces, Cow::Borrowed(&[])) {
-                give(f);
-            }
             return Final::Primal(self.vertices.into_owned());
-        }
-        if let Cow::Owned(v) = std::mem::replace(&mut self.vertices, Cow::Borrowed(&[])) {
-            give(v);
         }
         let CurveData::Dual(curve_edges) = self.curve else {
             unreachable!("dual 1-D data")
@@ -384,17 +372,24 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
     /// The 2-D and 1-D data as the steps left them ([`LevelData::into_parts`]), the buffers no
     /// longer needed going back to the scratch.
     pub(crate) fn finish_parts(mut self) -> Parts<T, N> {
-        if let Some((scratch, _)) = self.scratch {
-            scratch.give(std::mem::take(&mut self.spare));
-            let other = match self.primal {
-                true => std::mem::replace(&mut self.faces, Cow::Borrowed(&[])),
-                false => std::mem::replace(&mut self.vertices, Cow::Borrowed(&[])),
-            };
-            if let Cow::Owned(v) = other {
-                scratch.give(v);
-            }
-        }
+        self.give_back_unused();
         self.into_parts()
+    }
+
+    /// Gives the spare buffer and the one of the other kind (faces of primal data, vertices of
+    /// dual data) back to the scratch, when there is one.
+    fn give_back_unused(&mut self) {
+        let Some((scratch, _)) = self.scratch else {
+            return;
+        };
+        scratch.give(std::mem::take(&mut self.spare));
+        let other = match self.primal {
+            true => std::mem::replace(&mut self.faces, Cow::Borrowed(&[])),
+            false => std::mem::replace(&mut self.vertices, Cow::Borrowed(&[])),
+        };
+        if let Cow::Owned(v) = other {
+            scratch.give(v);
+        }
     }
 
     /// The drawing points of dual data (one more dual -> primal average with the 1-D values),
