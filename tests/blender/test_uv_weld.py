@@ -94,12 +94,16 @@ def _surface_uvs(mesh: Any) -> np.ndarray:
 # (1e-7 from Blender) and in modes boundaries and none was 4-5e-5 off at level 1 after the rest
 # of tests/blender in one session: order-dependent, not explained yet (not strict).
 KNOWN_GAP = pytest.mark.xfail(reason="near cage: order-dependent 4-5e-5 gap, not explained")
+GAPS = {("near", "boundaries"), ("near", "none")}
 
 
-@pytest.mark.parametrize("mode", ["boundaries", "none", "corners-plus1"])
 @pytest.mark.parametrize(
-    "name",
-    [pytest.param(n, marks=KNOWN_GAP) if n == "near" else n for n in sorted(CAGES)],
+    ("name", "mode"),
+    [
+        pytest.param(n, m, marks=KNOWN_GAP) if (n, m) in GAPS else (n, m)
+        for n in sorted(CAGES)
+        for m in ("boundaries", "none", "corners-plus1")
+    ],
 )
 def test_surface_uvs_are_blenders_where_the_weld_rules_differ(
     scene: Any, name: str, mode: str
