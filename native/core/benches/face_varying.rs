@@ -6,7 +6,8 @@
 //! is a seam. Rows: classic degree 3 and averaging degree 4 at levels 2 and 3: positions
 //! (3 channels, `Plan::evaluate`), then UVs (2 channels, `Plan::evaluate_face_varying` in
 //! `boundaries` and `none`) first (the face-varying mesh is refined) and cached, and the ratio
-//! cached UVs / cached positions. f32, medians of 3 to 21 repetitions after a warm-up
+//! cached UVs / cached positions (the median of the ratios of pairs timed in turn). f32,
+//! medians of 3 to 21 repetitions after a warm-up
 //! (`BIDEGREE_BENCH_SECONDS`, default 1; `BIDEGREE_BENCH_LEVELS`, default `2,3`); the load
 //! average is printed with the rows.
 
@@ -18,19 +19,37 @@ use bidegree::{FaceVaryingMode, Options, Plan, Rules};
 mod cages;
 use cages::{ico_patch_uvs, ico_quad_sphere};
 
-fn median_ms<R>(seconds: f64, mut f: impl FnMut() -> R) -> f64 {
-    let mut once = || {
-        let t = Instant::now();
-        let r = f();
-        let ms = t.elapsed().as_secs_f64() * 1e3;
-        drop(black_box(r));
-        ms
-    };
-    let warmup = once();
-    let reps = ((seconds * 1e3 / warmup.max(1e-3)) as usize).clamp(3, 21);
-    let mut times: Vec<f64> = (0..reps).map(|_| once()).collect();
+fn elapsed_ms<R>(f: &mut impl FnMut() -> R) -> f64 {
+    let t = Instant::now();
+    let r = f();
+    let ms = t.elapsed().as_secs_f64() * 1e3;
+    drop(black_box(r));
+    ms
+}
+
+fn median(mut times: Vec<f64>) -> f64 {
     times.sort_by(f64::total_cmp);
     times[times.len() / 2]
+}
+
+/// Medians of `a`'s and `b`'s times and of the ratios b / a, the two timed in turn (a, b, a,
+/// b, ...) so that each ratio compares runs a few milliseconds apart, whatever the machine's
+/// other load does meanwhile.
+fn paired_ms<R, S>(
+    seconds: f64,
+    mut a: impl FnMut() -> R,
+    mut b: impl FnMut() -> S,
+) -> (f64, f64, f64) {
+    let warmup = elapsed_ms(&mut a) + elapsed_ms(&mut b);
+    let reps = ((seconds * 1e3 / warmup.max(1e-3)) as usize).clamp(3, 21);
+    let (mut ta, mut tb, mut ratios) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..reps {
+        let (x, y) = (elapsed_ms(&mut a), elapsed_ms(&mut b));
+        ta.push(x);
+        tb.push(y);
+        ratios.push(y / x);
+    }
+    (median(ta), median(tb), median(ratios))
 }
 
 fn load_average() -> String {
@@ -76,18 +95,18 @@ fn main() {
                 ..Options::default()
             };
             let plan = Plan::new(&cage, &options).expect("a plan of the bench cage");
-            let positions = median_ms(seconds, || plan.evaluate(&points, 3).unwrap());
             for mode in [FaceVaryingMode::Boundaries, FaceVaryingMode::None] {
                 let t = Instant::now();
                 black_box(plan.evaluate_face_varying(&uvs, 2, mode, false).unwrap());
                 let first = t.elapsed().as_secs_f64() * 1e3;
-                let cached = median_ms(seconds, || {
-                    plan.evaluate_face_varying(&uvs, 2, mode, false).unwrap()
-                });
+                let (positions, cached, ratio) = paired_ms(
+                    seconds,
+                    || plan.evaluate(&points, 3).unwrap(),
+                    || plan.evaluate_face_varying(&uvs, 2, mode, false).unwrap(),
+                );
                 println!(
-                    "{name:<12} {levels:>5} {positions:>13.1} {:>10} {first:>13.1} {cached:>12.1} {:>7.2}",
+                    "{name:<12} {levels:>5} {positions:>13.1} {:>10} {first:>13.1} {cached:>12.1} {ratio:>7.2}",
                     format!("{mode:?}").to_lowercase(),
-                    cached / positions
                 );
             }
         }

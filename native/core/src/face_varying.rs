@@ -21,11 +21,11 @@ use crate::memory;
 use crate::mesh::{Cage, INFINITELY_SHARP};
 use crate::options::{Boundary, Options, OutputKind};
 use crate::output::OutputMesh;
-use crate::parallel::{fill_rows, gather_hinted, in_pool};
+use crate::parallel::{fill_rows, gather_indexed, in_pool};
 use crate::refinement::Refinement;
 use crate::scalar::Scalar;
 use crate::scheme::{is_infinitely_sharp, is_semi_sharp, is_sharp};
-use crate::step::Scratch;
+use crate::step::{Final, Scratch};
 use crate::topology::{Level, NONE};
 
 /// How the boundaries of the face-varying mesh (seams and the mesh boundary) and its corners
@@ -352,7 +352,6 @@ pub(crate) struct FaceVarying {
     /// One corner of each value (where its data is read).
     first_corner: Vec<u32>,
     refinement: Refinement,
-    output: OutputMesh,
     scratch: Scratch,
     limit: LimitCache,
 }
@@ -374,14 +373,12 @@ impl FaceVarying {
             ..*cage_refinement.options()
         };
         let refinement = Refinement::new(&cage, &options)?;
-        let output = OutputMesh::build(&refinement)?;
         let first_corner = first_corners(&value_of, num_values);
         Ok(FaceVarying {
             mode,
             value_of,
             first_corner,
             refinement,
-            output,
             scratch: Scratch::default(),
             limit: LimitCache::default(),
         })
@@ -390,23 +387,24 @@ impl FaceVarying {
     /// Values per corner (interleaved) -> per output corner of the drawing mesh `M_L`.
     fn evaluate<T: Scalar>(&self, values: &[T], channels: usize, limit: bool) -> Result<Vec<T>> {
         let per_value = values_of(&self.first_corner, values, channels);
-        let at_vertices = if limit {
-            limit::positions(
-                &self.refinement,
-                &self.scratch,
-                &self.limit,
-                &per_value,
-                channels,
-            )?
-        } else {
-            evaluate::evaluate(
-                &self.refinement,
-                &self.scratch,
-                &self.output,
-                &per_value,
-                channels,
-            )?
-        };
+        if !limit {
+            return match channels {
+                1 => self.refined::<T, 1>(&per_value),
+                2 => self.refined::<T, 2>(&per_value),
+                3 => self.refined::<T, 3>(&per_value),
+                4 => self.refined::<T, 4>(&per_value),
+                _ => evaluate::in_groups_of_four(&per_value, channels, |group| {
+                    self.refined::<T, 4>(&group)
+                }),
+            };
+        }
+        let at_vertices = limit::positions(
+            &self.refinement,
+            &self.scratch,
+            &self.limit,
+            &per_value,
+            channels,
+        )?;
         let last = self.refinement.last_level();
         match channels {
             1 => per_corner::<T, 1>(last, &at_vertices),
@@ -423,15 +421,28 @@ impl FaceVarying {
             }
         }
     }
+
+    /// The refined values (`N` channels interleaved per value) at the corners of `M^fv`'s last
+    /// level. The values at its vertices stay in the kept buffers: only the corners' buffer is
+    /// new memory (a new buffer is the kernel's zeroing of every page on its first touch).
+    fn refined<T: Scalar, const N: usize>(&self, per_value: &[T]) -> Result<Vec<T>> {
+        let (points, _) = per_value.as_chunks::<N>();
+        let compact = self.refinement.compact(points);
+        let at_vertices = match evaluate::run(&self.refinement, &self.scratch, &compact, false)? {
+            Final::Primal(at_vertices) => at_vertices,
+            Final::Dual { .. } => unreachable!("primal data asked for"),
+        };
+        let out = gather_indexed(&at_vertices, &self.refinement.last_level().corner_verts);
+        self.scratch.give(at_vertices);
+        Ok(out?.into_flattened())
+    }
 }
 
 /// The values of `M^fv`'s vertices (`N` channels interleaved) at the corners of its last level
-/// `last`: one gather of fixed-size rows into an unfilled buffer (no per-row copy call, no
-/// zeroing: the row counts are the output's largest).
+/// `last`: one gather of fixed-size rows into an unfilled buffer.
 fn per_corner<T: Scalar, const N: usize>(last: &Level, at_vertices: &[T]) -> Result<Vec<T>> {
     let (rows, _) = at_vertices.as_chunks::<N>();
-    let out = gather_hinted(last.num_corners(), |c| rows[last.corner_verts[c] as usize])?;
-    Ok(out.into_flattened())
+    Ok(gather_indexed(rows, &last.corner_verts)?.into_flattened())
 }
 
 /// Face-varying topologies kept per plan (the most recent ones).

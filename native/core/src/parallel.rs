@@ -71,6 +71,26 @@ pub(crate) fn gather_hinted<V: Send>(
     Ok(v)
 }
 
+/// `out[i] = source[index[i]]` for every `i`, in parallel chunks, into a hinted allocation:
+/// the gathers of rows by a table (values at corners from values at vertices). The index is
+/// walked in step with the output (one bounds check per item, on `source`), about a third of
+/// the instructions of [`gather_hinted`] with a closure that reads both.
+pub(crate) fn gather_indexed<V: Copy + Send + Sync>(source: &[V], index: &[u32]) -> Result<Vec<V>> {
+    let mut v = with_capacity_hinted(index.len())?;
+    v.spare_capacity_mut()[..index.len()]
+        .par_chunks_mut(CHUNK)
+        .zip(index.par_chunks(CHUNK))
+        .for_each(|(out, index)| {
+            for (o, &i) in out.iter_mut().zip(index) {
+                o.write(source[i as usize]);
+            }
+        });
+    // SAFETY: the chunks cover the first `index.len()` items, each written once (a panic
+    // would have unwound past here).
+    unsafe { v.set_len(index.len()) };
+    Ok(v)
+}
+
 /// `n` zeros (or defaults) in a hinted allocation, written in parallel.
 pub(crate) fn zeroed_hinted<T: Default + Copy + Send + Sync>(n: usize) -> Result<Vec<T>> {
     let mut v = with_capacity_hinted(n)?;
