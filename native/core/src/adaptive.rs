@@ -88,7 +88,7 @@ use crate::options::{check_degree, check_levels, Boundary, Options};
 use crate::refinement::Refinement;
 use crate::scalar::{reciprocal, Scalar};
 use crate::scheme::{decrement, Scheme};
-use crate::step::{LevelData, Scratch, Step};
+use crate::step::{LevelData, Parts, Scratch, Step};
 use crate::topology::{Edges, Level, NONE};
 
 /// Hasher of uniform ids (u64 keys): one multiply and a fold, plenty for ids that are spread
@@ -225,6 +225,9 @@ impl<T> AdaptiveMesh<T> {
 }
 
 type P<T> = [T; 3];
+
+/// A partial level's 2-D data (borrowed) and 1-D data, as a step takes them.
+type LevelParts<'a, T> = (&'a [P<T>], Vec<P<T>>);
 
 /// One partial level: a subset of the faces of uniform `M_j`, with its data.
 struct Part<T> {
@@ -954,114 +957,150 @@ fn cage_part<T: Scalar>(ctx: &Context<T>) -> Part<T> {
     }
 }
 
-/// The last of `extra` partial levels past a plan's last level `L >= 1` (its refinement
-/// `refinement`, all tables complete, with `data` and the 1-D `curve` data of that level as
-/// the plan's run leaves them), made around `seeds` (sorted faces of `M_L`) and their
-/// descendants, with the margin rings of the degree at every level: the limit's local
-/// extension. Every value whose stencil lies in the seeds' descendants is bitwise the uniform
-/// value of that level (module documentation).
-pub(crate) fn local_levels<T: Scalar>(
-    refinement: &Refinement,
-    cage: &[P<T>],
-    data: &[P<T>],
-    curve: &[P<T>],
-    seeds: &[u64],
-    extra: u32,
-) -> Result<LocalLevel<T>> {
-    let options = refinement.options();
-    let last = refinement.levels().last().expect("a level");
-    let network = refinement.curve_networks().last().expect("a step");
-    let degree = options.degree;
-    let ctx = Context {
-        cage: cage.to_vec(),
-        level0: refinement.levels()[0].clone(),
-        features: refinement.features().clone(),
-        scheme: refinement.scheme(),
-        degree,
-        margin: margin_rings(degree),
-        budget: options.memory_budget,
-        diagonal: 0.0,
-        holes: Vec::new(),
-    };
-    // What the partial levels will hold at most (the seeds' descendants with their margins,
-    // taken as twice the descendants, at every level), asked for before any of it: a typed
-    // refusal under the budget, and room that the address space must have (the partial
-    // levels' own tables are not allocated fallibly one by one).
-    let ahead = (2 * seeds.len() as u64) << (2 * extra);
-    let bytes = ahead.saturating_mul(4 * BYTES_PER_CORNER) * 4 / 3;
-    memory::check_request(bytes, ahead, options.memory_budget)?;
-    drop(memory::with_capacity::<u8>(
-        usize::try_from(bytes).map_err(|_| memory::refused_bytes(bytes))?,
-    )?);
-    // P_L: the margin rings around the seeds.
-    let mut keep = memory::filled(last.num_faces(), false)?;
-    let frontier: Vec<usize> = seeds.iter().map(|&f| f as usize).collect();
-    for &f in &frontier {
-        keep[f] = true;
-    }
-    last.grow_face_rings(&mut keep, frontier, ctx.margin);
-    let sub = restrict(last, &keep)?;
-    let (network, kept_vertices, kept_edges) = network.restrict(&sub.vertex_map, &sub.edge_map);
-    let odd = degree % 2 == 1;
-    let widen = |ids: &[u32]| -> Vec<u64> { ids.iter().map(|&i| i as u64).collect() };
-    let mut part = Part {
-        face_uid: widen(&sub.faces),
-        vert_uid: widen(&sub.vertices),
-        edge_uid: widen(&sub.edges),
-        edge_faces: (sub.edges.iter())
-            .map(|&e| last.edge_valence(e as usize) as u32)
-            .collect(),
-        vert_faces: (sub.vertices.iter())
-            .map(|&v| last.corners_of_vertex(v as usize).len() as u32)
-            .collect(),
-        curves: network.next_curves(),
-        network: Some(network),
-        data: match odd {
-            true => sub.vertices.iter().map(|&v| data[v as usize]).collect(),
-            false => sub.faces.iter().map(|&f| data[f as usize]).collect(),
-        },
-        curve: match odd {
-            true => &kept_vertices,
-            false => &kept_edges,
-        }
-        .iter()
-        .map(|&i| curve[i as usize])
-        .collect(),
-        points: Vec::new(),
-        counts: [
-            last.num_vertices as u64,
-            last.num_edges() as u64,
-            last.num_faces() as u64,
-            last.num_corners() as u64,
-        ],
-        level: sub.level,
-    };
-    let top = refinement.levels().len() - 1;
-    let mut seeds = seeds.to_vec();
-    for t in top..top + extra as usize {
-        seeds = children(&seeds)?;
-        part = refine_part(&ctx, t, &part, Keep::Around(&seeds))?;
-    }
-    Ok(LocalLevel {
-        level: part.level,
-        face_uid: part.face_uid,
-        vert_uid: part.vert_uid,
-        network: part.network.expect("a refined part has its network"),
-        data: part.data,
-        curve: part.curve,
-    })
-}
-
-/// A partial level of [`local_levels`]: its topology, the uniform ids of its faces and
-/// vertices, the curve network of the step that made it, and its data as a plan's run leaves
-/// it (per vertex for odd degrees, per face for even ones; 1-D data per curve vertex or edge).
-pub(crate) struct LocalLevel<T> {
-    pub(crate) level: Level,
+/// The partial levels past a plan's last level `L >= 1` (its refinement, all tables
+/// complete) around `seeds` (sorted faces of `M_L`) and their descendants, with the margin rings
+/// of the degree at every level: the limit's local extension. Their topology does not depend on
+/// the data, so it is made once ([`LocalLevels::new`]) and every evaluation runs only the steps
+/// on them ([`LocalLevels::evaluate`]). Every value whose stencil lies in the seeds' descendants
+/// is bitwise the uniform value of that level (module documentation).
+#[derive(Debug)]
+pub(crate) struct LocalLevels {
+    scheme: Scheme,
+    odd: bool,
+    /// The items of `M_L` the first partial level keeps: vertices (odd degrees) or faces (even),
+    /// and the last step's curve vertices or curve edges.
+    keep: Vec<u32>,
+    keep_curve: Vec<u32>,
+    /// `P_L, P_{L+1}, ...`: the coarse level of each step, the last one the result.
+    levels: Vec<Level>,
+    steps: Vec<PartStep>,
+    /// The uniform ids of the last level's faces and vertices (sorted).
     pub(crate) face_uid: Vec<u64>,
     pub(crate) vert_uid: Vec<u64>,
+    /// The curve network of the step that made the last level, restricted to it.
     pub(crate) network: CurveNetwork,
-    pub(crate) data: Vec<P<T>>,
-    pub(crate) curve: Vec<P<T>>,
+}
+
+impl LocalLevels {
+    /// The `extra` partial levels past `refinement`'s last level around `seeds`.
+    pub(crate) fn new(refinement: &Refinement, seeds: &[u64], extra: u32) -> Result<LocalLevels> {
+        let options = refinement.options();
+        let last = refinement.levels().last().expect("a level");
+        let network = refinement.curve_networks().last().expect("a step");
+        let degree = options.degree;
+        let ctx: Context<f64> = Context {
+            cage: Vec::new(),
+            level0: refinement.levels()[0].clone(),
+            features: refinement.features().clone(),
+            scheme: refinement.scheme(),
+            degree,
+            margin: margin_rings(degree),
+            budget: options.memory_budget,
+            diagonal: 0.0,
+            holes: Vec::new(),
+        };
+        // What the partial levels will hold at most (the seeds' descendants with their margins,
+        // taken as twice the descendants, at every level), asked for before any of it: a typed
+        // refusal under the budget, and room that the address space must have (the partial
+        // levels' own tables are not allocated fallibly one by one).
+        let ahead = (2 * seeds.len() as u64) << (2 * extra);
+        let bytes = ahead.saturating_mul(4 * BYTES_PER_CORNER) * 4 / 3;
+        memory::check_request(bytes, ahead, options.memory_budget)?;
+        drop(memory::with_capacity::<u8>(
+            usize::try_from(bytes).map_err(|_| memory::refused_bytes(bytes))?,
+        )?);
+        // P_L: the margin rings around the seeds.
+        let mut kept = memory::filled(last.num_faces(), false)?;
+        let frontier: Vec<usize> = seeds.iter().map(|&f| f as usize).collect();
+        for &f in &frontier {
+            kept[f] = true;
+        }
+        last.grow_face_rings(&mut kept, frontier, ctx.margin);
+        let sub = restrict(last, &kept)?;
+        let (network, kept_vertices, kept_edges) = network.restrict(&sub.vertex_map, &sub.edge_map);
+        let odd = degree % 2 == 1;
+        let widen = |ids: &[u32]| -> Vec<u64> { ids.iter().map(|&i| i as u64).collect() };
+        let (keep, keep_curve) = match odd {
+            true => (sub.vertices.clone(), kept_vertices),
+            false => (sub.faces.clone(), kept_edges),
+        };
+        let mut part: Part<f64> = Part {
+            face_uid: widen(&sub.faces),
+            vert_uid: widen(&sub.vertices),
+            edge_uid: widen(&sub.edges),
+            edge_faces: (sub.edges.iter())
+                .map(|&e| last.edge_valence(e as usize) as u32)
+                .collect(),
+            vert_faces: (sub.vertices.iter())
+                .map(|&v| last.corners_of_vertex(v as usize).len() as u32)
+                .collect(),
+            curves: network.next_curves(),
+            network: Some(network),
+            data: Vec::new(),
+            curve: Vec::new(),
+            points: Vec::new(),
+            counts: [
+                last.num_vertices as u64,
+                last.num_edges() as u64,
+                last.num_faces() as u64,
+                last.num_corners() as u64,
+            ],
+            level: sub.level,
+        };
+        let top = refinement.levels().len() - 1;
+        let mut seeds = seeds.to_vec();
+        let mut levels = Vec::with_capacity(extra as usize + 1);
+        let mut steps = Vec::with_capacity(extra as usize);
+        for t in top..top + extra as usize {
+            seeds = children(&seeds)?;
+            let (step, next) = refine_topology(&ctx, t, &part, Keep::Around(&seeds))?;
+            levels.push(std::mem::replace(&mut part, next).level);
+            steps.push(step);
+        }
+        levels.push(part.level);
+        Ok(LocalLevels {
+            scheme: ctx.scheme,
+            odd,
+            keep,
+            keep_curve,
+            levels,
+            steps,
+            face_uid: part.face_uid,
+            vert_uid: part.vert_uid,
+            network: part.network.expect("a refined part has its network"),
+        })
+    }
+
+    /// The last partial level.
+    pub(crate) fn level(&self) -> &Level {
+        self.levels.last().expect("a level")
+    }
+
+    /// The data of the last partial level as a plan's run leaves it (per vertex for odd degrees,
+    /// per face for even ones; 1-D data per curve vertex or edge), from the `cage` points and
+    /// the plan's last level's `data` and 1-D `curve` data as its run leaves them.
+    pub(crate) fn evaluate<T: Scalar>(
+        &self,
+        cage: &[P<T>],
+        data: &[P<T>],
+        curve: &[P<T>],
+    ) -> Result<Parts<T, 3>> {
+        let pick = |values: &[P<T>], keep: &[u32]| -> Result<Vec<P<T>>> {
+            memory::collect(keep.iter().map(|&i| values[i as usize]))
+        };
+        let mut data = pick(data, &self.keep)?;
+        let mut curve = pick(curve, &self.keep_curve)?;
+        let scratch = Scratch::default();
+        for (step, coarse) in self.steps.iter().zip(&self.levels) {
+            let at = Some((&data[..], curve));
+            let (fine_data, fine_curve) =
+                step.advance(self.scheme, self.odd, coarse, cage, at, &scratch)?;
+            data = pick(&fine_data, step.keep(self.odd))?;
+            curve = pick(&fine_curve, &step.keep_curve)?;
+            scratch.give(fine_data);
+        }
+        Ok((data, curve))
+    }
 }
 
 /// Which faces of a refined partial level are kept.
@@ -1073,6 +1112,63 @@ enum Keep<'a> {
     Faces(&'a [u64]),
 }
 
+/// The topology of one step `P_t -> P_{t+1}` ([`refine_topology`]): the refined level, the
+/// curve network of the step, and what of them the next part keeps.
+#[derive(Debug)]
+struct PartStep {
+    fine: Level,
+    network: CurveNetwork,
+    /// The vertices and faces of `fine` that the next part keeps.
+    vertices: Vec<u32>,
+    faces: Vec<u32>,
+    /// The step's curve vertices (odd degrees) or curve edges (even) that it keeps.
+    keep_curve: Vec<u32>,
+}
+
+impl PartStep {
+    /// The items of the fine level whose data the next part keeps: vertices (odd degrees) or
+    /// faces (even).
+    fn keep(&self, odd: bool) -> &[u32] {
+        match odd {
+            true => &self.vertices,
+            false => &self.faces,
+        }
+    }
+
+    /// The step primitive on `coarse`, the part the step refines, with its 2-D and 1-D `data`
+    /// (`None` on the cage's level, whose data are the `cage` points): the fine level's 2-D and
+    /// 1-D data, whole, its buffers from `scratch`.
+    #[allow(clippy::too_many_arguments)]
+    fn advance<T: Scalar>(
+        &self,
+        scheme: Scheme,
+        odd: bool,
+        coarse: &Level,
+        cage: &[P<T>],
+        data: Option<LevelParts<T>>,
+        scratch: &Scratch,
+    ) -> Result<Parts<T, 3>> {
+        let step = self.step(scheme, coarse);
+        let mut run = match data {
+            None => LevelData::new(cage),
+            Some((data, curve)) => LevelData::on_level(cage, odd, data, curve),
+        }
+        .with_scratch_for(scratch, &step)?;
+        run.step(&step);
+        Ok(run.into_parts())
+    }
+
+    fn step<'a>(&'a self, scheme: Scheme, coarse: &'a Level) -> Step<'a> {
+        Step {
+            scheme,
+            coarse,
+            fine: &self.fine,
+            curves: &self.network,
+            sharpness: None,
+        }
+    }
+}
+
 /// One step `P_t -> P_{t+1}`: refine, evaluate, keep the faces `keep` names.
 fn refine_part<T: Scalar>(
     ctx: &Context<T>,
@@ -1080,6 +1176,34 @@ fn refine_part<T: Scalar>(
     coarse: &Part<T>,
     keep: Keep,
 ) -> Result<Part<T>> {
+    let (step, mut next) = refine_topology(ctx, t, coarse, keep)?;
+    let odd = ctx.degree % 2 == 1;
+    let scratch = Scratch::default();
+    let data = (t > 0).then(|| (&coarse.data[..], coarse.curve.clone()));
+    let (data, curve) = step.advance(ctx.scheme, odd, &coarse.level, &ctx.cage, data, &scratch)?;
+    // The drawing points: the primal data, or one more dual -> primal average.
+    let drawing = match odd {
+        true => None,
+        false => {
+            let level = LevelData::on_level(&ctx.cage, false, &data, curve.clone());
+            Some(level.drawing_points(&step.step(ctx.scheme, &coarse.level))?)
+        }
+    };
+    let points = drawing.as_deref().unwrap_or(&data);
+    next.points = step.vertices.iter().map(|&v| points[v as usize]).collect();
+    next.data = step.keep(odd).iter().map(|&i| data[i as usize]).collect();
+    next.curve = step.keep_curve.iter().map(|&i| curve[i as usize]).collect();
+    Ok(next)
+}
+
+/// The topology of one step `P_t -> P_{t+1}`: refine, keep the faces `keep` names. Returns the
+/// step and the next part, without data.
+fn refine_topology<T, U>(
+    ctx: &Context<U>,
+    t: usize,
+    coarse: &Part<T>,
+    keep: Keep,
+) -> Result<(PartStep, Part<T>)> {
     let c = &coarse.level;
     let fine = c.refine()?;
     let [nv, ne, nf, ncorners] = coarse.counts;
@@ -1134,9 +1258,8 @@ fn refine_part<T: Scalar>(
         })
         .collect();
 
-    // The step, as the uniform plan makes it: the curve network of this partial level (its
-    // corners are the cage's tagged vertices that it has; a corner keeps the point of its cage
-    // vertex), then the step primitive.
+    // The curve network of this partial level, as the uniform plan makes it (its corners are
+    // the cage's tagged vertices that it has; a corner keeps the point of its cage vertex).
     let nv0 = ctx.level0.num_vertices as u64;
     let corners: Vec<(u32, f32)> = (ctx.features.corners.iter())
         .filter_map(|&(v, s)| {
@@ -1162,28 +1285,6 @@ fn refine_part<T: Scalar>(
         odd,
         pin,
     );
-    let step = Step {
-        scheme: ctx.scheme,
-        coarse: c,
-        fine: &fine,
-        curves: &network,
-        sharpness: None,
-    };
-    let scratch = Scratch::default();
-    let mut data = if t == 0 {
-        LevelData::new(&ctx.cage)
-    } else {
-        LevelData::on_level(&ctx.cage, odd, &coarse.data, coarse.curve.clone())
-    }
-    .with_scratch_for(&scratch, &step)?;
-    data.step(&step);
-    // The drawing points: the primal data, or one more dual -> primal average.
-    let drawing = match odd {
-        true => None,
-        false => Some(data.drawing_points(&step)?),
-    };
-    let (data, curve) = data.into_parts();
-    let points = drawing.as_deref().unwrap_or(&data);
 
     // The seeds and the margin rings around them, or the faces named.
     let (seeds, margin) = match keep {
@@ -1212,13 +1313,13 @@ fn refine_part<T: Scalar>(
     fine.grow_face_rings(&mut keep, frontier, margin);
 
     let sub = restrict(&fine, &keep)?;
-    let (network, kept_vertices, kept_edges) = network.restrict(&sub.vertex_map, &sub.edge_map);
+    let (kept_network, kept_vertices, kept_edges) =
+        network.restrict(&sub.vertex_map, &sub.edge_map);
     let pick = |values: &[u64], map: &[u32]| -> Vec<u64> {
         map.iter().map(|&i| values[i as usize]).collect()
     };
-    let level = sub.level;
     let counts = [nv + ne + nf, 2 * ne + ncorners, ncorners, 4 * ncorners];
-    Ok(Part {
+    let next = Part {
         face_uid: pick(&face_uid, &sub.faces),
         vert_uid: pick(&vert_uid, &sub.vertices),
         edge_uid: pick(&edge_uid, &sub.edges),
@@ -1228,21 +1329,22 @@ fn refine_part<T: Scalar>(
             .iter()
             .map(|&v| vert_faces[v as usize])
             .collect(),
-        curves: network.next_curves(),
-        network: Some(network),
-        data: if odd {
-            sub.vertices.iter().map(|&v| data[v as usize]).collect()
-        } else {
-            sub.faces.iter().map(|&f| data[f as usize]).collect()
-        },
-        curve: if odd { kept_vertices } else { kept_edges }
-            .iter()
-            .map(|&i| curve[i as usize])
-            .collect(),
-        points: sub.vertices.iter().map(|&v| points[v as usize]).collect(),
+        curves: kept_network.next_curves(),
+        network: Some(kept_network),
+        data: Vec::new(),
+        curve: Vec::new(),
+        points: Vec::new(),
         counts,
-        level,
-    })
+        level: sub.level,
+    };
+    let step = PartStep {
+        fine,
+        network,
+        vertices: sub.vertices,
+        faces: sub.faces,
+        keep_curve: if odd { kept_vertices } else { kept_edges },
+    };
+    Ok((step, next))
 }
 
 /// A level restricted to some of its faces, with the old ids of what it kept and the new id of

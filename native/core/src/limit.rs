@@ -20,7 +20,7 @@
 //! vertices keep their ids, until every one of them is clean. With the averaging rules, when
 //! those vertices are a small part of the level (their seeds at most 1 / [`LOCAL_SHARE`] of its
 //! faces), this is local: only partial levels around them are made (the adaptive module's
-//! [`local_levels`], exact where their stencils reach), and every other vertex keeps the masks of
+//! [`LocalLevels`], exact where their stencils reach), and every other vertex keeps the masks of
 //! the plan's own last level; the curve vertices, corners and valence-2 vertices then take the
 //! extension too (their normals come from fans at the extended level). Otherwise, and with
 //! semi-sharp creases (refined past the level where they become smooth) or the other rule sets,
@@ -54,7 +54,7 @@ use std::sync::{Arc, Mutex};
 
 use glam::DVec3;
 
-use crate::adaptive::local_levels;
+use crate::adaptive::LocalLevels;
 use crate::analysis::{
     cached_vertex_masks, frame_items, neighbourhood_size, sector_frames, VertexMasks,
 };
@@ -110,8 +110,8 @@ pub(crate) struct Stencils {
     /// `local`).
     extra_levels: u32,
     /// The stencils of the vertices that are not clean at the plan's last level, on partial
-    /// levels past it around those vertices (the seeds: faces of the plan's last level).
-    local: Option<(Box<Stencils>, Vec<u64>)>,
+    /// levels past it around those vertices (their topology made once, here).
+    local: Option<(Box<Stencils>, LocalLevels)>,
     /// The stencils (indices into `masks_of`) that `local` gives, in order.
     local_vertices: Vec<u32>,
     /// Mask of each output vertex.
@@ -593,32 +593,17 @@ fn local_seeds(last: &Level, degree: u32, vertices: &[u32], m: u32) -> Result<Ve
 }
 
 /// The stencils of the output vertices `vertices` (of the plan's last level `M_L`, none clean
-/// there) on the partial level `M_{L+m}` made around them ([`local_levels`]), with the seeds
-/// (faces of `M_L`) that make it; `None` when one of them is not clean there either.
+/// there) on the partial level `M_{L+m}` made around them from `seeds` (faces of `M_L`), with
+/// those partial levels ([`LocalLevels`]); `None` when one of them is not clean there either.
 fn local_stencils(
     refinement: &Refinement,
     vertices: &[u32],
     m: u32,
     seeds: Vec<u64>,
-) -> Result<Option<(Box<Stencils>, Vec<u64>)>> {
+) -> Result<Option<(Box<Stencils>, LocalLevels)>> {
     let last = refinement.last_level();
-    let curves = refinement.curve_networks().last().expect("a step");
     let degree = refinement.options().degree;
-    let odd = degree % 2 == 1;
-    // The topology does not depend on the data: zeros will do (the level's size: fallible).
-    let zero3 = |count: usize| memory::filled(count, [0.0f64; 3]);
-    let cage = zero3(refinement.levels()[0].num_vertices)?;
-    let data = zero3(if odd {
-        last.num_vertices
-    } else {
-        last.num_faces()
-    })?;
-    let curve = zero3(if odd {
-        curves.vertices().len()
-    } else {
-        curves.edges().len()
-    })?;
-    let local = local_levels(refinement, &cage, &data, &curve, &seeds, m)?;
+    let local = LocalLevels::new(refinement, &seeds, m)?;
     let mut at = Vec::with_capacity(vertices.len());
     for &v in vertices {
         match local.vert_uid.binary_search(&(v as u64)) {
@@ -647,8 +632,8 @@ fn local_stencils(
         index: &index,
     };
     Ok(
-        build_stencils(&local.level, &local.network, degree, &targets, false)?
-            .map(|st| (Box::new(st), seeds)),
+        build_stencils(local.level(), &local.network, degree, &targets, false)?
+            .map(|st| (Box::new(st), local)),
     )
 }
 
@@ -776,14 +761,13 @@ impl Limit<'_> {
                 let (data, curve) = self.limit_data(&st, &compact)?;
                 let mut positions = stencil_positions(&st, &data)?;
                 let local = match &st.local {
-                    Some((local, seeds)) => {
+                    Some((local, levels)) => {
                         // The local extension is made at the plan's own last level.
                         let two_d = match r.options().degree % 2 {
                             0 => &data[..r.last_level().num_faces()],
                             _ => &data[..],
                         };
-                        let ldata =
-                            self.local_data(seeds, st.extra_levels, two_d, &curve, &compact)?;
+                        let ldata = self.local_data(levels, two_d, &curve, &compact)?;
                         let lpos = stencil_positions(local, &ldata)?;
                         for (i, &v) in st.local_vertices.iter().enumerate() {
                             positions[v as usize] = lpos[i];
@@ -828,8 +812,7 @@ impl Limit<'_> {
     /// partial levels carry three channels, so the channels go through them three at a time.
     fn local_data<T: Scalar, const N: usize>(
         &self,
-        seeds: &[u64],
-        extra: u32,
+        levels: &LocalLevels,
         two_d: &[[T; N]],
         curve: &[[T; N]],
         compact: &[[T; N]],
@@ -845,17 +828,10 @@ impl Limit<'_> {
         let mut out: Vec<[T; N]> = Vec::new();
         for first in (0..N).step_by(3) {
             let cage = three(compact, first)?;
-            let level = local_levels(
-                self.refinement,
-                &cage,
-                &three(two_d, first)?,
-                &three(curve, first)?,
-                seeds,
-                extra,
-            )?;
-            let mut layout = level.data;
+            let (mut layout, local_curve) =
+                levels.evaluate(&cage, &three(two_d, first)?, &three(curve, first)?)?;
             if even {
-                layout.extend_from_slice(&level.curve);
+                layout.extend_from_slice(&local_curve);
                 layout.extend_from_slice(&cage);
             }
             if out.is_empty() {
