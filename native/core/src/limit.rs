@@ -122,6 +122,9 @@ pub(crate) struct Stencils {
     items: Vec<u32>,
     /// Interior masks by valence.
     masks: Vec<Arc<VertexMasks>>,
+    /// The same masks with tangents, per item its position and two tangent weights (empty
+    /// where there are no tangents): one walk over a stencil's data gives all three.
+    joint: Vec<Vec<[f64; 3]>>,
     /// The 1-D position mask along curves (symmetric, centred).
     curve_mask: Vec<f64>,
     /// Fan of each output face corner at a curve vertex or corner (index into `fan_offsets`),
@@ -332,6 +335,15 @@ fn build_stencils(
         .iter()
         .map(|&k| cached_vertex_masks(degree, k))
         .collect::<Result<Vec<_>>>()?;
+    let joint = masks
+        .iter()
+        .map(|m| match &m.tangents {
+            [a, b] if !a.is_empty() => (m.position.iter().zip(a).zip(b))
+                .map(|((&p, &a), &b)| [p, a, b])
+                .collect(),
+            _ => Vec::new(),
+        })
+        .collect();
 
     // Fans at curve vertices and corners, one per output corner there: (level corner, stencil).
     let output_corners = targets.output_corners;
@@ -447,6 +459,7 @@ fn build_stencils(
         offsets,
         items,
         masks,
+        joint,
         curve_mask,
         corner_fan,
         fan_offsets,
@@ -759,7 +772,7 @@ impl Limit<'_> {
             LimitMethod::Eigen => {
                 let st = stencils(r, self.cache)?;
                 let (data, curve) = self.limit_data(&st, &compact)?;
-                let mut positions = stencil_positions(&st, &data)?;
+                let (mut positions, vertex_normals) = stencil_values(&st, &data, normals)?;
                 let local = match &st.local {
                     Some((local, levels)) => {
                         // The local extension is made at the plan's own last level.
@@ -768,16 +781,31 @@ impl Limit<'_> {
                             _ => &data[..],
                         };
                         let ldata = self.local_data(levels, two_d, &curve, &compact)?;
-                        let lpos = stencil_positions(local, &ldata)?;
+                        let (lpos, lnormals) = stencil_values(local, &ldata, normals)?;
                         for (i, &v) in st.local_vertices.iter().enumerate() {
                             positions[v as usize] = lpos[i];
                         }
-                        Some((local.as_ref(), ldata, lpos))
+                        Some(LocalValues {
+                            stencils: local.as_ref(),
+                            data: ldata,
+                            positions: lpos,
+                            normals: lnormals,
+                        })
                     }
                     None => None,
                 };
                 let normals = match normals {
-                    true => Some(self.stencil_normals(&st, &data, &positions, local)?),
+                    true => {
+                        let own = LocalValues {
+                            stencils: &st,
+                            data,
+                            positions,
+                            normals: vertex_normals,
+                        };
+                        let out = self.stencil_normals(&own, local)?;
+                        positions = own.positions;
+                        Some(out)
+                    }
                     false => None,
                 };
                 Ok((positions.into_flattened(), normals))
@@ -845,80 +873,108 @@ impl Limit<'_> {
         Ok(out)
     }
 
-    /// Unit normals per output corner from the stencils (see [`surface`]), those of the local
-    /// extension's (its stencils, data and positions) where they are.
+    /// Unit normals per output corner from the stencils' values `own` (see [`surface`]), those
+    /// of the local extension's where they are.
     fn stencil_normals<T: Scalar, const N: usize>(
         &self,
-        st: &Stencils,
-        data: &[[T; N]],
-        positions: &[[T; N]],
+        own: &LocalValues<T, N>,
         local: Option<LocalValues<T, N>>,
     ) -> Result<Vec<T>> {
-        let (vertex_normals, fan_normals) = stencil_vertex_normals(st, data, positions)?;
+        let st = own.stencils;
+        let fans = fan_normals(st, &own.data, &own.positions)?;
         let local = match &local {
-            Some((lst, ldata, lpos)) => Some((lst, stencil_vertex_normals(lst, ldata, lpos)?)),
+            Some(l) => Some((l, fan_normals(l.stencils, &l.data, &l.positions)?)),
             None => None,
         };
         let corners = &self.refinement.last_level().corner_verts;
-        let mut out = memory::with_capacity(3 * corners.len())?;
-        for (c, &v) in corners.iter().enumerate() {
+        let out = gather_hinted(corners.len(), |c| {
+            let v = corners[c];
             let n = match (st.masks_of[v as usize], &local) {
-                (LimitMask::Local, Some((lst, (lv, lf)))) => match lst.corner_fan[c] {
+                (LimitMask::Local, Some((l, lf))) => match l.stencils.corner_fan[c] {
                     NONE => {
                         let i = st.local_vertices.binary_search(&v).unwrap_or_default();
-                        lv[i]
+                        l.normals[i]
                     }
                     f => lf[f as usize],
                 },
                 _ => match st.corner_fan[c] {
-                    NONE => vertex_normals[v as usize],
-                    f => fan_normals[f as usize],
+                    NONE => own.normals[v as usize],
+                    f => fans[f as usize],
                 },
             };
-            out.extend(n.to_array().map(T::from_f64));
-        }
-        Ok(out)
+            n.to_array().map(T::from_f64)
+        })?;
+        Ok(out.into_flattened())
     }
 }
 
-/// The local extension's stencils, data and limit positions.
-type LocalValues<'a, T, const N: usize> = (&'a Stencils, Vec<[T; N]>, Vec<[T; N]>);
+/// A set of stencils with the data they read, their limit positions and their unit normals at
+/// interior vertices (zero elsewhere; empty when normals were not asked for).
+struct LocalValues<'a, T, const N: usize> {
+    stencils: &'a Stencils,
+    data: Vec<[T; N]>,
+    positions: Vec<[T; N]>,
+    normals: Vec<DVec3>,
+}
+
+/// Limit positions of every stencil of `st` from `data` (zero for [`LimitMask::Local`]) and,
+/// with `normals`, the unit normals at its interior vertices (zero elsewhere): position and
+/// tangents in one walk over each stencil's data.
+fn stencil_values<T: Scalar, const N: usize>(
+    st: &Stencils,
+    data: &[[T; N]],
+    normals: bool,
+) -> Result<(Vec<[T; N]>, Vec<DVec3>)> {
+    if !normals {
+        return Ok((stencil_positions(st, data)?, Vec::new()));
+    }
+    // The tangents in T, as the positions (f32 data gives f32 tangents).
+    let at = |x: &[f64; N]| {
+        let x = x.map(|c| T::from_f64(c).to_f64());
+        DVec3::new(x[0], x[1], x[2])
+    };
+    let both = gather_hinted(st.masks_of.len(), |v| match st.masks_of[v] {
+        LimitMask::Interior(m) if !st.joint[m as usize].is_empty() => {
+            let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
+            let [p, a, b] = combine_joint(data, items, &st.joint[m as usize]);
+            let normal = at(&a).cross(at(&b)).normalize_or_zero();
+            (p.map(T::from_f64), normal)
+        }
+        _ => (stencil_position(st, data, v), DVec3::ZERO),
+    })?;
+    let positions = memory::collect(both.iter().map(|&(p, _)| p))?;
+    let normals = memory::collect(both.iter().map(|&(_, n)| n))?;
+    Ok((positions, normals))
+}
 
 /// Limit positions of every stencil of `st` from `data` (zero for [`LimitMask::Local`]).
 fn stencil_positions<T: Scalar, const N: usize>(
     st: &Stencils,
     data: &[[T; N]],
 ) -> Result<Vec<[T; N]>> {
-    gather_hinted(st.masks_of.len(), |v| {
-        let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
-        let weights: &[f64] = match st.masks_of[v] {
-            LimitMask::Interior(m) | LimitMask::Valence2(m) => &st.masks[m as usize].position,
-            LimitMask::Curve => &st.curve_mask,
-            LimitMask::Corner => return data[items[0] as usize],
-            LimitMask::Local => return zero(),
-        };
-        combine(data, items, weights)
-    })
+    gather_hinted(st.masks_of.len(), |v| stencil_position(st, data, v))
 }
 
-/// Unit normals of the stencils of `st` at interior vertices (zero elsewhere) and of its fans,
-/// from `data` and the stencils' limit `positions`.
-fn stencil_vertex_normals<T: Scalar, const N: usize>(
+/// The limit position of stencil `v` of `st` from `data` (zero for [`LimitMask::Local`]).
+fn stencil_position<T: Scalar, const N: usize>(st: &Stencils, data: &[[T; N]], v: usize) -> [T; N] {
+    let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
+    let weights: &[f64] = match st.masks_of[v] {
+        LimitMask::Interior(m) | LimitMask::Valence2(m) => &st.masks[m as usize].position,
+        LimitMask::Curve => &st.curve_mask,
+        LimitMask::Corner => return data[items[0] as usize],
+        LimitMask::Local => return zero(),
+    };
+    combine(data, items, weights)
+}
+
+/// Unit normals of the fans of `st`, from `data` and the stencils' limit `positions`.
+fn fan_normals<T: Scalar, const N: usize>(
     st: &Stencils,
     data: &[[T; N]],
     positions: &[[T; N]],
-) -> Result<(Vec<DVec3>, Vec<DVec3>)> {
+) -> Result<Vec<DVec3>> {
     let at = |x: &[T; N]| DVec3::new(x[0].to_f64(), x[1].to_f64(), x[2].to_f64());
-    let vertex_normals: Vec<DVec3> = gather_hinted(st.masks_of.len(), |v| {
-        let LimitMask::Interior(m) = st.masks_of[v] else {
-            return DVec3::ZERO;
-        };
-        let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
-        let [a, b] = &st.masks[m as usize].tangents;
-        let (a, b) = (at(&combine(data, items, a)), at(&combine(data, items, b)));
-        a.cross(b).normalize_or_zero()
-    })?;
-    let fan_normals: Vec<DVec3> = gather_hinted(st.fan_closed.len(), |f| {
+    gather_hinted(st.fan_closed.len(), |f| {
         let items = &st.fan_items[st.fan_offsets[f] as usize..st.fan_offsets[f + 1] as usize];
         let centre = at(&positions[st.fan_vertex[f] as usize]);
         let q: Vec<DVec3> = items
@@ -930,8 +986,7 @@ fn stencil_vertex_normals<T: Scalar, const N: usize>(
             .map(|i| q[i].cross(q[(i + 1) % q.len()]))
             .sum::<DVec3>()
             .normalize_or_zero()
-    })?;
-    Ok((vertex_normals, fan_normals))
+    })
 }
 
 /// Unit normals of each face's bilinear patch at its corners, face after face.
@@ -1064,6 +1119,25 @@ fn combine<T: Scalar, const N: usize>(data: &[[T; N]], items: &[u32], weights: &
         }
     }
     acc.map(T::from_f64)
+}
+
+/// The three sums `sum w_i[j] data[items_i]` (`j` = position, the two tangents) in one walk,
+/// accumulated in f64 in the order of [`combine`].
+fn combine_joint<T: Scalar, const N: usize>(
+    data: &[[T; N]],
+    items: &[u32],
+    weights: &[[f64; 3]],
+) -> [[f64; N]; 3] {
+    let mut acc = [[0.0f64; N]; 3];
+    for (&i, w) in items.iter().zip(weights) {
+        let x = data[i as usize].map(T::to_f64);
+        for (acc, &w) in acc.iter_mut().zip(w) {
+            for k in 0..N {
+                acc[k] += w * x[k];
+            }
+        }
+    }
+    acc
 }
 
 #[cfg(test)]
