@@ -112,7 +112,9 @@ pub(crate) struct SectorGrid<'a> {
 impl<'a> SectorGrid<'a> {
     /// Sectors counter-clockwise from `first`, a corner at the centre; `None` at a boundary.
     pub(crate) fn new(level: &'a Level, first: usize) -> Option<SectorGrid<'a>> {
-        let mut starts = vec![first];
+        // Room for the common valences without reallocation.
+        let mut starts = Vec::with_capacity(8);
+        starts.push(first);
         loop {
             let last = *starts.last()?;
             // The next sector lies across the incoming edge of this sector's corner.
@@ -213,7 +215,10 @@ pub(crate) fn frame_items(
     let side = last + 1;
     let sectors = frames.len() / (side * side);
     let frame = |s: usize, i: usize, j: usize| frames[s * side * side + i * side + j];
-    let mut items = Vec::new();
+    let mut items = Vec::with_capacity(match even {
+        true => sectors * rings * rings,
+        false => 1 + sectors * rings * (rings + 1),
+    });
     if even {
         for s in 0..sectors {
             for i in 0..rings {
