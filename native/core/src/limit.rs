@@ -624,7 +624,12 @@ fn local_stencils(
             Err(_) => return Ok(None),
         }
     }
-    let slot = |v: usize| vertices.binary_search(&(v as u32)).ok();
+    // Stencil of each vertex of M_L (a table: every output corner asks, twice).
+    let mut slot_of = memory::filled(last.num_vertices, NONE)?;
+    for (i, &v) in vertices.iter().enumerate() {
+        slot_of[v as usize] = i as u32;
+    }
+    let slot = |v: usize| (slot_of[v] != NONE).then_some(slot_of[v] as usize);
     let shift = 2 * (m - 1);
     let vertex = |i: usize| at[i];
     let corner = |c: usize| {
