@@ -90,21 +90,19 @@ def _surface_uvs(mesh: Any) -> np.ndarray:
     return np.array([tuple(d.uv) for d in layer.data], dtype=np.float64)
 
 
-# Known defect (session note of 2026-12-02): once, in the Blender phase of a full
-# `scripts/test.sh`, the "near" cage in modes boundaries and none was 4-5e-5 off Blender at
-# level 1; neither this file alone nor `pytest tests/blender` reproduced it (1e-7). Not
-# explained, hence not strict.
-KNOWN_GAP = pytest.mark.xfail(reason="near cage: a 4-5e-5 gap seen once in scripts/test.sh")
-GAPS = {("near", "boundaries"), ("near", "none")}
+#: Where Blender welds corners whose UVs differ (the near cage), its value is not one corner's
+#: for sure: ``set_face_varying_data_from_uv`` (``subdiv_eval.cc``) writes every face's corner UVs
+#: into the shared value from parallel tasks (``BLI_task_parallel_range``, one face per task at
+#: least), so the face written last wins, run by run. Any two welded corners differ by less than
+#: the weld limit per axis, and Catmull-Clark's face-varying masks have no negative weight, so any
+#: of Blender's outcomes is within the limit of the add-on's (once seen: 4-5e-5 at level 1).
+WELD_RACE = float(np.float32(1e-4))
+TOLERANCES = {"near": WELD_RACE, "folded": TOLERANCE}
 
 
 @pytest.mark.parametrize(
     ("name", "mode"),
-    [
-        pytest.param(n, m, marks=KNOWN_GAP) if (n, m) in GAPS else (n, m)
-        for n in sorted(CAGES)
-        for m in ("boundaries", "none", "corners-plus1")
-    ],
+    [(n, m) for n in sorted(CAGES) for m in ("boundaries", "none", "corners-plus1")],
 )
 def test_surface_uvs_are_blenders_where_the_weld_rules_differ(
     scene: Any, name: str, mode: str
@@ -132,9 +130,9 @@ def test_surface_uvs_are_blenders_where_the_weld_rules_differ(
         gap = float(np.abs(got - want).max())
         exact_gap = float(np.abs(np.asarray(exact.uvs) - want).max())
         print(f"{name} ({mode}, level {levels}): add-on {gap:.1e}, exact weld {exact_gap:.1e}")
-        assert gap < TOLERANCE, (levels, gap)
+        assert gap < TOLERANCES[name], (levels, gap)
         # The cage tells the rules apart: welding exactly does not give Blender's UVs.
-        assert exact_gap > 10 * TOLERANCE, (levels, exact_gap)
+        assert exact_gap > 10 * TOLERANCES[name], (levels, exact_gap)
 
 
 def test_blender_uv_indices_follow_blenders_rule() -> None:

@@ -33,8 +33,11 @@ def blender_uv_indices(
     taken last face first, the first one left starts a value and takes every remaining corner
     whose UV is within :data:`BLENDER_UV_LIMIT` of its own on both axes (not transitively) and
     whose face has the same winding; repeat. The value is that first corner's UV (the last
-    corner of the group: the one Blender's face loop writes last), so the index of every corner
-    of a group is that corner.
+    corner of the group: the one a serial face loop writes last), so the index of every corner
+    of a group is that corner. Blender writes the values from parallel tasks per face
+    (``set_face_varying_data_from_uv`` in ``subdiv_eval.cc``), so where a group's UVs differ
+    (within the limit) its own value is any of them, run by run: the surfaces then agree to the
+    limit, not exactly.
     """
     sizes = convert.int_array(face_sizes, "face_sizes")
     verts = convert.int_array(face_indices, "face_indices")
