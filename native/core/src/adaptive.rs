@@ -1093,8 +1093,9 @@ impl LocalLevels {
         let scratch = Scratch::default();
         for (step, coarse) in self.steps.iter().zip(&self.levels) {
             let at = Some((&data[..], curve));
-            let (fine_data, fine_curve) =
-                step.advance(self.scheme, self.odd, coarse, cage, at, &scratch)?;
+            let (fine_data, fine_curve) = step
+                .advance(self.scheme, self.odd, coarse, cage, at, &scratch)?
+                .into_parts();
             data = pick(&fine_data, step.keep(self.odd))?;
             curve = pick(&fine_curve, &step.keep_curve)?;
             scratch.give(fine_data);
@@ -1136,18 +1137,17 @@ impl PartStep {
     }
 
     /// The step primitive on `coarse`, the part the step refines, with its 2-D and 1-D `data`
-    /// (`None` on the cage's level, whose data are the `cage` points): the fine level's 2-D and
-    /// 1-D data, whole, its buffers from `scratch`.
-    #[allow(clippy::too_many_arguments)]
-    fn advance<T: Scalar>(
+    /// (`None` on the cage's level, whose data are the `cage` points): the fine level's data,
+    /// whole, its buffers from `scratch`.
+    fn advance<'a, T: Scalar>(
         &self,
         scheme: Scheme,
         odd: bool,
         coarse: &Level,
-        cage: &[P<T>],
-        data: Option<LevelParts<T>>,
-        scratch: &Scratch,
-    ) -> Result<Parts<T, 3>> {
+        cage: &'a [P<T>],
+        data: Option<LevelParts<'a, T>>,
+        scratch: &'a Scratch,
+    ) -> Result<LevelData<'a, T, 3>> {
         let step = self.step(scheme, coarse);
         let mut run = match data {
             None => LevelData::new(cage),
@@ -1155,7 +1155,7 @@ impl PartStep {
         }
         .with_scratch_for(scratch, &step)?;
         run.step(&step);
-        Ok(run.into_parts())
+        Ok(run)
     }
 
     fn step<'a>(&'a self, scheme: Scheme, coarse: &'a Level) -> Step<'a> {
@@ -1180,15 +1180,13 @@ fn refine_part<T: Scalar>(
     let odd = ctx.degree % 2 == 1;
     let scratch = Scratch::default();
     let data = (t > 0).then(|| (&coarse.data[..], coarse.curve.clone()));
-    let (data, curve) = step.advance(ctx.scheme, odd, &coarse.level, &ctx.cage, data, &scratch)?;
+    let run = step.advance(ctx.scheme, odd, &coarse.level, &ctx.cage, data, &scratch)?;
     // The drawing points: the primal data, or one more dual -> primal average.
     let drawing = match odd {
         true => None,
-        false => {
-            let level = LevelData::on_level(&ctx.cage, false, &data, curve.clone());
-            Some(level.drawing_points(&step.step(ctx.scheme, &coarse.level))?)
-        }
+        false => Some(run.drawing_points(&step.step(ctx.scheme, &coarse.level))?),
     };
+    let (data, curve) = run.into_parts();
     let points = drawing.as_deref().unwrap_or(&data);
     next.points = step.vertices.iter().map(|&v| points[v as usize]).collect();
     next.data = step.keep(odd).iter().map(|&i| data[i as usize]).collect();

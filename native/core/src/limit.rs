@@ -790,7 +790,7 @@ impl Limit<'_> {
                         for (i, &v) in st.local_vertices.iter().enumerate() {
                             positions[v as usize] = lpos[i];
                         }
-                        Some(LocalValues {
+                        Some(StencilValues {
                             stencils: local.as_ref(),
                             data: ldata,
                             positions: lpos,
@@ -799,21 +799,17 @@ impl Limit<'_> {
                     }
                     None => None,
                 };
-                let normals = match normals {
-                    true => {
-                        let own = LocalValues {
-                            stencils: &st,
-                            data,
-                            positions,
-                            normals: vertex_normals,
-                        };
-                        let out = self.stencil_normals(&own, local)?;
-                        positions = own.positions;
-                        Some(out)
-                    }
-                    false => None,
+                if !normals {
+                    return Ok((positions.into_flattened(), None));
+                }
+                let own = StencilValues {
+                    stencils: &st,
+                    data,
+                    positions,
+                    normals: vertex_normals,
                 };
-                Ok((positions.into_flattened(), normals))
+                let normals = self.stencil_normals(&own, local.as_ref())?;
+                Ok((own.positions.into_flattened(), Some(normals)))
             }
         }
     }
@@ -882,12 +878,12 @@ impl Limit<'_> {
     /// of the local extension's where they are.
     fn stencil_normals<T: Scalar, const N: usize>(
         &self,
-        own: &LocalValues<T, N>,
-        local: Option<LocalValues<T, N>>,
+        own: &StencilValues<T, N>,
+        local: Option<&StencilValues<T, N>>,
     ) -> Result<Vec<T>> {
         let st = own.stencils;
         let fans = fan_normals(st, &own.data, &own.positions)?;
-        let local = match &local {
+        let local = match local {
             Some(l) => Some((l, fan_normals(l.stencils, &l.data, &l.positions)?)),
             None => None,
         };
@@ -915,7 +911,7 @@ impl Limit<'_> {
 
 /// A set of stencils with the data they read, their limit positions and their unit normals at
 /// interior vertices (zero elsewhere; empty when normals were not asked for).
-struct LocalValues<'a, T, const N: usize> {
+struct StencilValues<'a, T, const N: usize> {
     stencils: &'a Stencils,
     data: Vec<[T; N]>,
     positions: Vec<[T; N]>,
