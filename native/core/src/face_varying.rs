@@ -19,7 +19,7 @@ use crate::evaluate;
 use crate::limit::{self, LimitCache};
 use crate::memory;
 use crate::mesh::{Cage, INFINITELY_SHARP};
-use crate::options::{Boundary, Options, OutputKind};
+use crate::options::{Boundary, Options, OutputKind, Rules};
 use crate::output::OutputMesh;
 use crate::parallel::{fill_rows, gather_indexed, in_pool};
 use crate::refinement::Refinement;
@@ -160,8 +160,8 @@ fn fan_counts(level: &Level) -> Vec<u32> {
 }
 
 /// The face-varying mesh `M^fv` of a cage refinement's level `M_0` for the topology
-/// `value_of` (the value of each corner, `num_values` values) and `mode` (not `All`): its
-/// cage, with the mode's corners (`face-varying.md` §1 and §5).
+/// `value_of` (the value of each corner, `num_values` values) and `mode`: its cage, with the
+/// mode's corners (`face-varying.md` §1 and §5); `All` has none (it is refined bilinearly).
 fn face_varying_cage(
     cage_refinement: &Refinement,
     value_of: &[u32],
@@ -176,6 +176,10 @@ fn face_varying_cage(
         .collect();
     let indices: Vec<i64> = value_of.iter().map(|&x| x as i64).collect();
     let bare = Cage::from_indices(num_values, &sizes, &indices)?;
+    if mode == M::All {
+        // Refined bilinearly: no rule of the cage's features changes a linear interpolation.
+        return Ok(bare);
+    }
     let fv = Level::from_cage(&bare, num_values, value_of.to_vec())?;
 
     // Per value: its cage vertex, its corners (span), and what lies inside its span.
@@ -342,6 +346,38 @@ fn values_of<T: Scalar>(first_corner: &[u32], values: &[T], channels: usize) -> 
         .collect()
 }
 
+/// Face-varying values in OpenSubdiv's indexed form (USD's indexed primvar, OBJ's shared `vt`
+/// lines): the refined values, one per vertex of the refined face-varying mesh `M^fv` that the
+/// output uses, and one index into them per output face corner. The indices are topology: kept
+/// in the plan and shared by every evaluation of the same face-varying topology and mode, so a
+/// cached evaluation writes one value per face-varying vertex instead of one per face corner.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SharedValues<T> {
+    /// The values, `channels` interleaved per value.
+    pub values: Vec<T>,
+    /// The value of each output face corner (in the order of
+    /// [`crate::Plan::output_face_vertices`]).
+    pub indices: Arc<[u32]>,
+}
+
+impl<T: Scalar> SharedValues<T> {
+    /// The values per output face corner (`channels` interleaved per corner), as
+    /// [`crate::Plan::evaluate_face_varying`] gives them.
+    pub fn per_corner(&self, channels: usize) -> Result<Vec<T>> {
+        pick_rows(&self.values, channels, &self.indices)
+    }
+}
+
+/// Where the output takes the values of `M^fv`'s last level in the indexed form: the vertices
+/// its corners use, and each output corner's index among them.
+#[derive(Debug)]
+struct SharedTopology {
+    /// The last level's vertices the output uses, in their order; `None` when it uses all.
+    used: Option<Vec<u32>>,
+    /// Index of each output corner into the used vertices.
+    indices: Arc<[u32]>,
+}
+
 /// The refinement of one face-varying topology in one mode, with its evaluation buffers and
 /// limit stencils.
 #[derive(Debug)]
@@ -354,12 +390,15 @@ pub(crate) struct FaceVarying {
     refinement: Refinement,
     scratch: Scratch,
     limit: LimitCache,
+    /// The indexed form's topology, built on first use.
+    shared: Mutex<Option<Arc<SharedTopology>>>,
 }
 
 impl FaceVarying {
-    /// Builds `M^fv` for `value_of` (`num_values` values) in `mode` (not `All`) over the cage
-    /// refinement `cage_refinement`, with its options (primal output: face-varying values are
-    /// given per corner of the drawing mesh and mapped to the dual mesh's corners after).
+    /// Builds `M^fv` for `value_of` (`num_values` values) in `mode` over the cage refinement
+    /// `cage_refinement`, with its options (primal output: face-varying values are given per
+    /// corner of the drawing mesh and mapped to the dual mesh's corners after); `All` is
+    /// refined with the bilinear scheme.
     fn new(
         cage_refinement: &Refinement,
         value_of: Vec<u32>,
@@ -367,11 +406,15 @@ impl FaceVarying {
         mode: FaceVaryingMode,
     ) -> Result<FaceVarying> {
         let cage = face_varying_cage(cage_refinement, &value_of, num_values, mode)?;
-        let options = Options {
+        let mut options = Options {
             output: OutputKind::Primal,
             boundary: Boundary::EdgeOnly,
             ..*cage_refinement.options()
         };
+        if mode == FaceVaryingMode::All {
+            options.degree = 1;
+            options.rules = Rules::Averaging;
+        }
         let refinement = Refinement::new(&cage, &options)?;
         let first_corner = first_corners(&value_of, num_values);
         Ok(FaceVarying {
@@ -381,20 +424,29 @@ impl FaceVarying {
             refinement,
             scratch: Scratch::default(),
             limit: LimitCache::default(),
+            shared: Mutex::new(None),
         })
     }
 
-    /// Values per corner (interleaved) -> per output corner of the drawing mesh `M_L`.
-    fn evaluate<T: Scalar>(&self, values: &[T], channels: usize, limit: bool) -> Result<Vec<T>> {
+    /// Values per cage corner (interleaved) -> the values at `M^fv`'s last-level vertices that
+    /// `index` picks, one row per index (`None`: every vertex, in order).
+    fn evaluate<T: Scalar>(
+        &self,
+        values: &[T],
+        channels: usize,
+        limit: bool,
+        index: Option<&[u32]>,
+    ) -> Result<Vec<T>> {
         let per_value = values_of(&self.first_corner, values, channels);
-        if !limit {
+        // `All` is bilinear: its refined values are on its limit.
+        if !limit || self.mode == FaceVaryingMode::All {
             return match channels {
-                1 => self.refined::<T, 1>(&per_value),
-                2 => self.refined::<T, 2>(&per_value),
-                3 => self.refined::<T, 3>(&per_value),
-                4 => self.refined::<T, 4>(&per_value),
+                1 => self.refined::<T, 1>(&per_value, index),
+                2 => self.refined::<T, 2>(&per_value, index),
+                3 => self.refined::<T, 3>(&per_value, index),
+                4 => self.refined::<T, 4>(&per_value, index),
                 _ => evaluate::in_groups_of_four(&per_value, channels, |group| {
-                    self.refined::<T, 4>(&group)
+                    self.refined::<T, 4>(&group, index)
                 }),
             };
         }
@@ -405,44 +457,102 @@ impl FaceVarying {
             &per_value,
             channels,
         )?;
-        let last = self.refinement.last_level();
-        match channels {
-            1 => per_corner::<T, 1>(last, &at_vertices),
-            2 => per_corner::<T, 2>(last, &at_vertices),
-            3 => per_corner::<T, 3>(last, &at_vertices),
-            4 => per_corner::<T, 4>(last, &at_vertices),
-            _ => {
-                let mut out = memory::filled(last.num_corners() * channels, T::default())?;
-                fill_rows(&mut out, channels, |c, row| {
-                    let x = last.corner_verts[c] as usize;
-                    row.copy_from_slice(&at_vertices[x * channels..][..channels]);
-                });
-                Ok(out)
-            }
+        match index {
+            None => Ok(at_vertices),
+            Some(index) => pick_rows(&at_vertices, channels, index),
         }
     }
 
-    /// The refined values (`N` channels interleaved per value) at the corners of `M^fv`'s last
-    /// level. The values at its vertices stay in the kept buffers: only the corners' buffer is
-    /// new memory (a new buffer is the kernel's zeroing of every page on its first touch).
-    fn refined<T: Scalar, const N: usize>(&self, per_value: &[T]) -> Result<Vec<T>> {
+    /// The refined values (`N` channels interleaved per value) at `M^fv`'s last-level vertices
+    /// that `index` picks, or at all of them (`None`: the run's own buffer is handed over). The
+    /// values at its vertices stay in the kept buffers otherwise: only the picked rows are new
+    /// memory (a new buffer is the kernel's zeroing of every page on its first touch).
+    fn refined<T: Scalar, const N: usize>(
+        &self,
+        per_value: &[T],
+        index: Option<&[u32]>,
+    ) -> Result<Vec<T>> {
         let (points, _) = per_value.as_chunks::<N>();
         let compact = self.refinement.compact(points);
         let at_vertices = match evaluate::run(&self.refinement, &self.scratch, &compact, false)? {
             Final::Primal(at_vertices) => at_vertices,
             Final::Dual { .. } => unreachable!("primal data asked for"),
         };
-        let out = gather_indexed(&at_vertices, &self.refinement.last_level().corner_verts);
+        let Some(index) = index else {
+            return Ok(at_vertices.into_flattened());
+        };
+        let out = gather_indexed(&at_vertices, index);
         self.scratch.give(at_vertices);
         Ok(out?.into_flattened())
     }
+
+    /// The indexed form's topology for the plan's `output`, built on first use: the last
+    /// level's vertices that the output's corners use (in their order) and each output
+    /// corner's index among them.
+    fn shared_topology(&self, output: &OutputMesh) -> Result<Arc<SharedTopology>> {
+        let mut kept = self.shared.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(topology) = kept.as_ref() {
+            return Ok(topology.clone());
+        }
+        let corner_verts = &self.refinement.last_level().corner_verts;
+        let topology = match output.corner_sources() {
+            None => SharedTopology {
+                used: None,
+                indices: memory::collect(corner_verts.iter().copied())?.into(),
+            },
+            Some(sources) => {
+                let num_vertices = self.refinement.last_level().num_vertices;
+                // 0 marks a used vertex until the pass below numbers it.
+                let mut new_index = memory::filled(num_vertices, NONE)?;
+                for &c in sources {
+                    new_index[corner_verts[c as usize] as usize] = 0;
+                }
+                let mut used = memory::with_capacity(num_vertices)?;
+                for (x, slot) in new_index.iter_mut().enumerate() {
+                    if *slot == 0 {
+                        *slot = used.len() as u32;
+                        used.push(x as u32);
+                    }
+                }
+                let indices = memory::collect(
+                    sources
+                        .iter()
+                        .map(|&c| new_index[corner_verts[c as usize] as usize]),
+                )?;
+                SharedTopology {
+                    used: (used.len() < num_vertices).then_some(used),
+                    indices: indices.into(),
+                }
+            }
+        };
+        let topology = Arc::new(topology);
+        *kept = Some(topology.clone());
+        Ok(topology)
+    }
 }
 
-/// The values of `M^fv`'s vertices (`N` channels interleaved) at the corners of its last level
-/// `last`: one gather of fixed-size rows into an unfilled buffer.
-fn per_corner<T: Scalar, const N: usize>(last: &Level, at_vertices: &[T]) -> Result<Vec<T>> {
-    let (rows, _) = at_vertices.as_chunks::<N>();
-    Ok(gather_indexed(rows, &last.corner_verts)?.into_flattened())
+/// The rows (`channels` interleaved) of `values` that `index` names, one per index.
+fn pick_rows<T: Scalar>(values: &[T], channels: usize, index: &[u32]) -> Result<Vec<T>> {
+    match channels {
+        1 => rows_at::<T, 1>(values, index),
+        2 => rows_at::<T, 2>(values, index),
+        3 => rows_at::<T, 3>(values, index),
+        4 => rows_at::<T, 4>(values, index),
+        _ => {
+            let mut out = memory::filled(index.len() * channels, T::default())?;
+            fill_rows(&mut out, channels, |c, row| {
+                let x = index[c] as usize;
+                row.copy_from_slice(&values[x * channels..][..channels]);
+            });
+            Ok(out)
+        }
+    }
+}
+
+/// [`pick_rows`] of `N` channels: one gather of fixed-size rows into an unfilled buffer.
+fn rows_at<T: Scalar, const N: usize>(values: &[T], index: &[u32]) -> Result<Vec<T>> {
+    let (rows, _) = values.as_chunks::<N>();
+    Ok(gather_indexed(rows, index)?.into_flattened())
 }
 
 /// Face-varying topologies kept per plan (the most recent ones).
@@ -503,21 +613,60 @@ pub(crate) fn evaluate<T: Scalar>(
     limit: bool,
 ) -> Result<Vec<T>> {
     if mode == FaceVaryingMode::All {
-        // Bilinear per face: the refined values are on its limit already.
         return evaluate::evaluate_face_varying(refinement, output, values, channels);
     }
-    if limit && refinement.options().output != OutputKind::Primal {
+    in_pool(|| {
+        let fv = kept(refinement, cache, values, channels, topology, mode, limit)?;
+        let corners = &fv.refinement.last_level().corner_verts;
+        let per_corner = fv.evaluate(values, channels, limit, Some(corners))?;
+        output.face_varying(per_corner, channels)
+    })
+}
+
+/// [`evaluate`] in the indexed form: the values at the vertices of the refined face-varying
+/// mesh that the output uses, and the index of each output corner (kept in the plan). `All`
+/// refines the face-varying mesh bilinearly (the same values as [`evaluate`]'s, up to
+/// rounding: the same sums, another order).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn evaluate_shared<T: Scalar>(
+    refinement: &Refinement,
+    output: &OutputMesh,
+    cache: &FaceVaryingCache,
+    values: &[T],
+    channels: usize,
+    topology: Topology,
+    mode: FaceVaryingMode,
+    limit: bool,
+) -> Result<SharedValues<T>> {
+    in_pool(|| {
+        let fv = kept(refinement, cache, values, channels, topology, mode, limit)?;
+        let shared = fv.shared_topology(output)?;
+        Ok(SharedValues {
+            values: fv.evaluate(values, channels, limit, shared.used.as_deref())?,
+            indices: shared.indices.clone(),
+        })
+    })
+}
+
+/// The kept refinement of the face-varying mesh of `values` (welded by `topology`) in `mode`,
+/// built on first use; limits are refused on the dual output.
+fn kept<T: Scalar>(
+    refinement: &Refinement,
+    cache: &FaceVaryingCache,
+    values: &[T],
+    channels: usize,
+    topology: Topology,
+    mode: FaceVaryingMode,
+    limit: bool,
+) -> Result<Arc<FaceVarying>> {
+    if limit && mode != FaceVaryingMode::All && refinement.options().output != OutputKind::Primal {
         return Err(Error::InvalidInput(
             "limit face-varying values are given at the drawing mesh's corners: use the primal \
              output"
                 .into(),
         ));
     }
-    in_pool(|| {
-        let level0 = &refinement.levels_as_built()[0];
-        let (value_of, num_values) = weld(level0, values, channels, topology);
-        let fv = cache.get(refinement, value_of, num_values, mode)?;
-        let per_corner = fv.evaluate(values, channels, limit)?;
-        output.face_varying(per_corner, channels)
-    })
+    let level0 = &refinement.levels_as_built()[0];
+    let (value_of, num_values) = weld(level0, values, channels, topology);
+    cache.get(refinement, value_of, num_values, mode)
 }

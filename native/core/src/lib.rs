@@ -62,7 +62,7 @@ pub use adaptive::{
 };
 pub use curves::CurveNetwork;
 pub use error::{AdaptiveStage, Error, Result};
-pub use face_varying::FaceVaryingMode;
+pub use face_varying::{FaceVaryingMode, SharedValues};
 pub use mesh::{validate_geometry, Cage, Corner, Crease, INFINITELY_SHARP};
 pub use options::{
     estimate, Boundary, Creasing, Estimate, Options, OutputKind, Rules, DEFAULT_MEMORY_BUDGET,

@@ -294,6 +294,12 @@ impl OutputMesh {
         }
     }
 
+    /// For each output corner, the corner of `M_L` whose face-varying value it takes; `None`
+    /// when the output corners are `M_L`'s.
+    pub(crate) fn corner_sources(&self) -> Option<&[u32]> {
+        self.polygons.as_ref().map(|p| p.corner_source.as_slice())
+    }
+
     /// Turns face-varying values at the corners of `M_L` (`channels` interleaved per corner:
     /// UVs, limit normals) into values at the output corners.
     pub(crate) fn face_varying<T: Scalar>(

@@ -5,10 +5,12 @@
 //! deforming mesh re-evaluates without topology work). Every method here delegates to the
 //! module that owns the work; none of those modules knows the plan.
 
+use std::borrow::Cow;
+
 use crate::curves::CurveNetwork;
 use crate::error::{Error, Result};
 use crate::evaluate;
-use crate::face_varying::{self, FaceVaryingCache, FaceVaryingMode, Topology};
+use crate::face_varying::{self, FaceVaryingCache, FaceVaryingMode, SharedValues, Topology};
 use crate::limit::{self, LimitCache};
 use crate::mesh::{check_values, Cage};
 use crate::options::Options;
@@ -180,15 +182,14 @@ impl Plan {
         mode: FaceVaryingMode,
         limit: bool,
     ) -> Result<Vec<T>> {
-        let corners = self.refinement.levels_as_built()[0].num_corners();
-        check_values(values, channels, corners)?;
+        let (values, topology) = self.face_varying_input(values, channels, None)?;
         face_varying::evaluate(
             &self.refinement,
             &self.output,
             &self.face_varying,
-            values,
+            &values,
             channels,
-            Topology::ByValue,
+            topology,
             mode,
             limit,
         )
@@ -208,7 +209,62 @@ impl Plan {
         mode: FaceVaryingMode,
         limit: bool,
     ) -> Result<Vec<T>> {
+        let (values, topology) = self.face_varying_input(values, channels, Some(indices))?;
+        face_varying::evaluate(
+            &self.refinement,
+            &self.output,
+            &self.face_varying,
+            &values,
+            channels,
+            topology,
+            mode,
+            limit,
+        )
+    }
+
+    /// Face-varying values as [`Plan::evaluate_face_varying`] (`indices`: `None`) or
+    /// [`Plan::evaluate_face_varying_indexed`] (`Some`) take them, returned in the indexed form
+    /// of OpenSubdiv, USD's indexed primvars and OBJ's shared `vt` lines: one value per vertex
+    /// of the refined face-varying mesh that the output uses, and the index of each output
+    /// corner ([`SharedValues`]; [`SharedValues::per_corner`] gives the per-corner values).
+    /// The indices are kept in the plan, so a cached call writes one value per face-varying
+    /// vertex, about a quarter of the per-corner values on a quad mesh. With
+    /// [`FaceVaryingMode::All`] the face-varying mesh is refined bilinearly (the per-corner
+    /// values up to rounding).
+    pub fn evaluate_face_varying_shared<T: Scalar>(
+        &self,
+        values: &[T],
+        channels: usize,
+        indices: Option<&[u32]>,
+        mode: FaceVaryingMode,
+        limit: bool,
+    ) -> Result<SharedValues<T>> {
+        let (values, topology) = self.face_varying_input(values, channels, indices)?;
+        face_varying::evaluate_shared(
+            &self.refinement,
+            &self.output,
+            &self.face_varying,
+            &values,
+            channels,
+            topology,
+            mode,
+            limit,
+        )
+    }
+
+    /// Checks face-varying input (per cage corner, or indexed by `indices`) and gives the
+    /// values per cage corner with their face-varying topology.
+    fn face_varying_input<'a, T: Scalar>(
+        &self,
+        values: &'a [T],
+        channels: usize,
+        indices: Option<&'a [u32]>,
+    ) -> Result<(Cow<'a, [T]>, Topology<'a>)> {
         let corners = self.refinement.levels_as_built()[0].num_corners();
+        let Some(indices) = indices else {
+            check_values(values, channels, corners)?;
+            return Ok((Cow::Borrowed(values), Topology::ByValue));
+        };
         if indices.len() != corners {
             return Err(Error::InvalidInput(format!(
                 "{} face-varying indices for a cage of {corners} face corners",
@@ -217,16 +273,7 @@ impl Plan {
         }
         check_values(values, channels, values.len() / channels.max(1))?;
         let per_corner = face_varying::per_corner_values(values, channels, indices)?;
-        face_varying::evaluate(
-            &self.refinement,
-            &self.output,
-            &self.face_varying,
-            &per_corner,
-            channels,
-            Topology::Indexed(indices),
-            mode,
-            limit,
-        )
+        Ok((Cow::Owned(per_corner), Topology::Indexed(indices)))
     }
 
     /// Frees the working buffers that evaluations keep in the plan for the next ones (up to two
