@@ -6,7 +6,9 @@
 //! is a seam. Rows: classic degree 3 and averaging degree 4 at levels 2 and 3: positions
 //! (3 channels, `Plan::evaluate`), then UVs (2 channels, `Plan::evaluate_face_varying` in
 //! `boundaries` and `none`) first (the face-varying mesh is refined) and cached, and the ratio
-//! cached UVs / cached positions (the median of the ratios of pairs timed in turn). f32,
+//! cached UVs / cached positions (the median of the ratios of pairs timed in turn); then the
+//! same for UVs in the indexed form (`Plan::evaluate_face_varying_shared`: one value per
+//! face-varying vertex and the kept index per corner, OpenSubdiv's and USD's form). f32,
 //! medians of 3 to 21 repetitions after a warm-up
 //! (`BIDEGREE_BENCH_SECONDS`, default 1; `BIDEGREE_BENCH_LEVELS`, default `2,3`); the load
 //! average is printed with the rows.
@@ -80,8 +82,16 @@ fn main() {
         load_average()
     );
     println!(
-        "{:<12} {:>5} {:>13} {:>10} {:>13} {:>12} {:>7}",
-        "scheme", "level", "positions ms", "mode", "UVs first ms", "UVs ms", "ratio"
+        "{:<12} {:>5} {:>13} {:>10} {:>13} {:>12} {:>7} {:>15} {:>7}",
+        "scheme",
+        "level",
+        "positions ms",
+        "mode",
+        "UVs first ms",
+        "UVs ms",
+        "ratio",
+        "UVs indexed ms",
+        "ratio"
     );
     for (name, degree, rules) in [
         ("classic 3", 3, Rules::Classic),
@@ -104,8 +114,17 @@ fn main() {
                     || plan.evaluate(&points, 3).unwrap(),
                     || plan.evaluate_face_varying(&uvs, 2, mode, false).unwrap(),
                 );
+                let (_, shared, shared_ratio) = paired_ms(
+                    seconds,
+                    || plan.evaluate(&points, 3).unwrap(),
+                    || {
+                        plan.evaluate_face_varying_shared(&uvs, 2, None, mode, false)
+                            .unwrap()
+                    },
+                );
                 println!(
-                    "{name:<12} {levels:>5} {positions:>13.1} {:>10} {first:>13.1} {cached:>12.1} {ratio:>7.2}",
+                    "{name:<12} {levels:>5} {positions:>13.1} {:>10} {first:>13.1} {cached:>12.1} \
+                     {ratio:>7.2} {shared:>15.1} {shared_ratio:>7.2}",
                     format!("{mode:?}").to_lowercase(),
                 );
             }

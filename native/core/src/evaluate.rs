@@ -1,14 +1,13 @@
 //! Evaluation: running points or any per-vertex attribute through a [`Refinement`], step after
-//! step with the step primitive ([`crate::step`]), in buffers kept between evaluations; and
-//! face-varying values (UVs) by linear interpolation. [`crate::Plan::evaluate`] and the limits
-//! come through here.
+//! step with the step primitive ([`crate::step`]), in buffers kept between evaluations.
+//! [`crate::Plan::evaluate`], the limits and face-varying values come through here.
 
 use crate::error::Result;
 use crate::memory;
 use crate::output::OutputMesh;
-use crate::parallel::{fill_rows, in_pool};
+use crate::parallel::in_pool;
 use crate::refinement::Refinement;
-use crate::scalar::{reciprocal, Scalar, Value};
+use crate::scalar::{Scalar, Value};
 use crate::step::{Final, LevelData, Parts, Scratch};
 
 /// Runs `cage` (one value per vertex of `M_0`) through every step of `refinement`, taking and
@@ -142,54 +141,6 @@ pub(crate) fn in_groups_of_four<T: Scalar>(
         }
     }
     Ok(out)
-}
-
-/// Face-varying values (one per corner of the cage, e.g. UVs; checked) with linear (bilinear
-/// per face) interpolation: one value per corner of the output faces.
-pub(crate) fn evaluate_face_varying<T: Scalar>(
-    refinement: &Refinement,
-    output: &OutputMesh,
-    values: &[T],
-    channels: usize,
-) -> Result<Vec<T>> {
-    let levels = refinement.levels_as_built();
-    let half = T::from_f64(0.5);
-    let current = in_pool(|| -> Result<Vec<T>> {
-        let mut current: Vec<T> = memory::collect(values.iter().copied())?;
-        for level in &levels[..levels.len() - 1] {
-            let mut centres = memory::filled(level.num_faces() * channels, T::default())?;
-            fill_rows(&mut centres, channels, |f, centre| {
-                let corners = level.face_corners(f);
-                let w = reciprocal::<T>(corners.len());
-                for (k, out) in centre.iter_mut().enumerate() {
-                    let sum = corners
-                        .clone()
-                        .fold(T::default(), |s, c| s + current[c * channels + k]);
-                    *out = sum * w;
-                }
-            });
-            // Corner c of this level becomes the quad c, midpoint(c, next), centre,
-            // midpoint(prev, c) of the next one.
-            let mut next = memory::filled(4 * level.num_corners() * channels, T::default())?;
-            fill_rows(&mut next, 4 * channels, |c, quad| {
-                let at = |c: usize, k: usize| current[c * channels + k];
-                let (n, p) = (level.next(c), level.prev(c));
-                let centre = &centres[level.face_of(c) * channels..][..channels];
-                let (own, rest) = quad.split_at_mut(channels);
-                let (to_next, rest) = rest.split_at_mut(channels);
-                let (middle, from_prev) = rest.split_at_mut(channels);
-                for k in 0..channels {
-                    own[k] = at(c, k);
-                    to_next[k] = (at(c, k) + at(n, k)) * half;
-                    middle[k] = centre[k];
-                    from_prev[k] = (at(p, k) + at(c, k)) * half;
-                }
-            });
-            current = next;
-        }
-        Ok(current)
-    })?;
-    output.face_varying(current, channels)
 }
 
 #[cfg(test)]

@@ -9,8 +9,10 @@
 //! `face-varying.md` §5), then refines it with the plan's own options: the same
 //! [`Refinement`], the same step primitive, every degree. Its level-`L` faces are the cage's
 //! level-`L` faces in the same order, so output corner `k` of one is output corner `k` of the
-//! other. `all` (linear, OpenSubdiv's `FVAR_LINEAR_ALL`) stays the bilinear interpolation of
-//! [`crate::evaluate`]; limits of face-varying values are [`limit::positions`] on `M^fv`.
+//! other. `all` (linear, OpenSubdiv's `FVAR_LINEAR_ALL`) refines `M^fv` with the bilinear
+//! scheme; limits of face-varying values are [`limit::positions`] on `M^fv`. Results come per
+//! output corner or in the indexed form ([`SharedValues`]: the values at `M^fv`'s last-level
+//! vertices and one kept index per output corner), one the other's expansion, bitwise.
 
 use std::sync::{Arc, Mutex};
 
@@ -599,8 +601,8 @@ impl FaceVaryingCache {
 
 /// Face-varying values (one per cage corner, `channels` interleaved, checked) with the
 /// face-varying `topology` through the plan's refinement in `mode`: one value per output face
-/// corner. `limit`: limit values (the same masks as limit positions; `All` is bilinear per
-/// face, its refined values are its limit).
+/// corner. `limit`: limit values (the same masks as limit positions; `All` refines `M^fv`
+/// bilinearly, its refined values are its limit).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn evaluate<T: Scalar>(
     refinement: &Refinement,
@@ -612,9 +614,6 @@ pub(crate) fn evaluate<T: Scalar>(
     mode: FaceVaryingMode,
     limit: bool,
 ) -> Result<Vec<T>> {
-    if mode == FaceVaryingMode::All {
-        return evaluate::evaluate_face_varying(refinement, output, values, channels);
-    }
     in_pool(|| {
         let fv = kept(refinement, cache, values, channels, topology, mode, limit)?;
         let corners = &fv.refinement.last_level().corner_verts;
@@ -624,9 +623,7 @@ pub(crate) fn evaluate<T: Scalar>(
 }
 
 /// [`evaluate`] in the indexed form: the values at the vertices of the refined face-varying
-/// mesh that the output uses, and the index of each output corner (kept in the plan). `All`
-/// refines the face-varying mesh bilinearly (the same values as [`evaluate`]'s, up to
-/// rounding: the same sums, another order).
+/// mesh that the output uses, and the index of each output corner (kept in the plan).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn evaluate_shared<T: Scalar>(
     refinement: &Refinement,

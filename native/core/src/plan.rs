@@ -171,9 +171,9 @@ impl Plan {
     /// interleaved per corner) in `mode` and returns one value per corner of the output faces
     /// (in the order of [`Plan::output_face_vertices`]). The corners of one cage vertex with
     /// equal values (every channel) are one face-varying vertex, so a seam is where they differ.
-    /// [`FaceVaryingMode::All`] is bilinear per face; the other modes subdivide the values with
-    /// the plan's own scheme on the face-varying mesh (built on first use for each topology and
-    /// mode, and kept in the plan). `limit`: the values on their limit surface (the masks of
+    /// [`FaceVaryingMode::All`] refines the face-varying mesh bilinearly (linear per face); the
+    /// other modes subdivide the values with the plan's own scheme on it (built on first use
+    /// for each topology and mode, and kept in the plan). `limit`: the values on their limit surface (the masks of
     /// [`Plan::limit_positions`]).
     pub fn evaluate_face_varying<T: Scalar>(
         &self,
@@ -228,9 +228,8 @@ impl Plan {
     /// of the refined face-varying mesh that the output uses, and the index of each output
     /// corner ([`SharedValues`]; [`SharedValues::per_corner`] gives the per-corner values).
     /// The indices are kept in the plan, so a cached call writes one value per face-varying
-    /// vertex, about a quarter of the per-corner values on a quad mesh. With
-    /// [`FaceVaryingMode::All`] the face-varying mesh is refined bilinearly (the per-corner
-    /// values up to rounding).
+    /// vertex, about a quarter of the per-corner values on a quad mesh. Expanded per corner,
+    /// the values are those of the per-corner calls, bitwise.
     pub fn evaluate_face_varying_shared<T: Scalar>(
         &self,
         values: &[T],

@@ -1,7 +1,6 @@
 //! The indexed form of face-varying output (`Plan::evaluate_face_varying_shared`): expanded per
-//! corner it is the per-corner result, bitwise (every mode but `All`, whose bilinear refinement
-//! of the face-varying mesh sums in another order); its indices are kept in the plan, every
-//! value is used, and seams stay seams.
+//! corner it is the per-corner result, bitwise, in every mode; its indices are kept in the
+//! plan, every value is used, and seams stay seams.
 
 mod common;
 
@@ -106,16 +105,7 @@ fn the_indexed_form_is_the_per_corner_result() {
                             }
                             assert!(used.iter().all(|&u| u), "{what}: a value no corner uses");
                             let expanded = shared.per_corner(channels).unwrap();
-                            if mode == FaceVaryingMode::All {
-                                let error = expanded
-                                    .iter()
-                                    .zip(&per_corner)
-                                    .map(|(a, b)| (a - b).abs())
-                                    .fold(0.0, f64::max);
-                                assert!(error < 1e-14, "{what}: {error:e}");
-                            } else {
-                                assert_eq!(expanded, per_corner, "{what}");
-                            }
+                            assert_eq!(expanded, per_corner, "{what}");
                             // The indices are kept: a second call shares them.
                             let again = plan
                                 .evaluate_face_varying_shared(&values, channels, None, mode, limit)
@@ -174,14 +164,7 @@ fn indexed_input_keeps_its_seams() {
         let expected = plan
             .evaluate_face_varying_indexed(&split_values, 2, &split, mode, false)
             .unwrap();
-        if mode == FaceVaryingMode::All {
-            assert!(expanded
-                .iter()
-                .zip(&expected)
-                .all(|(a, b)| (a - b).abs() < 1e-6));
-        } else {
-            assert_eq!(expanded, expected, "{mode:?}");
-        }
+        assert_eq!(expanded, expected, "{mode:?}");
         assert_eq!(corners, split.len());
     }
 }

@@ -3,6 +3,7 @@
 //! topology as numpy arrays.
 
 use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
 
 use bidegree::{Error, FaceVaryingMode, Options, Plan, Scalar};
 use numpy::{
@@ -28,7 +29,13 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 #[pyclass(frozen, module = "bidegree._native", name = "Plan")]
 pub(crate) struct PyPlan {
     inner: Plan,
+    /// The face-varying index arrays handed out (int32), per kept topology of the core (the
+    /// most recent first): every call on one topology and mode returns the same array.
+    shared_indices: Mutex<Vec<(Arc<[u32]>, Py<PyArray1<i32>>)>>,
 }
+
+/// Face-varying index arrays a plan keeps for Python (the core keeps four topologies).
+const KEPT_INDICES: usize = 4;
 
 impl PyPlan {
     fn indices<'py>(
@@ -42,6 +49,37 @@ impl PyPlan {
             pick(plan)
         })?;
         Ok(PyArray1::from_vec(py, data))
+    }
+
+    /// The plan's core `PyPlan` around `inner`.
+    fn wrap(inner: Plan) -> PyPlan {
+        PyPlan {
+            inner,
+            shared_indices: Mutex::new(Vec::new()),
+        }
+    }
+
+    /// The int32 array of the core's kept face-varying `indices`, made on first use and kept.
+    fn indices_array<'py>(
+        &self,
+        py: Python<'py>,
+        indices: Arc<[u32]>,
+    ) -> PyResult<Bound<'py, PyArray1<i32>>> {
+        let lock = || {
+            self.shared_indices
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+        };
+        if let Some((_, array)) = lock().iter().find(|(k, _)| Arc::ptr_eq(k, &indices)) {
+            return Ok(array.bind(py).clone());
+        }
+        // Not under the lock: the conversion runs without the GIL.
+        let data = run(py, || to_i32(&indices))?;
+        let array = PyArray1::from_vec(py, data);
+        let mut kept = lock();
+        kept.insert(0, (indices, array.clone().unbind()));
+        kept.truncate(KEPT_INDICES);
+        Ok(array)
     }
 }
 
@@ -76,7 +114,7 @@ impl PyPlan {
                 )?,
             )
         })?;
-        Ok(PyPlan { inner })
+        Ok(PyPlan::wrap(inner))
     }
 
     /// Per cage vertex values `(V, C)` -> per output vertex values `(N, C)`, same dtype.
@@ -197,6 +235,37 @@ impl PyPlan {
             Floats::F32(a) => Ok(evaluate(py, &self.inner, &a, how)?.into_any()),
             Floats::F64(a) => Ok(evaluate(py, &self.inner, &a, how)?.into_any()),
         }
+    }
+
+    /// `evaluate_face_varying` in the indexed form: `(values (N, C), indices int32 (output
+    /// corners,))`, the values at the refined face-varying mesh's vertices that the output uses
+    /// and each output corner's index into them. The indices are topology: the same array for
+    /// every call on one face-varying topology and mode.
+    #[pyo3(signature = (values, mode="all", limit=false, indices=None))]
+    fn evaluate_face_varying_shared<'py>(
+        &self,
+        py: Python<'py>,
+        values: &Bound<'py, PyAny>,
+        mode: &str,
+        limit: bool,
+        indices: Option<PyReadonlyArray1<'py, u32>>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray1<i32>>)> {
+        let mode = parse_face_varying_mode(mode).map_err(|e| to_py_err(py, e))?;
+        let indices = (indices.as_ref())
+            .map(|a| a.as_slice())
+            .transpose()
+            .map_err(|_| to_py_err(py, invalid("indices must be a contiguous uint32 array")))?;
+        let (out, shared) = match floats(values, "values")? {
+            Floats::F32(a) => {
+                let (out, shared) = evaluate_shared(py, &self.inner, &a, mode, limit, indices)?;
+                (out.into_any(), shared)
+            }
+            Floats::F64(a) => {
+                let (out, shared) = evaluate_shared(py, &self.inner, &a, mode, limit, indices)?;
+                (out.into_any(), shared)
+            }
+        };
+        Ok((out, self.indices_array(py, shared)?))
     }
 
     /// Degree of the scheme.
@@ -393,6 +462,27 @@ fn evaluate<'py, T: Scalar + Element>(
     array2(py, out, channels)
 }
 
+fn evaluate_shared<'py, T: Scalar + Element>(
+    py: Python<'py>,
+    plan: &Plan,
+    values: &PyReadonlyArray2<'_, T>,
+    mode: FaceVaryingMode,
+    limit: bool,
+    indices: Option<&[u32]>,
+) -> PyResult<(Bound<'py, PyArray2<T>>, Arc<[u32]>)> {
+    let channels = values.shape()[1];
+    let data = contiguous(values, "values")?;
+    let out = run(py, || {
+        if channels == 0 {
+            return Err(invalid("values need at least one channel"));
+        }
+        let out = plan.evaluate_face_varying_shared(data, channels, indices, mode, limit)?;
+        check_output(&out.values, channels, data)?;
+        Ok(out)
+    })?;
+    Ok((array2(py, out.values, channels)?, out.indices))
+}
+
 fn evaluate_fresh<'py, T: Scalar + Element>(
     py: Python<'py>,
     cage: &PyCage,
@@ -418,7 +508,7 @@ fn evaluate_fresh<'py, T: Scalar + Element>(
         Some(out) => Some(array2(py, out, channels)?.into_any()),
         None => None,
     };
-    Ok((PyPlan { inner: plan }, out))
+    Ok((PyPlan::wrap(plan), out))
 }
 
 /// Validates the geometry, builds the plan and (with `evaluate`) evaluates the points in one

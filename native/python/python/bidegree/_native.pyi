@@ -66,6 +66,13 @@ class Plan:
         limit: bool = ...,
         indices: NDArray[np.uint32] | None = ...,
     ) -> Any: ...
+    def evaluate_face_varying_shared(
+        self,
+        values: _Float,
+        mode: str = ...,
+        limit: bool = ...,
+        indices: NDArray[np.uint32] | None = ...,
+    ) -> tuple[Any, NDArray[np.int32]]: ...
     @property
     def degree(self) -> int: ...
     @property
