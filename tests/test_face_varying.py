@@ -410,3 +410,60 @@ def test_blender_uv_indices_are_the_reference_weld() -> None:
             assert len(pairs) == len(set(ours.tolist())) == len(set(theirs.tolist())), cage.name
     with pytest.raises(bidegree.InvalidInputError):
         bidegree.blender_uv_indices([4], [0, 1, 2, 3], np.zeros((3, 2)))
+
+
+@pytest.mark.parametrize("output", ["primal", "dual"])
+def test_the_indexed_form_expands_to_the_per_corner_values(output: str) -> None:
+    """``evaluate_face_varying_shared`` gives ``(values, indices)`` whose expansion is the
+    per-corner result, bitwise, in every mode (a cube unwrap with seams, a hole, float32 and
+    float64, 1-D values, indexed input, several sets); its indices are the plan's own (the same
+    read-only array every call) and every value is used."""
+    cage = cube_unwrap()
+    mesh = bidegree.Mesh(cage.points, face_sizes=cage.face_sizes,
+                         face_indices=cage.face_indices, holes=[2])  # fmt: skip
+    plan = bidegree.Plan(mesh, degree=4, levels=2, output=output)
+    for mode, dtype in itertools.product(MODES, (np.float32, np.float64)):
+        uvs = cage.uvs.astype(dtype)
+        values, indices = plan.evaluate_face_varying_shared(uvs, mode)
+        assert values.dtype == dtype and indices.dtype == np.int32
+        np.testing.assert_array_equal(values[indices], plan.evaluate_face_varying(uvs, mode))
+        assert np.array_equal(np.unique(indices), np.arange(len(values)))
+        assert not indices.flags.writeable
+        again_values, again = plan.evaluate_face_varying_shared(uvs * 2, mode)
+        assert again is indices
+        np.testing.assert_array_equal(
+            again_values[again], plan.evaluate_face_varying(uvs * 2, mode)
+        )
+        flat, flat_indices = plan.evaluate_face_varying_shared(uvs[:, 0], mode)
+        assert flat.ndim == 1
+        np.testing.assert_array_equal(
+            flat[flat_indices], plan.evaluate_face_varying(uvs[:, 0], mode)
+        )
+    table, index = np.unique(cage.uvs, axis=0, return_inverse=True)
+    both = plan.evaluate_face_varying_shared(
+        {"indexed": (table, index.reshape(-1)), "per-corner": cage.uvs}, "none"
+    )
+    for values, indices in both.values():
+        np.testing.assert_array_equal(values[indices], plan.evaluate_face_varying(cage.uvs, "none"))
+
+
+def test_results_keep_uvs_in_the_indexed_form(tmp_path: Path) -> None:
+    """A result's uvs are ``uv_values[uv_indices]``; its OBJ writes one ``vt`` per value and
+    reads back with the same seams; assigning ``uvs`` drops the indexed form."""
+    cage = cylinder_seam()
+    mesh = bidegree.Mesh(cage.points, face_sizes=cage.face_sizes,
+                         face_indices=cage.face_indices, uvs=cage.uvs)  # fmt: skip
+    result = bidegree.subdivide(mesh, degree=3, levels=2, uv_mode="boundaries")
+    assert result.uv_values is not None and result.uv_indices is not None
+    np.testing.assert_array_equal(
+        result.uvs, result.plan.evaluate_face_varying(cage.uvs, "boundaries")
+    )
+    path = tmp_path / "seam.obj"
+    result.write_obj(path)
+    assert path.read_text().count("\nvt ") == len(result.uv_values)
+    back = bidegree.Mesh.from_obj(path)
+    np.testing.assert_array_equal(back.uv_indices, result.uv_indices)
+    np.testing.assert_allclose(back.uvs, result.uvs, rtol=0, atol=1e-6)
+    result.uvs = result.uvs + 1.0
+    assert result.uv_values is None and result.uv_indices is None
+    assert result.uvs is not None

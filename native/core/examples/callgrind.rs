@@ -13,6 +13,7 @@
 //!             limit-surface-4 adaptive-4 limit-ico-4 limit-first-ico-4 limit-first-fan-400-9 \
 //!             limit-first-ngon-1000-9 limit-semisharp-4 limit-sharp-4 \
 //!             uvs-classic-3 uvs-averaging-4 uvs-first-classic-3 uvs-first-averaging-4 \
+//!             uvs-shared-classic-3 uvs-shared-averaging-4 \
 //!             fresh-fins-averaging-3 fresh-flipped-averaging-3 fresh-loose-fins-averaging-3 \
 //!             fresh-fins-classic-3 fresh-flipped-classic-3; do
 //!   echo "$case $(( $(ir $case 2) - $(ir $case 1) ))"
@@ -26,7 +27,8 @@
 //! tolerance 1e-4, max level 3. "uvs" is a cached `evaluate_face_varying` of UVs with a seam
 //! around every base patch (mode `boundaries`), to compare with "cached" of the same scheme;
 //! "uvs-first" is a new plan's first `evaluate_face_varying` (the face-varying mesh built), to
-//! compare with "fresh".
+//! compare with "fresh"; "uvs-shared" the cached UVs in the indexed form
+//! (`evaluate_face_varying_shared`).
 //!
 //! Generic code is instantiated in this binary, so LLVM's inlining of the library's steps
 //! depends on every case here: an A/B of a change compares two builds of the same file.
@@ -188,6 +190,16 @@ fn main() {
             let plan = Plan::new(&cage, &o).unwrap();
             let mode = FaceVaryingMode::Boundaries;
             black_box(plan.evaluate_face_varying(&uvs, 2, mode, false).unwrap());
+        });
+    } else if let Some(o) = case.strip_prefix("uvs-shared-").and_then(scheme) {
+        // As "uvs", in the indexed form: one value per face-varying vertex, the kept indices.
+        let uvs = cages::ico_patch_uvs(8, &cage_indices, &points);
+        let plan = Plan::new(&cage, &o).unwrap();
+        let mode = FaceVaryingMode::Boundaries;
+        let shared = |plan: &Plan| plan.evaluate_face_varying_shared(&uvs, 2, None, mode, false);
+        black_box(shared(&plan).unwrap());
+        measured(&|| {
+            black_box(shared(&plan).unwrap());
         });
     } else if let Some(o) = case.strip_prefix("uvs-").and_then(scheme) {
         // Smooth UVs (mode `boundaries`) of the face-varying bench's layout: every base patch of

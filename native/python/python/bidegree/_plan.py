@@ -287,20 +287,79 @@ class Plan(_Output):
                 array, index = given if isinstance(given, tuple) else (given, None)
                 out[name] = self.evaluate_face_varying(array, mode, limit=limit, indices=index)
             return out
+        array, flat, mode, index = self._face_varying_input(values, mode, limit, indices)
+        out = self._native_plan.evaluate_face_varying(array, mode, limit, index)
+        return out.reshape(-1) if flat else out
+
+    @overload
+    def evaluate_face_varying_shared(
+        self,
+        values: Mapping[str, ArrayLike | tuple[ArrayLike, ArrayLike]],
+        mode: UvMode = ...,
+        *,
+        limit: bool = ...,
+    ) -> dict[str, tuple[FloatArray, NDArray[np.int32]]]: ...
+
+    @overload
+    def evaluate_face_varying_shared(
+        self,
+        values: ArrayLike,
+        mode: UvMode = ...,
+        *,
+        limit: bool = ...,
+        indices: ArrayLike | None = ...,
+    ) -> tuple[FloatArray, NDArray[np.int32]]: ...
+
+    @convert.memory_errors()
+    def evaluate_face_varying_shared(
+        self,
+        values: ArrayLike | Mapping[str, ArrayLike | tuple[ArrayLike, ArrayLike]],
+        mode: UvMode = "boundaries",
+        *,
+        limit: bool = False,
+        indices: ArrayLike | None = None,
+    ) -> tuple[FloatArray, NDArray[np.int32]] | dict[str, tuple[FloatArray, NDArray[np.int32]]]:
+        """:meth:`evaluate_face_varying` in the indexed form of OpenSubdiv, USD's indexed
+        primvars and OBJ's shared ``vt`` lines: ``(values, indices)``, the refined values (one
+        per vertex of the subdivided face-varying mesh that the output uses: (N, C), or (N,)
+        for a 1-D input) and one int32 index into them per output face corner (in the order of
+        :attr:`face_indices`), so ``values[indices]`` is what :meth:`evaluate_face_varying`
+        returns, bitwise. The indices are topology: read-only, and the same array for every
+        call on one UV layout and mode (the plan keeps them), so re-evaluating writes one value
+        per face-varying vertex instead of one per face corner (about a quarter as many on a
+        quad mesh). Arguments, modes and errors as :meth:`evaluate_face_varying`.
+        """
+        if isinstance(values, Mapping):
+            if indices is not None:
+                raise InvalidInputError("indices go with each set of a mapping: (values, indices)")
+            out = {}
+            for name, given in values.items():
+                array, index = given if isinstance(given, tuple) else (given, None)
+                out[name] = self.evaluate_face_varying_shared(
+                    array, mode, limit=limit, indices=index
+                )
+            return out
+        array, flat, mode, index = self._face_varying_input(values, mode, limit, indices)
+        out, shared = self._native_plan.evaluate_face_varying_shared(array, mode, limit, index)
+        return (out.reshape(-1) if flat else out), convert.readonly(shared)
+
+    def _face_varying_input(
+        self, values: ArrayLike, mode: UvMode, limit: bool, indices: ArrayLike | None
+    ) -> tuple[FloatArray, bool, UvMode, NDArray[np.uint32] | None]:
+        """Checks face-varying input: the values as a 2-D array (and whether they came 1-D), the
+        mode, and the indices (None: per corner)."""
         mode = convert.choice(mode, convert.UV_MODES, "uv_mode")  # type: ignore[assignment]
         if not isinstance(limit, bool):
             raise InvalidInputError(f"limit must be True or False, not {limit!r}")
         corners = self._mesh.num_corners
         if indices is None:
             array, flat = convert.values_2d(values, corners, "values", "face corners")
-            out = self._native_plan.evaluate_face_varying(array, mode, limit)
-        else:
-            given = convert.float_array(values, "values")
-            rows = len(given) if given.ndim else 0
-            array, flat = convert.values_2d(given, rows, "values", "indexed values")
-            index = convert.face_varying_indices(indices, corners, rows, "indices")
-            out = self._native_plan.evaluate_face_varying(array, mode, limit, index)
-        return out.reshape(-1) if flat else out
+            return array, flat, mode, None
+        given = convert.float_array(values, "values")
+        rows = len(given) if given.ndim else 0
+        array, flat = convert.values_2d(given, rows, "values", "indexed values")
+        index = convert.face_varying_indices(indices, corners, rows, "indices")
+        return array, flat, mode, index
 
     def result(
         self,
@@ -362,8 +421,9 @@ class Result(_Output):
     """A subdivided mesh: ``points`` (N, 3) in the dtype of the input (refined points, or limit
     positions with ``limit=True``), the polygons (``face_sizes``, ``face_indices``, int32),
     ``face_origin`` (cage face of each face), ``edges`` (E, 2), ``corner_edges``, ``uvs``
-    (output corners, 2) when the cage has uvs (subdivided in :attr:`uv_mode`) and ``normals``
-    (output corners, 3) with ``normals=True``.
+    (output corners, 2) when the cage has uvs (subdivided in :attr:`uv_mode`; kept in the
+    indexed form, ``uv_values`` indexed by ``uv_indices``, and expanded on first read) and
+    ``normals`` (output corners, 3) with ``normals=True``.
     Topology arrays are shared with the :class:`Plan` and read-only; ``points`` is yours.
     """
 
@@ -384,13 +444,36 @@ class Result(_Output):
         #: The face-varying mode the uvs were subdivided in.
         self.uv_mode: UvMode = uv_mode
         mesh = plan.mesh
-        self.uvs: FloatArray | None = None
+        #: The subdivided uvs in the indexed form (as :attr:`Mesh.uv_values`): (N, 2) values,
+        #: one per vertex of the subdivided face-varying mesh, ``None`` without uvs (or once
+        #: :attr:`uvs` is assigned).
+        self.uv_values: FloatArray | None = None
+        #: int32 index into :attr:`uv_values` per output face corner (read-only, shared with
+        #: the plan's later results of the same UV layout and mode).
+        self.uv_indices: NDArray[np.int32] | None = None
+        self._uvs: FloatArray | None = None
         if mesh.uv_indices is not None:
-            self.uvs = plan.evaluate_face_varying(
+            self.uv_values, self.uv_indices = plan.evaluate_face_varying_shared(
                 mesh.uv_values, uv_mode, limit=limit, indices=mesh.uv_indices
             )
         elif mesh.uvs is not None:
-            self.uvs = plan.evaluate_face_varying(mesh.uvs, uv_mode, limit=limit)
+            self.uv_values, self.uv_indices = plan.evaluate_face_varying_shared(
+                mesh.uvs, uv_mode, limit=limit
+            )
+
+    @property
+    def uvs(self) -> FloatArray | None:
+        """(output corners, 2) uvs per face corner (``uv_values[uv_indices]``, made on first
+        read), ``None`` when the cage has none. Assigning replaces them (and drops the indexed
+        form, which no longer describes them)."""
+        if self._uvs is None and self.uv_values is not None and self.uv_indices is not None:
+            self._uvs = self.uv_values[self.uv_indices]
+        return self._uvs
+
+    @uvs.setter
+    def uvs(self, value: FloatArray | None) -> None:
+        self._uvs = value
+        self.uv_values = self.uv_indices = None
 
     @property
     def plan(self) -> Plan:
@@ -409,8 +492,9 @@ class Result(_Output):
 
     @convert.memory_errors()
     def write_obj(self, path: str | os.PathLike[str]) -> None:
-        """Writes the result as OBJ (``v``, ``vt`` when there are uvs: one per distinct
-        value, so that the ``vt`` indices read back as the same seams; ``vn`` per face corner
+        """Writes the result as OBJ (``v``, ``vt`` when there are uvs: one per value of
+        :attr:`uv_values`, or per distinct value of assigned :attr:`uvs`, so that the ``vt``
+        indices read back as the same seams; ``vn`` per face corner
         when there are normals, ``f``), fast.
 
         Raises:
@@ -421,7 +505,10 @@ class Result(_Output):
         if points.dtype not in (np.float32, np.float64):
             points = points.astype(np.float64)
         uvs = normals = uv_indices = None
-        if self.uvs is not None:
+        if self.uv_values is not None and self.uv_indices is not None:
+            uvs = np.ascontiguousarray(self.uv_values, dtype=points.dtype)
+            uv_indices = self.uv_indices.astype(np.uint32)
+        elif self.uvs is not None:
             uvs, uv_indices = shared_uvs(np.ascontiguousarray(self.uvs, dtype=points.dtype))
         if self.normals is not None:
             normals = np.ascontiguousarray(self.normals, dtype=points.dtype)
