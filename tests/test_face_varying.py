@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import itertools
 from pathlib import Path
+from types import SimpleNamespace
 
 import bidegree
 import numpy as np
@@ -216,12 +217,24 @@ def test_usd_writes_the_mode_and_every_uv_set(tmp_path: Path, mode: str) -> None
         for name, want in (("st", st), ("flat", more)):
             primvar = primvars.GetPrimvar(name)
             assert primvar.GetInterpolation() == pxr.UsdGeom.Tokens.faceVarying
-            assert primvar.IsIndexed() == (prim == "Cage")  # the cage's by its topology
+            # The cage's by its topology; the result's st in its indexed form.
+            assert primvar.IsIndexed() == (prim == "Cage" or name == "st")
             got = np.asarray(primvar.ComputeFlattened())
             np.testing.assert_allclose(got, want, rtol=0, atol=1e-6)
+    st = pxr.UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/Bidegree/Result")).GetPrimvar("st")
+    np.testing.assert_array_equal(np.asarray(st.GetIndices()), result.uv_indices)
+    assert len(st.Get()) == len(result.uv_values)
     assert usd.validate(path) == []
     with pytest.raises(bidegree.InvalidInputError, match="UV set"):
         usd.export(tmp_path / "bad.usda", mesh, result, uv_sets={"st": extra["flat"]})
+    # A result-like object whose indexed uvs do not fit its faces is refused, nothing written.
+    fields = ("points", "face_sizes", "face_indices", "degree", "levels", "output", "uv_mode")
+    bad = SimpleNamespace(**{name: getattr(result, name) for name in fields})
+    bad.uv_values, bad.uv_indices = result.uv_values, result.uv_indices.copy()
+    bad.uv_indices[3] = len(result.uv_values)
+    with pytest.raises(bidegree.InvalidInputError, match="out of range"):
+        usd.export(tmp_path / "bad-index.usda", mesh, bad)
+    assert not (tmp_path / "bad-index.usda").exists()
 
 
 @pytest.mark.parametrize(("degree", "rules"), [(2, "averaging"), (3, "classic"), (4, "averaging")])

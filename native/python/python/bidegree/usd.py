@@ -27,7 +27,9 @@ Conventions:
   further UV sets (``uv_sets``) are primvars of their own names.  The cage's are indexed
   primvars whose indices are the face-varying topology bidegree used (``Mesh.uv_indices``, or
   one index per distinct value at each vertex), which OpenSubdiv takes as the topology; the
-  result's have one value per face corner.  The cage's
+  result's ``st`` is indexed too when the result has the indexed form (``Result.uv_values`` and
+  ``uv_indices``: one value per vertex of the subdivided face-varying mesh), else it has one
+  value per face corner, as the further sets do.  The cage's
   ``faceVaryingLinearInterpolation`` is the result's ``uv_mode`` (OpenSubdiv's names:
   :data:`UV_MODE_TO_USD`; ``all``, linear, for a result without one), so a renderer subdividing
   the cage gets the same UV layout.
@@ -266,6 +268,30 @@ def _face_varying(
     return uv
 
 
+def _result_uvs(result: Any, num_corners: int) -> tuple[np.ndarray, np.ndarray | None] | None:
+    """A result's uvs as ``(values, indices)``: its indexed form (``Result.uv_values``,
+    ``Result.uv_indices``: one value per face-varying vertex) when it has one, checked, else
+    its per-corner ``uvs`` (indices ``None``)."""
+    values = getattr(result, "uv_values", None)
+    indices = getattr(result, "uv_indices", None)
+    if values is None or indices is None:
+        per_corner = _face_varying(getattr(result, "uvs", None), num_corners, "result")
+        return None if per_corner is None else (per_corner, None)
+    values, indices = np.asarray(values), np.asarray(indices)
+    if values.ndim != 2 or values.shape[1] != 2:
+        raise InvalidInputError(f"result: uv_values must have shape (N, 2), got {values.shape}")
+    if indices.shape != (num_corners,) or not np.issubdtype(indices.dtype, np.integer):
+        raise InvalidInputError(
+            f"result: uv_indices must be {num_corners} integers (one per face corner), "
+            f"got {indices.dtype} {indices.shape}"
+        )
+    if indices.size and (indices.min() < 0 or indices.max() >= len(values)):
+        raise InvalidInputError("result: a uv index is out of range")
+    if not np.all(np.isfinite(values)):
+        raise InvalidInputError("result: uv_values contain NaN or infinite values")
+    return values, indices
+
+
 def _indexed(
     per_corner: np.ndarray, indices: np.ndarray | None, topo: _Topology
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -311,12 +337,13 @@ def _define_polymesh(
     topo: _Topology,
     *,
     normals: bool | np.ndarray,
-    uvs: np.ndarray | None = None,
+    uvs: tuple[np.ndarray, np.ndarray | None] | None = None,
     distances: np.ndarray | None = None,
 ) -> Any:
     """Define a plain polygon mesh (subdivisionScheme = none) at ``path``. ``normals``: an
     array (corners, 3) is written face-varying (limit normals), ``True`` computes vertex
-    normals."""
+    normals. ``uvs``: ``(values, indices)``, an indexed ``primvars:st``, or ``(per-corner
+    values, None)``."""
     UsdGeom, Sdf = pxr.UsdGeom, pxr.Sdf
     mesh = UsdGeom.Mesh.Define(stage, path)
     mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
@@ -338,7 +365,10 @@ def _define_polymesh(
         st = primvars.CreatePrimvar(
             "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying
         )
-        st.Set(_vec2f(pxr, uvs))
+        values, indices = uvs
+        st.Set(_vec2f(pxr, values))
+        if indices is not None:
+            st.SetIndices(_ints(pxr, indices))
     if distances is not None:
         dist = primvars.CreatePrimvar(
             "distance", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
@@ -403,7 +433,7 @@ def _build_stage(
     cage_topo = _Topology("cage", cage.points, cage.face_sizes, cage.face_indices)
     res_topo = _Topology("result", result.points, result.face_sizes, result.face_indices)
     cage_uvs = _face_varying(getattr(cage, "uvs", None), cage_topo.num_corners, "cage")
-    res_uvs = _face_varying(getattr(result, "uvs", None), res_topo.num_corners, "result")
+    res_uvs = _result_uvs(result, res_topo.num_corners)
     res_normals = _face_varying(
         getattr(result, "normals", None), res_topo.num_corners, "result", "normals", 3
     )
