@@ -93,8 +93,8 @@ def run(args: argparse.Namespace, out: str) -> None:
     print("-" * len(header))
     grid_time = None
     rows = (
-        ("grid", "grid", grid, "locality"),
-        ("surface", "surface", surface, "locality"),
+        ("grid", "grid", grid, "first-use"),
+        ("surface", "surface", surface, "first-use"),
         ("surface, result order", "surface_result_order", surface, "result"),
     )
     for name, stem, result, order in rows:

@@ -139,7 +139,7 @@ def test_round_trip_every_attribute(
     rmesh = UsdGeom.Mesh(rprim)
     assert rmesh.GetSubdivisionSchemeAttr().Get() == UsdGeom.Tokens.none
     # The same faces in the same order; the points renumbered by their first use in them
-    # (point_order="locality") or in the result's order. ``at`` reads per-vertex values of the
+    # (point_order="first-use") or in the result's order. ``at`` reads per-vertex values of the
     # file in the result's order.
     file_indices = _np(rmesh.GetFaceVertexIndicesAttr().Get())
     at = _file_numbers(file_indices, result.face_indices, len(result.points))
@@ -211,7 +211,7 @@ def test_edge_only_without_uvs_creases_or_distances(tmp_path: Path) -> None:
     assert np.all(outward > 0)
 
 
-def test_locality_order_describes_the_same_surface(tmp_path: Path) -> None:
+def test_first_use_order_describes_the_same_surface(tmp_path: Path) -> None:
     """The default point order (first use in the faces) writes the result's surface: the same
     faces as point tuples, the same per-vertex values at each point, the face-varying values
     (limit normals, UVs) per corner unchanged; points no face uses are kept, last, in their

@@ -24,10 +24,11 @@ Conventions:
   unchanged, and the per-vertex ones (``vertex`` normals, ``primvars:distance``,
   ``primvars:displayColor``) follow the points.  The file describes the same surface; the order
   only makes ``faceVertexIndices`` local, which the crate's integer compression needs (in the
-  subdivision's level order a 1M-face ``.usdc`` write takes about 3x as long and its
+  subdivision's level order a 1M-face ``.usdc`` write takes 2.5 to 4 times as long and its
   ``faceVertexIndices`` take 10 MB instead of 0.15 MB).  ``point_order="result"`` keeps the
-  result's numbering, for callers that index the file's points by it.  The cage is always
-  written in its own order (its creases and corners refer to it).
+  result's numbering, for callers that index the file's points by it (e.g. to add time samples
+  of ``Plan.evaluate`` to the points later).  The cage is always written in its own order (its
+  creases and corners refer to it).
 - Winding is counter-clockwise (``orientation = rightHanded``), as in OBJ and in bidegree.
 - Normals of the result are its limit normals when it has them (``Result.normals``, from
   ``normals=True``: ``faceVarying`` interpolation, one per face corner, split at creases), else
@@ -99,7 +100,7 @@ UV_MODE_TO_USD: dict[str, str] = {
 SUPPORTED_EXTENSIONS: tuple[str, ...] = (".usda", ".usdc", ".usd")
 
 #: Point orders of :func:`export` (``point_order``): first use in the faces, or the result's.
-POINT_ORDERS: tuple[str, ...] = ("locality", "result")
+POINT_ORDERS: tuple[str, ...] = ("first-use", "result")
 
 #: Sharpness at or above which OpenSubdiv and bidegree treat a crease or corner as infinitely sharp.
 INFINITELY_SHARP = 10.0
@@ -179,13 +180,13 @@ class _PointOrder:
     point ``order[p]`` (``None``: the input's order).  Per-vertex arrays go through
     :meth:`vertex`; :attr:`face_indices` are the faces in the file's point numbers."""
 
-    def __init__(self, topo: _Topology, locality: bool) -> None:
-        """``locality``: points in the order of their first use in the faces (a stable order
+    def __init__(self, topo: _Topology, first_use: bool) -> None:
+        """``first_use``: points in the order of their first use in the faces (local indices
         for the crate's delta-coded integers), the unused ones last in their own order;
-        O(corners) with numpy."""
+        O(corners) with numpy.  Else the input's order."""
         self.order: np.ndarray | None = None
         self.face_indices = topo.face_indices
-        if not locality:
+        if not first_use:
             return
         corners = topo.num_corners
         first = np.full(topo.num_points, corners, dtype=np.int64)
@@ -358,13 +359,13 @@ def _define_polymesh(
     normals: bool | np.ndarray,
     uvs: np.ndarray | None = None,
     distances: np.ndarray | None = None,
-    point_order: str = "locality",
+    point_order: str = "first-use",
 ) -> Any:
     """Define a plain polygon mesh (subdivisionScheme = none) at ``path``, its points in
     ``point_order`` (:data:`POINT_ORDERS`). ``normals``: an array (corners, 3) is written
     face-varying (limit normals), ``True`` computes vertex normals."""
     UsdGeom, Sdf = pxr.UsdGeom, pxr.Sdf
-    order = _PointOrder(topo, point_order == "locality")
+    order = _PointOrder(topo, point_order == "first-use")
     points = order.vertex(topo.points)
     mesh = UsdGeom.Mesh.Define(stage, path)
     mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
@@ -435,7 +436,7 @@ def _build_stage(
     distances: Any,
     extra_meshes: Mapping[str, tuple[Any, Any]] | None,
     uv_sets: Mapping[str, tuple[Any, Any]] | None = None,
-    point_order: str = "locality",
+    point_order: str = "first-use",
 ) -> Any:
     pxr = _pxr()
     Usd, UsdGeom, Sdf, Kind = pxr.Usd, pxr.UsdGeom, pxr.Sdf, pxr.Kind
@@ -619,7 +620,7 @@ def export(
     distances: Any = None,
     extra_meshes: Mapping[str, tuple[Any, Any]] | None = None,
     uv_sets: Mapping[str, tuple[Any, Any]] | None = None,
-    point_order: str = "locality",
+    point_order: str = "first-use",
 ) -> None:
     """Write ``cage`` and its subdivided ``result`` to a USD file (see the module docstring).
 
@@ -644,12 +645,12 @@ def export(
             the cage's own ``uvs``). They share the cage's ``faceVaryingLinearInterpolation``
             (USD has one per mesh): subdivide them in the result's ``uv_mode``.
         point_order: order of the points of the result and the extra meshes in the file:
-            ``"locality"`` (default), the order of their first use in the faces, so that point
+            ``"first-use"`` (default), the order of their first use in the faces, so that point
             ``p`` of the file is in general not ``result.points[p]`` (the faces, and so every
             face-varying or per-face value, keep the result's order); ``"result"``, the
             result's own numbering (point ``p`` is ``result.points[p]``), for a caller that
-            indexes the file's points by it, at the cost of a larger ``.usdc`` that takes about
-            3x as long to write at 1M faces (see the module docstring).
+            indexes the file's points by it, at the cost of a larger ``.usdc`` that takes 2.5
+            to 4 times as long to write at 1M faces (see the module docstring).
 
     Raises:
         bidegree.InvalidInputError: mismatched or malformed arrays, bad options, unsupported
