@@ -24,7 +24,7 @@ Conventions:
   unchanged, and the per-vertex ones (``vertex`` normals, ``primvars:distance``,
   ``primvars:displayColor``) follow the points.  The file describes the same surface; the order
   only makes ``faceVertexIndices`` local, which the crate's integer compression needs (in the
-  subdivision's level order a 1M-face ``.usdc`` write takes 2.5 to 4 times as long and its
+  subdivision's level order a 1M-face ``.usdc`` write takes 2.4 to 5 times as long and its
   ``faceVertexIndices`` take 10 MB instead of 0.15 MB).  ``point_order="result"`` keeps the
   result's numbering, for callers that index the file's points by it (e.g. to add time samples
   of ``Plan.evaluate`` to the points later).  The cage is always written in its own order (its
@@ -649,8 +649,8 @@ def export(
             ``p`` of the file is in general not ``result.points[p]`` (the faces, and so every
             face-varying or per-face value, keep the result's order); ``"result"``, the
             result's own numbering (point ``p`` is ``result.points[p]``), for a caller that
-            indexes the file's points by it, at the cost of a larger ``.usdc`` that takes 2.5
-            to 4 times as long to write at 1M faces (see the module docstring).
+            indexes the file's points by it, at the cost of a larger ``.usdc`` that takes 2.4
+            to 5 times as long to write at 1M faces (see the module docstring).
 
     Raises:
         bidegree.InvalidInputError: mismatched or malformed arrays, bad options, unsupported
