@@ -14,8 +14,10 @@ of writing a plain grid mesh of the same face count. Both go through :func:`bide
   the level order, as every write was before the first-use order: the crate's integer
   compression of the scattered ``faceVertexIndices`` dominates).
 
-Each write is timed as the median of ``--repeat`` repetitions (everything ``export`` does:
-validation, normals, stage, crate file, rename). Prints the times, the ratio surface / grid,
+Each write is timed as the median of ``--repeat`` rounds, each round writing every row once
+(everything ``export`` does: validation, normals, stage, crate file, rename). Prints the wall
+and CPU times (the process's CPU time is steadier than the wall time when other work shares the
+cores), the ratios to the grid (of the medians, and the range over the rounds of the wall time's),
 the file sizes and the load average before and after (the machine may be shared: compare
 ratios from one run, not times across runs).
 
@@ -28,7 +30,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import statistics
 import tempfile
 import time
 from collections.abc import Callable
@@ -45,13 +46,11 @@ def _load() -> str:
     return "{:.2f} {:.2f} {:.2f}".format(*os.getloadavg())
 
 
-def _median_s(fn: Callable[[], None], repeat: int) -> float:
-    times = []
-    for _ in range(max(1, repeat)):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+def _seconds(fn: Callable[[], None]) -> tuple[float, float]:
+    """Wall-clock and CPU seconds (this process, all its threads) of ``fn()``."""
+    wall, cpu = time.perf_counter(), time.process_time()
+    fn()
+    return time.perf_counter() - wall, time.process_time() - cpu
 
 
 def make_grid(faces: int, like: Any) -> SimpleNamespace:
@@ -79,7 +78,8 @@ def make_grid(faces: int, like: Any) -> SimpleNamespace:
 
 
 def run(args: argparse.Namespace, out: str) -> None:
-    """Subdivide, write both meshes ``args.repeat`` times each into ``out``, print the table."""
+    """Subdivide, write every row ``args.repeat`` times into ``out`` (round by round), print
+    the table."""
     print(f"load average before: {_load()}")
     cage = make_cage(args.faces)
     surface = bidegree.subdivide(cage, args.degree, args.levels)
@@ -88,28 +88,43 @@ def run(args: argparse.Namespace, out: str) -> None:
         f"cage {cage.num_faces:,} faces; surface degree {args.degree}, {args.levels} levels; "
         f"median of {args.repeat}; {os.cpu_count()} CPUs"
     )
-    header = f"{'mesh':<22} {'faces':>10} {'points':>10} {'write s':>9} {'ratio':>7} {'file MB':>9}"
+    rows = (
+        ("grid", grid, "first-use"),
+        ("surface", surface, "first-use"),
+        ("surface, result order", surface, "result"),
+    )
+    paths = [
+        os.path.join(out, name.replace(", ", "_").replace(" ", "_") + ".usdc") for name, *_ in rows
+    ]
+    # Round by round (each row once per round), so that a change of the machine's load during
+    # the run weighs on every row alike.
+    times = np.zeros((len(rows), max(1, args.repeat), 2))  # row, round, (wall, cpu)
+    for k in range(times.shape[1]):
+        for j, ((_, result, order), path) in enumerate(zip(rows, paths, strict=True)):
+            times[j, k] = _seconds(
+                lambda r=result, p=path, o=order: usd.export(p, cage, r, point_order=o)
+            )
+    median = np.median(times, axis=1)  # row, (wall, cpu)
+    rounds = times[:, :, 0] / times[0, :, 0]
+    header = (
+        f"{'mesh':<22} {'faces':>10} {'points':>10} {'wall s':>7} {'ratio':>6} "
+        f"{'per round':>12} {'cpu s':>6} {'ratio':>6} {'file MB':>8}"
+    )
     print(header)
     print("-" * len(header))
-    grid_time = None
-    rows = (
-        ("grid", "grid", grid, "first-use"),
-        ("surface", "surface", surface, "first-use"),
-        ("surface, result order", "surface_result_order", surface, "result"),
-    )
-    for name, stem, result, order in rows:
-        path = os.path.join(out, f"{stem}.usdc")
-
-        def write(r: Any = result, p: str = path, o: str = order) -> None:
-            usd.export(p, cage, r, point_order=o)
-
-        seconds = _median_s(write, args.repeat)
-        grid_time = grid_time or seconds
+    for j, ((name, result, _), path) in enumerate(zip(rows, paths, strict=True)):
         print(
             f"{name:<22} {len(result.face_sizes):>10,} {len(result.points):>10,} "
-            f"{seconds:>9.3f} {seconds / grid_time:>6.2f}x {os.path.getsize(path) / 1e6:>9.2f}"
+            f"{median[j, 0]:>7.3f} {median[j, 0] / median[0, 0]:>5.2f}x "
+            f"{rounds[j].min():>5.2f}-{rounds[j].max():.2f}x "
+            f"{median[j, 1]:>6.3f} {median[j, 1] / median[0, 1]:>5.2f}x "
+            f"{os.path.getsize(path) / 1e6:>8.2f}"
         )
-    print("ratio = write time / the grid's (target: surface at most 1.5x)")
+    print(
+        "wall s, cpu s = medians (cpu: this process's CPU time, steadier on a shared machine); "
+        "ratio = to the grid's (target: surface at most 1.5x); per round = range of the wall "
+        "ratio to the grid's write of the same round"
+    )
     print(f"load average after: {_load()}")
 
 
