@@ -14,12 +14,13 @@ of writing a plain grid mesh of the same face count. Both go through :func:`bide
   the level order, as every write was before the first-use order: the crate's integer
   compression of the scattered ``faceVertexIndices`` dominates).
 
-Each write is timed as the median of ``--repeat`` rounds, each round writing every row once
-(everything ``export`` does: validation, normals, stage, crate file, rename). Prints the wall
-and CPU times (the process's CPU time is steadier than the wall time when other work shares the
-cores), the ratios to the grid (of the medians, and the range over the rounds of the wall time's),
-the file sizes and the load average before and after (the machine may be shared: compare
-ratios from one run, not times across runs).
+Each write is timed as the median of ``--repeat`` rounds, each round writing every row twice and
+timing the second write (everything ``export`` does: validation, normals, stage, crate file,
+rename). Prints the wall, user CPU and system CPU times (when other work shares the cores the
+user time is the steadiest; the system time, mostly page faults of new numpy buffers, swings
+several-fold), the ratios to the grid (of the medians, and the range over the rounds of the wall
+time's), the file sizes and the load average before and after (the machine may be shared:
+compare ratios from one run, not times across runs).
 
 Usage: ``.venv/bin/python packaging/bench_usd.py [--faces 3900] [--degree 4] [--levels 4]
 [--repeat 5] [--out DIR]``.
@@ -46,11 +47,13 @@ def _load() -> str:
     return "{:.2f} {:.2f} {:.2f}".format(*os.getloadavg())
 
 
-def _seconds(fn: Callable[[], None]) -> tuple[float, float]:
-    """Wall-clock and CPU seconds (this process, all its threads) of ``fn()``."""
-    wall, cpu = time.perf_counter(), time.process_time()
+def _seconds(fn: Callable[[], None]) -> tuple[float, float, float]:
+    """Wall-clock, user CPU and system CPU seconds (this process, all its threads) of
+    ``fn()``."""
+    wall, before = time.perf_counter(), os.times()
     fn()
-    return time.perf_counter() - wall, time.process_time() - cpu
+    after = os.times()
+    return time.perf_counter() - wall, after.user - before.user, after.system - before.system
 
 
 def make_grid(faces: int, like: Any) -> SimpleNamespace:
@@ -97,18 +100,21 @@ def run(args: argparse.Namespace, out: str) -> None:
         os.path.join(out, name.replace(", ", "_").replace(" ", "_") + ".usdc") for name, *_ in rows
     ]
     # Round by round (each row once per round), so that a change of the machine's load during
-    # the run weighs on every row alike.
-    times = np.zeros((len(rows), max(1, args.repeat), 2))  # row, round, (wall, cpu)
+    # the run weighs on every row alike; each timed write right after an untimed one of the same
+    # row, so that none pays for what another row's write left behind (a write after the
+    # result-order row's pays up to 1 s more in page faults, as the allocator gives memory back).
+    times = np.zeros((len(rows), max(1, args.repeat), 3))  # row, round, (wall, user, sys)
     for k in range(times.shape[1]):
         for j, ((_, result, order), path) in enumerate(zip(rows, paths, strict=True)):
+            usd.export(path, cage, result, point_order=order)
             times[j, k] = _seconds(
                 lambda r=result, p=path, o=order: usd.export(p, cage, r, point_order=o)
             )
-    median = np.median(times, axis=1)  # row, (wall, cpu)
+    median = np.median(times, axis=1)  # row, (wall, user, sys)
     rounds = times[:, :, 0] / times[0, :, 0]
     header = (
         f"{'mesh':<22} {'faces':>10} {'points':>10} {'wall s':>7} {'ratio':>6} "
-        f"{'per round':>12} {'cpu s':>6} {'ratio':>6} {'file MB':>8}"
+        f"{'per round':>10} {'user s':>6} {'ratio':>6} {'sys s':>6} {'file MB':>8}"
     )
     print(header)
     print("-" * len(header))
@@ -117,13 +123,14 @@ def run(args: argparse.Namespace, out: str) -> None:
             f"{name:<22} {len(result.face_sizes):>10,} {len(result.points):>10,} "
             f"{median[j, 0]:>7.3f} {median[j, 0] / median[0, 0]:>5.2f}x "
             f"{rounds[j].min():>5.2f}-{rounds[j].max():.2f}x "
-            f"{median[j, 1]:>6.3f} {median[j, 1] / median[0, 1]:>5.2f}x "
+            f"{median[j, 1]:>6.3f} {median[j, 1] / median[0, 1]:>5.2f}x {median[j, 2]:>6.3f} "
             f"{os.path.getsize(path) / 1e6:>8.2f}"
         )
     print(
-        "wall s, cpu s = medians (cpu: this process's CPU time, steadier on a shared machine); "
-        "ratio = to the grid's (target: surface at most 1.5x); per round = range of the wall "
-        "ratio to the grid's write of the same round"
+        "wall s, user s, sys s = medians (user: this process's user CPU time, the steadiest on "
+        "a shared machine; sys: mostly page faults of new buffers, which swing with other "
+        "work); ratio = to the grid's (target: surface at most 1.5x); per round = range of the "
+        "wall ratio to the grid's write of the same round"
     )
     print(f"load average after: {_load()}")
 
