@@ -389,14 +389,15 @@ def _define_polymesh(
         )
         st.Set(_vec2f(pxr, uvs))
     if distances is not None:
+        per_point = order.vertex(distances)
         dist = primvars.CreatePrimvar(
             "distance", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
         )
-        dist.Set(_floats(pxr, order.vertex(distances)))
+        dist.Set(_floats(pxr, per_point))
         color = primvars.CreatePrimvar(
             "displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex
         )
-        color.Set(_vec3f(pxr, order.vertex(distance_colors(distances))))
+        color.Set(_vec3f(pxr, distance_colors(per_point)))
     return mesh
 
 
