@@ -240,14 +240,18 @@ def test_report_usd_and_plot(tmp_path: Path) -> None:
     compare.write_usd(c, str(report))
     assert usd.validate(report) == []
     stage = Usd.Stage.Open(str(report))
-    dist = stage.GetPrimAtPath("/Bidegree/Result").GetAttribute("primvars:distance").Get()
-    np.testing.assert_allclose(np.asarray(dist), c.forward, atol=1e-6)
-    osd = UsdGeom.Mesh(stage.GetPrimAtPath("/Bidegree/OpenSubdiv"))
-    np.testing.assert_allclose(
-        np.asarray(osd.GetPointsAttr().Get()), c.opensubdiv.points, atol=1e-6
-    )
-    back = stage.GetPrimAtPath("/Bidegree/OpenSubdiv").GetAttribute("primvars:distance").Get()
-    np.testing.assert_allclose(np.asarray(back), c.backward, atol=1e-6)
+    # Per face corner: the file's points are in their own order (bidegree.usd's point_order).
+    for name, surface, distances in (
+        ("Result", c.result, c.forward),
+        ("OpenSubdiv", c.opensubdiv, c.backward),
+    ):
+        written = UsdGeom.Mesh(stage.GetPrimAtPath(f"/Bidegree/{name}"))
+        corners = np.asarray(written.GetFaceVertexIndicesAttr().Get())
+        points = np.asarray(written.GetPointsAttr().Get())
+        expected = surface.points[surface.face_indices]
+        np.testing.assert_allclose(points[corners], expected, atol=1e-6)
+        dist = np.asarray(written.GetPrim().GetAttribute("primvars:distance").Get())
+        np.testing.assert_allclose(dist[corners], distances[surface.face_indices], atol=1e-6)
     png = tmp_path / "report.png"
     compare.write_plot(c, str(png))
     import matplotlib.image

@@ -64,13 +64,40 @@ def _np(value: object) -> np.ndarray:
     return np.asarray(value)
 
 
+def _file_numbers(file_indices: np.ndarray, result_indices: np.ndarray, points: int) -> np.ndarray:
+    """The file's number of each result point (every one used by a face), checking that the
+    file's faces are the result's faces, in the same order, up to a renumbering of the points."""
+    assert file_indices.shape == result_indices.shape
+    numbers = np.full(points, -1, dtype=np.int64)
+    numbers[result_indices] = file_indices
+    np.testing.assert_array_equal(numbers[result_indices], file_indices)
+    np.testing.assert_array_equal(np.sort(numbers), np.arange(points))
+    return numbers
+
+
+def _first_use_order(face_indices: np.ndarray) -> bool:
+    """Whether each point number first appears in ``face_indices`` as one more than the largest
+    before it (the points numbered by their first use)."""
+    before = np.concatenate([[-1], np.maximum.accumulate(face_indices)[:-1]])
+    return bool(np.all(face_indices <= before + 1))
+
+
+@pytest.mark.parametrize("point_order", usd.POINT_ORDERS)
 @pytest.mark.parametrize("ext", [".usda", ".usdc", ".usd"])
 def test_round_trip_every_attribute(
-    tmp_path: Path, cage: bidegree.Mesh, result: bidegree.Result, ext: str
+    tmp_path: Path, cage: bidegree.Mesh, result: bidegree.Result, ext: str, point_order: str
 ) -> None:
     path = tmp_path / f"surface{ext}"
     distances = np.linspace(0.0, 1.0, len(result.points))
-    usd.export(path, cage, result, up_axis="Z", meters_per_unit=0.01, distances=distances)
+    usd.export(
+        path,
+        cage,
+        result,
+        up_axis="Z",
+        meters_per_unit=0.01,
+        distances=distances,
+        point_order=point_order,
+    )
 
     head = path.read_bytes()[:8]
     assert head == (b"#usda 1." if ext == ".usda" else b"PXR-USDC")
@@ -111,11 +138,19 @@ def test_round_trip_every_attribute(
     rprim = stage.GetPrimAtPath("/Bidegree/Result")
     rmesh = UsdGeom.Mesh(rprim)
     assert rmesh.GetSubdivisionSchemeAttr().Get() == UsdGeom.Tokens.none
-    pts = _np(rmesh.GetPointsAttr().Get())
+    # The same faces in the same order; the points renumbered by their first use in them
+    # (point_order="first-use") or in the result's order. ``at`` reads per-vertex values of the
+    # file in the result's order.
+    file_indices = _np(rmesh.GetFaceVertexIndicesAttr().Get())
+    at = _file_numbers(file_indices, result.face_indices, len(result.points))
+    if point_order == "result":
+        np.testing.assert_array_equal(file_indices, result.face_indices)
+    else:
+        assert _first_use_order(file_indices) and not _first_use_order(result.face_indices)
+    pts = _np(rmesh.GetPointsAttr().Get())[at]
     np.testing.assert_allclose(pts, result.points, atol=1e-6)
     np.testing.assert_array_equal(_np(rmesh.GetFaceVertexCountsAttr().Get()), result.face_sizes)
-    np.testing.assert_array_equal(_np(rmesh.GetFaceVertexIndicesAttr().Get()), result.face_indices)
-    normals = _np(rmesh.GetNormalsAttr().Get())
+    normals = _np(rmesh.GetNormalsAttr().Get())[at]
     assert rmesh.GetNormalsInterpolation() == UsdGeom.Tokens.vertex
     assert normals.shape == pts.shape
     np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-5)
@@ -126,13 +161,15 @@ def test_round_trip_every_attribute(
     st = UsdGeom.PrimvarsAPI(rprim).GetPrimvar("st")
     assert st.GetInterpolation() == UsdGeom.Tokens.faceVarying
     assert st.GetTypeName() == Sdf.ValueTypeNames.TexCoord2fArray
-    np.testing.assert_allclose(_np(st.Get()), result.uvs, atol=1e-6)
+    assert st.IsIndexed()  # the result's indexed form
+    np.testing.assert_array_equal(_np(st.GetIndices()), result.uv_indices)
+    np.testing.assert_allclose(_np(st.ComputeFlattened()), result.uvs, atol=1e-6)
     dist = UsdGeom.PrimvarsAPI(rprim).GetPrimvar("distance")
     assert dist.GetInterpolation() == UsdGeom.Tokens.vertex
-    np.testing.assert_allclose(_np(dist.Get()), distances, atol=1e-7)
+    np.testing.assert_allclose(_np(dist.Get())[at], distances, atol=1e-7)
     color = UsdGeom.PrimvarsAPI(rprim).GetPrimvar("displayColor")
     assert color.GetInterpolation() == UsdGeom.Tokens.vertex
-    colors = _np(color.Get())
+    colors = _np(color.Get())[at]
     np.testing.assert_allclose(colors, usd.distance_colors(distances))
     np.testing.assert_allclose(colors[0], [0.05, 0.03, 0.25], atol=1e-6)  # distance 0
     np.testing.assert_allclose(colors[-1], [1.0, 1.0, 0.6], atol=1e-6)  # the largest
@@ -174,6 +211,53 @@ def test_edge_only_without_uvs_creases_or_distances(tmp_path: Path) -> None:
     normals = np.asarray(UsdGeom.Mesh(rprim).GetNormalsAttr().Get())
     outward = np.einsum("ij,ij->i", normals, pts - pts.mean(0))
     assert np.all(outward > 0)
+
+
+def test_first_use_order_describes_the_same_surface(tmp_path: Path) -> None:
+    """The default point order (first use in the faces) writes the result's surface: the same
+    faces as point tuples, the same per-vertex values at each point, the face-varying values
+    (limit normals, UVs) per corner unchanged; points no face uses are kept, last, in their
+    order; the extra meshes are re-ordered the same way; the file validates."""
+    rng = np.random.default_rng(3)
+    mesh = cages.cube(uvs=rng.random((24, 2)))
+    result = bidegree.subdivide(mesh, degree=4, levels=3, limit=True, normals=True)
+    n = len(result.points)
+    # Two points no face uses: one inserted at 5, one at the end.
+    points = np.insert(result.points, 5, [9.0, 9.0, 9.0], axis=0)
+    points = np.vstack([points, [[-9.0, -9.0, -9.0]]])
+    indices = result.face_indices + (result.face_indices >= 5)
+    like = _result_like(result, points=points, face_indices=indices, normals=result.normals)
+    distances = rng.random(n + 2)
+    path = tmp_path / "ordered.usdc"
+    usd.export(path, mesh, like, distances=distances, extra_meshes={"Again": (like, 2 * distances)})
+    assert usd.validate(path) == []
+
+    stage = Usd.Stage.Open(str(path))
+    for name, dist in (("Result", distances), ("Again", 2 * distances)):
+        prim = stage.GetPrimAtPath(f"/Bidegree/{name}")
+        written = UsdGeom.Mesh(prim)
+        file_indices = _np(written.GetFaceVertexIndicesAttr().Get())
+        assert _first_use_order(file_indices) and not np.array_equal(file_indices, indices)
+        np.testing.assert_array_equal(_np(written.GetFaceVertexCountsAttr().Get()), like.face_sizes)
+        pts = _np(written.GetPointsAttr().Get())
+        np.testing.assert_allclose(pts[file_indices], points[indices], rtol=0, atol=1e-6)
+        primvars = UsdGeom.PrimvarsAPI(prim)
+        file_dist = _np(primvars.GetPrimvar("distance").Get())
+        np.testing.assert_allclose(file_dist[file_indices], dist[indices], rtol=1e-6)
+        colors = _np(primvars.GetPrimvar("displayColor").Get())
+        np.testing.assert_allclose(colors[file_indices], usd.distance_colors(dist)[indices])
+        np.testing.assert_array_equal(pts[-2:], [[9.0, 9.0, 9.0], [-9.0, -9.0, -9.0]])
+        np.testing.assert_allclose(file_dist[-2:], dist[[5, n + 1]], rtol=1e-6)
+        normals = _np(written.GetNormalsAttr().Get())
+        if name == "Result":  # limit normals, one per face corner: as computed
+            assert written.GetNormalsInterpolation() == UsdGeom.Tokens.faceVarying
+            np.testing.assert_allclose(normals, result.normals, rtol=0, atol=1e-6)
+            st = _np(primvars.GetPrimvar("st").Get())
+            np.testing.assert_allclose(st, result.uvs, rtol=0, atol=1e-6)
+        else:  # area-weighted vertex normals at each point
+            assert written.GetNormalsInterpolation() == UsdGeom.Tokens.vertex
+            expected = usd.vertex_normals(points, like.face_sizes, indices)
+            np.testing.assert_array_equal(normals[file_indices], expected[indices])
 
 
 def test_vertex_normals_are_area_weighted() -> None:
@@ -271,6 +355,7 @@ def _result_like(result: bidegree.Result, **changes: object) -> SimpleNamespace:
         ({"points": "nan"}, "NaN"),
         ({"up_axis": "X"}, "up_axis"),
         ({"meters_per_unit": 0.0}, "meters_per_unit"),
+        ({"point_order": "random"}, "point_order"),
         ({"boundary": "edge-only"}, "boundary mode"),
     ],
 )
