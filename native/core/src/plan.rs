@@ -182,17 +182,7 @@ impl Plan {
         mode: FaceVaryingMode,
         limit: bool,
     ) -> Result<Vec<T>> {
-        let (values, topology) = self.face_varying_input(values, channels, None)?;
-        face_varying::evaluate(
-            &self.refinement,
-            &self.output,
-            &self.face_varying,
-            &values,
-            channels,
-            topology,
-            mode,
-            limit,
-        )
+        self.face_varying_per_corner(values, channels, None, mode, limit)
     }
 
     /// [`Plan::evaluate_face_varying`] with the values given OpenSubdiv's way: `values`
@@ -209,17 +199,7 @@ impl Plan {
         mode: FaceVaryingMode,
         limit: bool,
     ) -> Result<Vec<T>> {
-        let (values, topology) = self.face_varying_input(values, channels, Some(indices))?;
-        face_varying::evaluate(
-            &self.refinement,
-            &self.output,
-            &self.face_varying,
-            &values,
-            channels,
-            topology,
-            mode,
-            limit,
-        )
+        self.face_varying_per_corner(values, channels, Some(indices), mode, limit)
     }
 
     /// Face-varying values as [`Plan::evaluate_face_varying`] (`indices`: `None`) or
@@ -240,6 +220,29 @@ impl Plan {
     ) -> Result<SharedValues<T>> {
         let (values, topology) = self.face_varying_input(values, channels, indices)?;
         face_varying::evaluate_shared(
+            &self.refinement,
+            &self.output,
+            &self.face_varying,
+            &values,
+            channels,
+            topology,
+            mode,
+            limit,
+        )
+    }
+
+    /// [`Plan::evaluate_face_varying`] (`indices`: `None`) and
+    /// [`Plan::evaluate_face_varying_indexed`].
+    fn face_varying_per_corner<T: Scalar>(
+        &self,
+        values: &[T],
+        channels: usize,
+        indices: Option<&[u32]>,
+        mode: FaceVaryingMode,
+        limit: bool,
+    ) -> Result<Vec<T>> {
+        let (values, topology) = self.face_varying_input(values, channels, indices)?;
+        face_varying::evaluate(
             &self.refinement,
             &self.output,
             &self.face_varying,

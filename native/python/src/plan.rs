@@ -31,8 +31,14 @@ pub(crate) struct PyPlan {
     inner: Plan,
     /// The face-varying index arrays handed out (int32), per kept topology of the core (the
     /// most recent first): every call on one topology and mode returns the same array.
-    shared_indices: Mutex<Vec<(Arc<[u32]>, Py<PyArray1<i32>>)>>,
+    shared_indices: Mutex<Vec<KeptIndices>>,
 }
+
+/// A core face-varying index table and the int32 array handed out for it.
+type KeptIndices = (Arc<[u32]>, Py<PyArray1<i32>>);
+
+/// Values in the indexed form as a numpy array, with the core's kept indices.
+type SharedArrays<'py> = (Bound<'py, PyAny>, Arc<[u32]>);
 
 /// Face-varying index arrays a plan keeps for Python (the core keeps four topologies).
 const KEPT_INDICES: usize = 4;
@@ -221,16 +227,7 @@ impl PyPlan {
         limit: bool,
         indices: Option<PyReadonlyArray1<'py, u32>>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let mode = parse_face_varying_mode(mode).map_err(|e| to_py_err(py, e))?;
-        let indices = (indices.as_ref())
-            .map(|a| a.as_slice())
-            .transpose()
-            .map_err(|_| to_py_err(py, invalid("indices must be a contiguous uint32 array")))?;
-        let how = Evaluation::FaceVarying {
-            mode,
-            limit,
-            indices,
-        };
+        let how = face_varying(py, mode, limit, &indices)?;
         match floats(values, "values")? {
             Floats::F32(a) => Ok(evaluate(py, &self.inner, &a, how)?.into_any()),
             Floats::F64(a) => Ok(evaluate(py, &self.inner, &a, how)?.into_any()),
@@ -250,20 +247,10 @@ impl PyPlan {
         limit: bool,
         indices: Option<PyReadonlyArray1<'py, u32>>,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray1<i32>>)> {
-        let mode = parse_face_varying_mode(mode).map_err(|e| to_py_err(py, e))?;
-        let indices = (indices.as_ref())
-            .map(|a| a.as_slice())
-            .transpose()
-            .map_err(|_| to_py_err(py, invalid("indices must be a contiguous uint32 array")))?;
+        let how = face_varying(py, mode, limit, &indices)?;
         let (out, shared) = match floats(values, "values")? {
-            Floats::F32(a) => {
-                let (out, shared) = evaluate_shared(py, &self.inner, &a, mode, limit, indices)?;
-                (out.into_any(), shared)
-            }
-            Floats::F64(a) => {
-                let (out, shared) = evaluate_shared(py, &self.inner, &a, mode, limit, indices)?;
-                (out.into_any(), shared)
-            }
+            Floats::F32(a) => evaluate_shared(py, &self.inner, &a, how)?,
+            Floats::F64(a) => evaluate_shared(py, &self.inner, &a, how)?,
         };
         Ok((out, self.indices_array(py, shared)?))
     }
@@ -462,14 +449,44 @@ fn evaluate<'py, T: Scalar + Element>(
     array2(py, out, channels)
 }
 
+/// The arguments of a face-varying evaluation, checked.
+fn face_varying<'a>(
+    py: Python<'_>,
+    mode: &str,
+    limit: bool,
+    indices: &'a Option<PyReadonlyArray1<'_, u32>>,
+) -> PyResult<Evaluation<'a>> {
+    let mode = parse_face_varying_mode(mode).map_err(|e| to_py_err(py, e))?;
+    let indices = (indices.as_ref())
+        .map(|a| a.as_slice())
+        .transpose()
+        .map_err(|_| to_py_err(py, invalid("indices must be a contiguous uint32 array")))?;
+    Ok(Evaluation::FaceVarying {
+        mode,
+        limit,
+        indices,
+    })
+}
+
+/// [`evaluate`] of face-varying values in the indexed form (`how` is a face-varying
+/// evaluation).
 fn evaluate_shared<'py, T: Scalar + Element>(
     py: Python<'py>,
     plan: &Plan,
     values: &PyReadonlyArray2<'_, T>,
-    mode: FaceVaryingMode,
-    limit: bool,
-    indices: Option<&[u32]>,
-) -> PyResult<(Bound<'py, PyArray2<T>>, Arc<[u32]>)> {
+    how: Evaluation<'_>,
+) -> PyResult<SharedArrays<'py>> {
+    let Evaluation::FaceVarying {
+        mode,
+        limit,
+        indices,
+    } = how
+    else {
+        return Err(to_py_err(
+            py,
+            invalid("per-vertex values have no indexed form"),
+        ));
+    };
     let channels = values.shape()[1];
     let data = contiguous(values, "values")?;
     let out = run(py, || {
@@ -480,7 +497,7 @@ fn evaluate_shared<'py, T: Scalar + Element>(
         check_output(&out.values, channels, data)?;
         Ok(out)
     })?;
-    Ok((array2(py, out.values, channels)?, out.indices))
+    Ok((array2(py, out.values, channels)?.into_any(), out.indices))
 }
 
 fn evaluate_fresh<'py, T: Scalar + Element>(

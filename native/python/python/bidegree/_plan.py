@@ -5,8 +5,8 @@ mesh), :func:`subdivide` (both in one call) and :func:`estimate`.
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
-from typing import Any, overload
+from collections.abc import Callable, Mapping
+from typing import Any, TypeVar, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -16,6 +16,8 @@ from . import _native
 from ._convert import Boundary, Creasing, FloatArray, Output, Rules, UvMode
 from ._errors import InvalidInputError
 from ._mesh import Mesh, shared_uvs
+
+_T = TypeVar("_T")
 
 
 class _Output:
@@ -280,13 +282,7 @@ class Plan(_Output):
             IndexOutOfRangeError: an index outside ``values``.
         """
         if isinstance(values, Mapping):
-            if indices is not None:
-                raise InvalidInputError("indices go with each set of a mapping: (values, indices)")
-            out = {}
-            for name, given in values.items():
-                array, index = given if isinstance(given, tuple) else (given, None)
-                out[name] = self.evaluate_face_varying(array, mode, limit=limit, indices=index)
-            return out
+            return _each_set(values, indices, self.evaluate_face_varying, mode, limit)
         array, flat, mode, index = self._face_varying_input(values, mode, limit, indices)
         out = self._native_plan.evaluate_face_varying(array, mode, limit, index)
         return out.reshape(-1) if flat else out
@@ -330,15 +326,7 @@ class Plan(_Output):
         quad mesh). Arguments, modes and errors as :meth:`evaluate_face_varying`.
         """
         if isinstance(values, Mapping):
-            if indices is not None:
-                raise InvalidInputError("indices go with each set of a mapping: (values, indices)")
-            out = {}
-            for name, given in values.items():
-                array, index = given if isinstance(given, tuple) else (given, None)
-                out[name] = self.evaluate_face_varying_shared(
-                    array, mode, limit=limit, indices=index
-                )
-            return out
+            return _each_set(values, indices, self.evaluate_face_varying_shared, mode, limit)
         array, flat, mode, index = self._face_varying_input(values, mode, limit, indices)
         out, shared = self._native_plan.evaluate_face_varying_shared(array, mode, limit, index)
         return (out.reshape(-1) if flat else out), convert.readonly(shared)
@@ -415,6 +403,24 @@ class Plan(_Output):
             f"boundary={self.boundary!r}, input_vertices={self._mesh.num_vertices}, "
             f"output_vertices={self.num_output_vertices}, output_faces={self.num_output_faces})"
         )
+
+
+def _each_set(
+    sets: Mapping[str, ArrayLike | tuple[ArrayLike, ArrayLike]],
+    indices: ArrayLike | None,
+    evaluate: Callable[..., _T],
+    mode: UvMode,
+    limit: bool,
+) -> dict[str, _T]:
+    """``evaluate`` of each face-varying set of a mapping (a set given as ``(values, indices)``
+    is indexed)."""
+    if indices is not None:
+        raise InvalidInputError("indices go with each set of a mapping: (values, indices)")
+    out = {}
+    for name, given in sets.items():
+        array, index = given if isinstance(given, tuple) else (given, None)
+        out[name] = evaluate(array, mode, limit=limit, indices=index)
+    return out
 
 
 class Result(_Output):
