@@ -958,11 +958,12 @@ fn cage_part<T: Scalar>(ctx: &Context<T>) -> Part<T> {
 }
 
 /// The partial levels past a plan's last level `L >= 1` (its refinement, all tables
-/// complete) around `seeds` (sorted faces of `M_L`) and their descendants, with the margin rings
-/// of the degree at every level: the limit's local extension. Their topology does not depend on
-/// the data, so it is made once ([`LocalLevels::new`]) and every evaluation runs only the steps
-/// on them ([`LocalLevels::evaluate`]). Every value whose stencil lies in the seeds' descendants
-/// is bitwise the uniform value of that level (module documentation).
+/// complete) around `seeds` (sorted faces of `M_L`) and those of their descendants that lie near
+/// some target vertices, with the margin rings of the degree at every level: the limit's local
+/// extension. Their topology does not depend on the data, so it is made once
+/// ([`LocalLevels::new`]) and every evaluation runs only the steps on them
+/// ([`LocalLevels::evaluate`]). Every value whose stencil lies in the seeds kept at the last
+/// level is bitwise the uniform value of that level (module documentation).
 #[derive(Debug)]
 pub(crate) struct LocalLevels {
     scheme: Scheme,
@@ -982,8 +983,19 @@ pub(crate) struct LocalLevels {
 }
 
 impl LocalLevels {
-    /// The `extra` partial levels past `refinement`'s last level around `seeds`.
-    pub(crate) fn new(refinement: &Refinement, seeds: &[u64], extra: u32) -> Result<LocalLevels> {
+    /// The `extra` partial levels past `refinement`'s last level around `seeds`, whose seeds at
+    /// the last level are the faces within `rings` face rings of the `targets` (vertices of
+    /// `M_L`, sorted; old vertices keep their ids), which `seeds` must hold at `M_L`'s spacing.
+    /// Each level keeps only the children of its seeds within `ceil(rings / 2^k)` rings of the
+    /// targets, `k` levels above the last (the children of `r` rings hold `2r` rings): along a
+    /// curve of targets the levels grow about 2x per level, not 4x as all descendants would.
+    pub(crate) fn new(
+        refinement: &Refinement,
+        seeds: &[u64],
+        extra: u32,
+        targets: &[u32],
+        rings: usize,
+    ) -> Result<LocalLevels> {
         let options = refinement.options();
         let last = refinement.levels().last().expect("a level");
         let network = refinement.curve_networks().last().expect("a step");
@@ -999,16 +1011,6 @@ impl LocalLevels {
             diagonal: 0.0,
             holes: Vec::new(),
         };
-        // What the partial levels will hold at most (the seeds' descendants with their margins,
-        // taken as twice the descendants, at every level), asked for before any of it: a typed
-        // refusal under the budget, and room that the address space must have (the partial
-        // levels' own tables are not allocated fallibly one by one).
-        let ahead = (2 * seeds.len() as u64) << (2 * extra);
-        let bytes = ahead.saturating_mul(4 * BYTES_PER_CORNER) * 4 / 3;
-        memory::check_request(bytes, ahead, options.memory_budget)?;
-        drop(memory::with_capacity::<u8>(
-            usize::try_from(bytes).map_err(|_| memory::refused_bytes(bytes))?,
-        )?);
         // P_L: the margin rings around the seeds.
         let mut kept = memory::filled(last.num_faces(), false)?;
         let frontier: Vec<usize> = seeds.iter().map(|&f| f as usize).collect();
@@ -1051,8 +1053,20 @@ impl LocalLevels {
         let mut seeds = seeds.to_vec();
         let mut levels = Vec::with_capacity(extra as usize + 1);
         let mut steps = Vec::with_capacity(extra as usize);
-        for t in top..top + extra as usize {
-            seeds = children(&seeds)?;
+        let mut held = 0u64;
+        for (k, t) in (top..top + extra as usize).enumerate() {
+            // The refined level and what is kept so far, asked for before it is made: a typed
+            // refusal under the budget, and room that the address space must have (a level's
+            // own tables are not allocated fallibly one by one).
+            let fine = 4 * part.level.num_faces() as u64;
+            let bytes = fine.saturating_mul(4 * BYTES_PER_CORNER);
+            memory::check_request(held.saturating_add(bytes), fine, options.memory_budget)?;
+            drop(memory::with_capacity::<u8>(
+                usize::try_from(bytes).map_err(|_| memory::refused_bytes(bytes))?,
+            )?);
+            held = held.saturating_add(bytes);
+            let near = rings.div_ceil(1 << (extra as usize - k));
+            seeds = children(&near_targets(&part, &seeds, targets, near)?)?;
             let (step, next) = refine_topology(&ctx, t, &part, Keep::Around(&seeds))?;
             levels.push(std::mem::replace(&mut part, next).level);
             steps.push(step);
@@ -1069,6 +1083,11 @@ impl LocalLevels {
             vert_uid: part.vert_uid,
             network: part.network.expect("a refined part has its network"),
         })
+    }
+
+    /// The faces of the refined levels its evaluation makes: the work of one evaluation.
+    pub(crate) fn num_faces(&self) -> u64 {
+        self.steps.iter().map(|s| s.fine.num_faces() as u64).sum()
     }
 
     /// The last partial level.
@@ -1102,6 +1121,34 @@ impl LocalLevels {
         }
         Ok((data, curve))
     }
+}
+
+/// The faces of `seeds` (sorted uniform ids of faces of `part`) within `rings` face rings (at
+/// least one: the faces at the vertex) of the `targets` (uniform vertex ids, all in `part`).
+fn near_targets<T>(
+    part: &Part<T>,
+    seeds: &[u64],
+    targets: &[u32],
+    rings: usize,
+) -> Result<Vec<u64>> {
+    let level = &part.level;
+    let mut marked = memory::filled(level.num_faces(), false)?;
+    let mut frontier = Vec::new();
+    for &v in targets {
+        let w = (part.vert_uid.binary_search(&(v as u64)))
+            .map_err(|_| Error::Internal(format!("local levels: target vertex {v} missing")))?;
+        for &c in level.corners_of_vertex(w) {
+            let f = level.face_of(c as usize);
+            if !marked[f] {
+                marked[f] = true;
+                frontier.push(f);
+            }
+        }
+    }
+    level.grow_face_rings(&mut marked, frontier, rings.max(1) - 1);
+    Ok((seeds.iter().copied())
+        .filter(|&uid| part.face_of_uid(uid).is_some_and(|f| marked[f]))
+        .collect())
 }
 
 /// Which faces of a refined partial level are kept.

@@ -152,14 +152,16 @@ struct Targets<'a> {
 }
 
 /// Builds the stencils on `last` (a plan's last level, an extended one's, or a partial level
-/// past it) with `curves` (the network of the step that made it) for `targets`. A target vertex
-/// that is not clean makes the result `None`, or with `allow_local`, a [`LimitMask::Local`]
-/// stencil (listed in `local`), to be built on a local extension.
+/// past it) with `curves` (the network of the step that made it) for `targets`; `semi_corners`
+/// are the cage vertices tagged semi-sharp (sorted). A target vertex that is not clean makes
+/// the result `None`, or with `allow_local`, a [`LimitMask::Local`] stencil (listed in
+/// `local`), to be built on a local extension.
 fn build_stencils(
     last: &Level,
     curves: &CurveNetwork,
     degree: u32,
     targets: &Targets,
+    semi_corners: &[u32],
     allow_local: bool,
 ) -> Result<Option<Stencils>> {
     let primal = degree % 2 == 1;
@@ -171,9 +173,7 @@ fn build_stencils(
     let cage_item = |v: usize| if primal { v } else { nf + nc + v };
     // Curve vertex of each vertex id (index into the step's curve vertices).
     let curve_of = |v: usize| curves.vertex_index(v as u32).map(|i| i as usize);
-    if curves.vertices().iter().any(|cv| cv.weight < 1.0) {
-        return Ok(None);
-    }
+    let transient = transient_curve_vertices(curves, semi_corners)?;
     let curve_index = |e: u32| curves.edge_index(e);
     let is_curve_edge = |e: u32| curve_index(e).is_some();
 
@@ -194,8 +194,18 @@ fn build_stencils(
     let stencil_of = |v: usize| -> Option<(LimitMask, Vec<u32>)> {
         if let Some(i) = curve_of(v) {
             let cv = &curves.vertices()[i];
+            if transient[i] {
+                return None;
+            }
             let Some([a, _]) = cv.edges else {
-                return Some((LimitMask::Corner, vec![cage_item(cv.pin as usize) as u32]));
+                // Odd degrees: the corner's own vertex, which holds its cage point at every
+                // level (on a partial level its index is not the cage vertex's).
+                let item = if primal {
+                    v
+                } else {
+                    cage_item(cv.pin as usize)
+                };
+                return Some((LimitMask::Corner, vec![item as u32]));
             };
             // Walk the polyline both ways: curve vertices (odd) or edges (even).
             let walk = |first_edge: u32, from: usize, count: usize| -> Option<Vec<u32>> {
@@ -214,6 +224,9 @@ fn build_stencils(
                         out.push((nf + edge) as u32);
                     }
                     let [x, y] = curves.vertices()[next].edges?;
+                    if transient[next] {
+                        return None;
+                    }
                     edge = if x as usize == edge { y } else { x } as usize;
                     at = next;
                 }
@@ -469,6 +482,32 @@ fn build_stencils(
     }))
 }
 
+/// Per curve vertex of `curves` (a step's network), true when its rules change in a later step:
+/// a semi-sharp feature makes it (an end of a semi-sharp curve edge, a blend, a corner by a
+/// semi-sharp tag of `semi_corners`, sorted cage vertices), or it is a corner whose cage point
+/// is unknown (cut off on a partial level). Such a vertex has no fixed 1-D or corner rule, so
+/// it is not clean: the limit must wait until the feature has become smooth.
+fn transient_curve_vertices(curves: &CurveNetwork, semi_corners: &[u32]) -> Result<Vec<bool>> {
+    let vertices = curves.vertices();
+    let mut transient = memory::filled(vertices.len(), false)?;
+    let mut curve_edges = memory::filled(vertices.len(), 0u8)?;
+    for edge in curves.edges() {
+        for end in edge.ends.into_iter().filter(|&x| x != NONE) {
+            curve_edges[end as usize] = curve_edges[end as usize].saturating_add(1);
+            transient[end as usize] |= is_semi_sharp(edge.sharpness);
+        }
+    }
+    for (i, cv) in vertices.iter().enumerate() {
+        // A corner on two curve edges (or none) is one by its tag alone: transient when the tag
+        // is finite (then it becomes a curve vertex, or smooth); on one or three it stays one.
+        let tagged = cv.edges.is_none() && matches!(curve_edges[i], 0 | 2);
+        let semi_tag = tagged && semi_corners.binary_search(&cv.pin).is_ok();
+        let cut_off = cv.edges.is_none() && cv.pin == NONE;
+        transient[i] |= cv.weight < 1.0 || semi_tag || cut_off;
+    }
+    Ok(transient)
+}
+
 /// The limit's part of a plan: the stencils, built on first use and kept.
 #[derive(Debug, Default)]
 pub(crate) struct LimitCache(Mutex<Option<Arc<Stencils>>>);
@@ -485,31 +524,37 @@ fn stencils(refinement: &Refinement, cache: &LimitCache) -> Result<Arc<Stencils>
 }
 
 /// Builds the stencils of `refinement`: at its last level where every vertex is clean there;
-/// else, with `local` (the [`LOCAL_SHARE`] it allows) and the averaging rules (and no semi-sharp
-/// feature), the vertices that are not clean on partial levels around them; else on the whole
-/// refinement extended.
+/// else, with `local` (the [`LOCAL_SHARE`] it allows) and the averaging rules, the vertices
+/// that are not clean (near irregular vertices, curves, and semi-sharp features until they
+/// have become smooth) on partial levels around them; else on the whole refinement extended.
 fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
     let options = *refinement.options();
     let levels = options.levels;
     let n = neighbourhood_size(options.degree) as u32;
-    // Semi-sharp features must have become smooth by the last level (corners on isolated
-    // vertices are no features: they have no place in the surface).
-    let cage = refinement.cage();
-    let finite = cage
-        .creases()
-        .iter()
-        .map(|c| c.sharpness)
-        .chain(refinement.features().corners.iter().map(|c| c.1))
+    // Semi-sharp features must have left the last step's network (corners on isolated vertices
+    // are no features: they have no place in the surface): a feature of sharpness s is in the
+    // networks of the steps from levels below s, so the last step must start at ceil(s).
+    let features = refinement.features();
+    let finite = (features.edge_sharpness.iter())
+        .chain(features.corners.iter().map(|c| &c.1))
+        .copied()
         .filter(|&s| is_semi_sharp(s))
         .fold(0.0f32, f32::max);
-    let first = (finite.ceil() as u32)
-        .saturating_sub(levels)
-        .max(u32::from(levels == 0));
+    let semi_corners: Vec<u32> = (features.corners.iter())
+        .filter(|c| is_semi_sharp(c.1))
+        .map(|c| c.0)
+        .collect();
+    let smooth = match finite > 0.0 {
+        true => (finite.ceil() as u32 + 1).saturating_sub(levels),
+        false => 0,
+    };
+    let first = smooth.max(u32::from(levels == 0));
     // Enough doubling to put N rings between a vertex and its nearest neighbour.
     let clean = (1..).find(|&m| (1u32 << m) > n).unwrap_or(1);
     let mut candidates = vec![first, first.max(clean)];
     candidates.extend((1..=MAX_EXTRA_LEVELS).map(|i| first.max(clean) + i));
     candidates.dedup();
+    candidates.retain(|&m| m > 0);
     // The last level's edge and vertex -> corner tables, fallibly (`levels()` would panic).
     refinement.complete_levels()?;
     let last = refinement.levels().last().expect("a level");
@@ -518,10 +563,10 @@ fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
     let degree = options.degree;
     let whole = |i: usize| i;
     let below = |w: usize| (w < outputs).then_some(w);
-    if first == 0 {
+    let share = local.filter(|_| matches!(refinement.scheme(), Scheme::Averaging { .. }));
+    if smooth == 0 || (levels > 0 && share.is_some()) {
         // The stencils at the plan's own last level; with the averaging rules, the vertices
         // that are not clean there get theirs on partial levels around them.
-        let share = local.filter(|_| matches!(refinement.scheme(), Scheme::Averaging { .. }));
         let curves = refinement.curve_networks().last().expect("a step");
         let targets = Targets {
             count: outputs,
@@ -530,29 +575,41 @@ fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
             corner: &Some,
             index: &below,
         };
-        if let Some(mut st) = build_stencils(last, curves, degree, &targets, share.is_some())? {
+        let allow_local = share.is_some();
+        let built = build_stencils(last, curves, degree, &targets, &semi_corners, allow_local)?;
+        if let Some(mut st) = built {
             if st.local_vertices.is_empty() {
                 return Ok(st);
             }
-            for m in (clean..).take(MAX_EXTRA_LEVELS as usize) {
+            let share = share.unwrap_or_default();
+            for &m in &candidates {
                 let seeds = local_seeds(last, degree, &st.local_vertices, m)?;
                 // Partial levels are made on every evaluation, at several times the cost of a
                 // cached level per face: around most of the mesh, the whole plan extended (its
-                // topology kept) is cheaper.
-                if share.unwrap_or_default() * seeds.len() > last.num_faces() {
+                // topology kept) is cheaper. Past semi-sharp features it has 4^m times the
+                // plan's faces, the partial levels about 2^m times those near the features:
+                // their own sizes decide.
+                if smooth == 0 && share * seeds.len() > last.num_faces() {
                     break;
                 }
-                if let Some(built) = local_stencils(refinement, &st.local_vertices, m, seeds)? {
-                    st.local = Some(built);
-                    st.extra_levels = m;
-                    return Ok(st);
+                let vertices = &st.local_vertices;
+                let Some(built) = local_stencils(refinement, vertices, m, seeds, &semi_corners)?
+                else {
+                    continue;
+                };
+                let whole_faces = (last.num_faces() as u64) * ((4u64 << (2 * m)) - 4) / 3;
+                if smooth > 0 && (share as u64) * built.1.num_faces() > whole_faces {
+                    break;
                 }
+                st.local = Some(built);
+                st.extra_levels = m;
+                return Ok(st);
             }
         }
     }
-    for m in candidates.into_iter().filter(|&m| m > 0) {
+    for m in candidates {
         let extended = Refinement::new(
-            cage,
+            refinement.cage(),
             &Options {
                 levels: levels + m,
                 output: OutputKind::Primal,
@@ -571,7 +628,9 @@ fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
         };
         let ext_last = extended.levels().last().expect("a level");
         let curves = extended.curve_networks().last().expect("a step");
-        if let Some(mut st) = build_stencils(ext_last, curves, degree, &targets, false)? {
+        if let Some(mut st) =
+            build_stencils(ext_last, curves, degree, &targets, &semi_corners, false)?
+        {
             st.extended = Some((extended, Scratch::default()));
             st.extra_levels = m;
             return Ok(st);
@@ -613,10 +672,14 @@ fn local_stencils(
     vertices: &[u32],
     m: u32,
     seeds: Vec<u64>,
+    semi_corners: &[u32],
 ) -> Result<Option<(Box<Stencils>, LocalLevels)>> {
     let last = refinement.last_level();
     let degree = refinement.options().degree;
-    let local = LocalLevels::new(refinement, &seeds, m)?;
+    // What `build_stencils` reads around a vertex: its N rings, the valences of their vertices
+    // and 1-D masks N + 1 curve edges long; one face ring more to spare.
+    let rings = neighbourhood_size(degree) + 2;
+    let local = LocalLevels::new(refinement, &seeds, m, vertices, rings)?;
     let mut at = Vec::with_capacity(vertices.len());
     for &v in vertices {
         match local.vert_uid.binary_search(&(v as u64)) {
@@ -649,10 +712,15 @@ fn local_stencils(
         corner: &corner,
         index: &index,
     };
-    Ok(
-        build_stencils(local.level(), &local.network, degree, &targets, false)?
-            .map(|st| (Box::new(st), local)),
-    )
+    Ok(build_stencils(
+        local.level(),
+        &local.network,
+        degree,
+        &targets,
+        semi_corners,
+        false,
+    )?
+    .map(|st| (Box::new(st), local)))
 }
 
 /// How the limit of `refinement` is found, or why it cannot be (`normals`: normals too).
@@ -1246,6 +1314,91 @@ mod tests {
             engaged >= 40,
             "the local extension was used {engaged} times of 48"
         );
+    }
+
+    /// Semi-sharp creases and corners take the local extension too: the vertices near them get
+    /// partial levels until the features have become smooth, and their limits are those of the
+    /// whole plan extended that far (to rounding, as in
+    /// `local_extension_matches_the_whole_plan_extended`), with the same extra levels.
+    #[test]
+    fn semi_sharp_local_extension_matches_the_whole_plan_extended() {
+        let (grid, grid_points) = grid(5);
+        // Grid vertex (i, j) is 6i + j: a chain inside the grid (ends on one crease edge), a
+        // row from boundary to boundary (corners where it meets the boundary), an infinitely
+        // sharp crease going on as a semi-sharp one.
+        let inside = |s: f32| [(13, 14, s), (14, 15, s), (15, 16, s)];
+        let row = |s: f32| {
+            [
+                (18, 19, s),
+                (19, 20, s),
+                (20, 21, s),
+                (21, 22, s),
+                (22, 23, s),
+            ]
+        };
+        let creased = |creases: &[(i64, i64, f32)]| grid.clone().with_creases(creases).unwrap();
+        let (cube, cube_points) = cube();
+        let top = |s: f32| [(4, 6, s), (6, 7, s), (7, 5, s), (5, 4, s)];
+        let cases = [
+            ("inside 0.5", creased(&inside(0.5)), &grid_points),
+            ("row 1.5", creased(&row(1.5)), &grid_points),
+            ("inside 2.5", creased(&inside(2.5)), &grid_points),
+            ("row 2", creased(&row(2.0)), &grid_points),
+            (
+                "sharp then 1.5",
+                creased(&[(8, 14, f32::INFINITY), (14, 15, 1.5)]),
+                &grid_points,
+            ),
+            (
+                "corners 1.5 inside, 0.5 on the boundary",
+                grid.clone().with_corners(&[(14, 1.5), (2, 0.5)]).unwrap(),
+                &grid_points,
+            ),
+            (
+                "cube loop 2.5",
+                cube.clone().with_creases(&top(2.5)).unwrap(),
+                &cube_points,
+            ),
+        ];
+        for (name, cage, points) in &cases {
+            for degree in 2..=9 {
+                for levels in 1..=2 {
+                    let options = Options {
+                        degree,
+                        levels,
+                        ..Options::default()
+                    };
+                    let refinement = Refinement::new(cage, &options).unwrap();
+                    let whole = LimitCache::default();
+                    *whole.0.lock().unwrap() = Some(Arc::new(build(&refinement, None).unwrap()));
+                    let local = LimitCache::default();
+                    *local.0.lock().unwrap() = Some(Arc::new(build(&refinement, Some(0)).unwrap()));
+                    let st = stencils(&refinement, &local).unwrap();
+                    let case = format!("{name}, degree {degree}, level {levels}");
+                    assert!(
+                        st.local.is_some() && st.extended.is_none(),
+                        "{case}: not local"
+                    );
+                    assert!(stencils(&refinement, &whole).unwrap().extended.is_some());
+                    let extra = |c: &LimitCache| extra_levels(&refinement, c).unwrap();
+                    assert_eq!(extra(&local), extra(&whole), "{case}");
+                    let (p, n) = surface(&refinement, &Scratch::default(), &local, points).unwrap();
+                    let (q, m) = surface(&refinement, &Scratch::default(), &whole, points).unwrap();
+                    let worst = |a: &[f64], b: &[f64]| {
+                        a.iter()
+                            .zip(b)
+                            .map(|(x, y)| (x - y).abs())
+                            .fold(0.0, f64::max)
+                    };
+                    assert_eq!((p.len(), n.len()), (q.len(), m.len()));
+                    let (dp, dn) = (worst(&p, &q), worst(&n, &m));
+                    assert!(
+                        dp < 1e-12 && dn < 1e-11,
+                        "{case}: positions {dp:e}, normals {dn:e}"
+                    );
+                }
+            }
+        }
     }
 
     /// On a mesh whose unclean vertices are a small part (a large grid: its boundary and
