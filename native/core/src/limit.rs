@@ -582,23 +582,58 @@ fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
                 return Ok(st);
             }
             let share = share.unwrap_or_default();
+            let vertices = &st.local_vertices;
+            let rings = local_rings(degree);
+            let local_at = |m: u32, allow_local: bool| {
+                let seeds = local_seeds(last, degree, vertices, m)?;
+                let levels = LocalLevels::new(refinement, &seeds, m, vertices, rings)?;
+                local_stencils(refinement, vertices, m, levels, &semi_corners, allow_local)
+            };
+            // Past semi-sharp features, the first stage, `clean` levels down (made once).
+            let mut first_stage = None;
             for &m in &candidates {
-                let seeds = local_seeds(last, degree, &st.local_vertices, m)?;
                 // Partial levels are made on every evaluation, at several times the cost of a
                 // cached level per face: around most of the mesh, the whole plan extended (its
                 // topology kept) is cheaper. Past semi-sharp features it has 4^m times the
                 // plan's faces, the partial levels about 2^m times those near the features:
                 // their own sizes decide.
-                if smooth == 0 && share * seeds.len() > last.num_faces() {
+                if smooth == 0
+                    && share * local_seeds(last, degree, vertices, m)?.len() > last.num_faces()
+                {
                     break;
                 }
-                let vertices = &st.local_vertices;
-                let Some(built) = local_stencils(refinement, vertices, m, seeds, &semi_corners)?
-                else {
+                if smooth > 0 && m > clean && first_stage.is_none() {
+                    first_stage = local_at(clean, true)?;
+                }
+                let built = match first_stage.take() {
+                    Some(first)
+                        if smooth > 0 && m > clean && !first.0.local_vertices.is_empty() =>
+                    {
+                        let stage = (clean, &first);
+                        match staged_local_stencils(refinement, vertices, stage, m, &semi_corners)?
+                        {
+                            Some(second) => {
+                                let (mut st1, levels1) = first;
+                                st1.local = Some(second);
+                                st1.extra_levels = m;
+                                Some((st1, levels1))
+                            }
+                            None => {
+                                first_stage = Some(first);
+                                None
+                            }
+                        }
+                    }
+                    kept => {
+                        first_stage = kept;
+                        local_at(m, false)?
+                    }
+                };
+                let Some(built) = built else {
                     continue;
                 };
                 let whole_faces = (last.num_faces() as u64) * ((4u64 << (2 * m)) - 4) / 3;
-                if smooth > 0 && (share as u64) * built.1.num_faces() > whole_faces {
+                if smooth > 0 && (share as u64) * local_faces(&built) > whole_faces {
                     break;
                 }
                 st.local = Some(built);
@@ -664,25 +699,36 @@ fn local_seeds(last: &Level, degree: u32, vertices: &[u32], m: u32) -> Result<Ve
         .collect())
 }
 
+/// The faces a local extension's partial levels make, its stages' included.
+fn local_faces(local: &(Box<Stencils>, LocalLevels)) -> u64 {
+    let next = local.0.local.as_ref().map_or(0, local_faces);
+    local.1.num_faces() + next
+}
+
+/// Face rings around a target vertex that the last partial level must hold: what
+/// [`build_stencils`] reads around a vertex (its N rings, the valences of their vertices and
+/// 1-D masks N + 1 curve edges long), one ring more to spare.
+fn local_rings(degree: u32) -> usize {
+    neighbourhood_size(degree) + 2
+}
+
 /// The stencils of the output vertices `vertices` (of the plan's last level `M_L`, none clean
-/// there) on the partial level `M_{L+m}` made around them from `seeds` (faces of `M_L`), with
-/// those partial levels ([`LocalLevels`]); `None` when one of them is not clean there either.
+/// there) on the last level of `local`, partial levels made around them up to `M_{L+m}`;
+/// `None` when one of them is not clean there either, or with `allow_local`, those listed as
+/// local, for partial levels past these.
 fn local_stencils(
     refinement: &Refinement,
     vertices: &[u32],
     m: u32,
-    seeds: Vec<u64>,
+    local: LocalLevels,
     semi_corners: &[u32],
+    allow_local: bool,
 ) -> Result<Option<(Box<Stencils>, LocalLevels)>> {
     let last = refinement.last_level();
     let degree = refinement.options().degree;
-    // What `build_stencils` reads around a vertex: its N rings, the valences of their vertices
-    // and 1-D masks N + 1 curve edges long; one face ring more to spare.
-    let rings = neighbourhood_size(degree) + 2;
-    let local = LocalLevels::new(refinement, &seeds, m, vertices, rings)?;
     let mut at = Vec::with_capacity(vertices.len());
     for &v in vertices {
-        match local.vert_uid.binary_search(&(v as u64)) {
+        match local.vert_uid().binary_search(&(v as u64)) {
             Ok(w) => at.push(w),
             Err(_) => return Ok(None),
         }
@@ -697,12 +743,15 @@ fn local_stencils(
     let vertex = |i: usize| at[i];
     let corner = |c: usize| {
         slot(last.corner_verts[c] as usize)?;
-        let f = local.face_uid.binary_search(&((c as u64) << shift)).ok()?;
+        let f = local
+            .face_uid()
+            .binary_search(&((c as u64) << shift))
+            .ok()?;
         Some(4 * f)
     };
     let outputs = last.num_vertices as u64;
     let index = |w: usize| {
-        let uid = local.vert_uid[w];
+        let uid = local.vert_uid()[w];
         (uid < outputs).then(|| slot(uid as usize)).flatten()
     };
     let targets = Targets {
@@ -712,15 +761,40 @@ fn local_stencils(
         corner: &corner,
         index: &index,
     };
-    Ok(build_stencils(
-        local.level(),
-        &local.network,
-        degree,
-        &targets,
-        semi_corners,
-        false,
-    )?
-    .map(|st| (Box::new(st), local)))
+    let (level, network) = (local.level(), local.network());
+    let built = build_stencils(level, network, degree, &targets, semi_corners, allow_local)?;
+    Ok(built.map(|st| (Box::new(st), local)))
+}
+
+/// The local extension past semi-sharp features, `m` levels past `M_L`, in two stages: the
+/// vertices of `vertices` (of `M_L`, none clean there) that are clean `first` levels down get
+/// their stencils there (most of them: near the features but not on them, or near irregular
+/// vertices and curves); the others (on the features, and the curve vertices, corners and
+/// valence-2 vertices, whose fan normals are taken at the last level) on partial levels past
+/// those, around them alone. `None` when some vertex is not clean at `M_{L+m}`.
+fn staged_local_stencils(
+    refinement: &Refinement,
+    vertices: &[u32],
+    first: (u32, &(Box<Stencils>, LocalLevels)),
+    m: u32,
+    semi_corners: &[u32],
+) -> Result<Option<(Box<Stencils>, LocalLevels)>> {
+    let (m1, (st1, levels1)) = first;
+    let degree = refinement.options().degree;
+    let rest: Vec<u32> = (st1.local_vertices.iter())
+        .map(|&i| vertices[i as usize])
+        .collect();
+    let mut at = Vec::with_capacity(rest.len());
+    for &v in &rest {
+        match levels1.vert_uid().binary_search(&(v as u64)) {
+            Ok(w) => at.push(w as u32),
+            Err(_) => return Ok(None),
+        }
+    }
+    let seeds = local_seeds(levels1.level(), degree, &at, m - m1)?;
+    let rings = local_rings(degree);
+    let levels2 = levels1.extend(refinement, &seeds, m - m1, &rest, rings)?;
+    local_stencils(refinement, &rest, m, levels2, semi_corners, false)
 }
 
 /// How the limit of `refinement` is found, or why it cannot be (`normals`: normals too).
@@ -845,38 +919,50 @@ impl Limit<'_> {
             LimitMethod::Eigen => {
                 let st = stencils(r, self.cache)?;
                 let (data, curve) = self.limit_data(&st, &compact)?;
-                let (mut positions, vertex_normals) = stencil_values(&st, &data, normals)?;
-                let local = match &st.local {
-                    Some((local, levels)) => {
-                        // The local extension is made at the plan's own last level.
-                        let two_d = match r.options().degree % 2 {
-                            0 => &data[..r.last_level().num_faces()],
-                            _ => &data[..],
-                        };
-                        let ldata = self.local_data(levels, two_d, &curve, &compact)?;
-                        let (lpos, lnormals) = stencil_values(local, &ldata, normals)?;
-                        for (i, &v) in st.local_vertices.iter().enumerate() {
-                            positions[v as usize] = lpos[i];
-                        }
-                        Some(StencilValues {
-                            stencils: local.as_ref(),
-                            data: ldata,
-                            positions: lpos,
-                            normals: lnormals,
-                        })
-                    }
-                    None => None,
-                };
-                if !normals {
-                    return Ok((positions.into_flattened(), None));
+                let (positions, vertex_normals) = stencil_values(&st, &data, normals)?;
+                // The local extension's stages, each past the one before.
+                let mut chain = Vec::new();
+                let mut at = &*st;
+                while let Some((local, levels)) = &at.local {
+                    chain.push((local.as_ref(), levels));
+                    at = local;
                 }
-                let own = StencilValues {
+                // The local extension is made at the plan's own last level.
+                let two_d = match r.options().degree % 2 {
+                    0 => &data[..r.last_level().num_faces()],
+                    _ => &data[..],
+                };
+                let levels: Vec<&LocalLevels> = chain.iter().map(|&(_, l)| l).collect();
+                let ldata = self.local_data(&levels, two_d, &curve, &compact)?;
+                let mut stages = vec![StencilValues {
                     stencils: &st,
                     data,
                     positions,
                     normals: vertex_normals,
-                };
-                let normals = self.stencil_normals(&own, local.as_ref())?;
+                }];
+                for ((local, _), data) in chain.into_iter().zip(ldata) {
+                    let (positions, normals) = stencil_values(local, &data, normals)?;
+                    stages.push(StencilValues {
+                        stencils: local,
+                        data,
+                        positions,
+                        normals,
+                    });
+                }
+                // Each stage's local vertices take the positions of the next, from the last.
+                for s in (1..stages.len()).rev() {
+                    let (before, after) = stages.split_at_mut(s);
+                    let (own, next) = (&mut before[s - 1], &after[0]);
+                    for (i, &v) in own.stencils.local_vertices.iter().enumerate() {
+                        own.positions[v as usize] = next.positions[i];
+                    }
+                }
+                if !normals {
+                    let own = stages.swap_remove(0);
+                    return Ok((own.positions.into_flattened(), None));
+                }
+                let normals = self.stencil_normals(&stages)?;
+                let own = stages.swap_remove(0);
                 Ok((own.positions.into_flattened(), Some(normals)))
             }
         }
@@ -904,16 +990,17 @@ impl Limit<'_> {
         Ok((data, curve))
     }
 
-    /// The data of the local extension's last level in the layout of [`Limit::limit_data`],
-    /// from the plan's last level `two_d` (per vertex or face) and 1-D `curve` data: the
-    /// partial levels carry three channels, so the channels go through them three at a time.
+    /// The data of the last level of each of the local extension's `stages` (each past the one
+    /// before, the first past the plan's) in the layout of [`Limit::limit_data`], from the
+    /// plan's last level `two_d` (per vertex or face) and 1-D `curve` data: the partial levels
+    /// carry three channels, so the channels go through them three at a time.
     fn local_data<T: Scalar, const N: usize>(
         &self,
-        levels: &LocalLevels,
+        stages: &[&LocalLevels],
         two_d: &[[T; N]],
         curve: &[[T; N]],
         compact: &[[T; N]],
-    ) -> Result<Vec<[T; N]>> {
+    ) -> Result<Vec<Vec<[T; N]>>> {
         let even = self.refinement.options().degree.is_multiple_of(2);
         // The plan's whole last level goes through here: fallible.
         let three =
@@ -922,55 +1009,56 @@ impl Limit<'_> {
                     std::array::from_fn(|k| v.get(first + k).copied().unwrap_or_default())
                 }))
             };
-        let mut out: Vec<[T; N]> = Vec::new();
+        let mut out: Vec<Vec<[T; N]>> = vec![Vec::new(); stages.len()];
         for first in (0..N).step_by(3) {
             let cage = three(compact, first)?;
-            let (mut layout, local_curve) =
-                levels.evaluate(&cage, &three(two_d, first)?, &three(curve, first)?)?;
-            if even {
-                layout.extend_from_slice(&local_curve);
-                layout.extend_from_slice(&cage);
-            }
-            if out.is_empty() {
-                out = memory::filled(layout.len(), [T::default(); N])?;
-            }
-            for (o, x) in out.iter_mut().zip(&layout) {
-                let width = 3.min(N - first);
-                o[first..first + width].copy_from_slice(&x[..width]);
+            let (mut data, mut curve) = (three(two_d, first)?, three(curve, first)?);
+            for (levels, out) in stages.iter().zip(&mut out) {
+                (data, curve) = levels.evaluate(&cage, &data, &curve)?;
+                let mut layout = data.clone();
+                if even {
+                    layout.extend_from_slice(&curve);
+                    layout.extend_from_slice(&cage);
+                }
+                if out.is_empty() {
+                    *out = memory::filled(layout.len(), [T::default(); N])?;
+                }
+                for (o, x) in out.iter_mut().zip(&layout) {
+                    let width = 3.min(N - first);
+                    o[first..first + width].copy_from_slice(&x[..width]);
+                }
             }
         }
         Ok(out)
     }
 
-    /// Unit normals per output corner from the stencils' values `own` (see [`surface`]), those
-    /// of the local extension's where they are.
+    /// Unit normals per output corner from the values of the stencils' `stages` (the plan's,
+    /// then the local extension's; see [`surface`]): each vertex's from the stage that has its
+    /// stencil.
     fn stencil_normals<T: Scalar, const N: usize>(
         &self,
-        own: &StencilValues<T, N>,
-        local: Option<&StencilValues<T, N>>,
+        stages: &[StencilValues<T, N>],
     ) -> Result<Vec<T>> {
-        let st = own.stencils;
-        let fans = fan_normals(st, &own.data, &own.positions)?;
-        let local = match local {
-            Some(l) => Some((l, fan_normals(l.stencils, &l.data, &l.positions)?)),
-            None => None,
-        };
+        let fans = (stages.iter())
+            .map(|s| fan_normals(s.stencils, &s.data, &s.positions))
+            .collect::<Result<Vec<_>>>()?;
         let corners = &self.refinement.last_level().corner_verts;
         let out = gather_hinted(corners.len(), |c| {
-            let v = corners[c];
-            let n = match (st.masks_of[v as usize], &local) {
-                (LimitMask::Local, Some((l, lf))) => match l.stencils.corner_fan[c] {
-                    NONE => {
-                        let i = st.local_vertices.binary_search(&v).unwrap_or_default();
-                        l.normals[i]
-                    }
-                    f => lf[f as usize],
-                },
-                _ => match st.corner_fan[c] {
-                    NONE => own.normals[v as usize],
+            let mut i = corners[c];
+            let mut n = DVec3::ZERO;
+            for (stage, fans) in stages.iter().zip(&fans) {
+                let st = stage.stencils;
+                if st.masks_of[i as usize] == LimitMask::Local {
+                    // Its stencil is the next stage's at its place among the local ones.
+                    i = st.local_vertices.binary_search(&i).unwrap_or_default() as u32;
+                    continue;
+                }
+                n = match st.corner_fan[c] {
+                    NONE => stage.normals[i as usize],
                     f => fans[f as usize],
-                },
-            };
+                };
+                break;
+            }
             n.to_array().map(T::from_f64)
         })?;
         Ok(out.into_flattened())
@@ -1360,6 +1448,8 @@ mod tests {
                 &cube_points,
             ),
         ];
+        // Cases in two stages (some vertices clean before the features are smooth).
+        let mut staged = 0;
         for (name, cage, points) in &cases {
             for degree in 2..=9 {
                 for levels in 1..=2 {
@@ -1379,6 +1469,7 @@ mod tests {
                         st.local.is_some() && st.extended.is_none(),
                         "{case}: not local"
                     );
+                    staged += usize::from(st.local.as_ref().is_some_and(|l| l.0.local.is_some()));
                     assert!(stencils(&refinement, &whole).unwrap().extended.is_some());
                     let extra = |c: &LimitCache| extra_levels(&refinement, c).unwrap();
                     assert_eq!(extra(&local), extra(&whole), "{case}");
@@ -1399,6 +1490,7 @@ mod tests {
                 }
             }
         }
+        assert!(staged >= 20, "{staged} of 112 cases in two stages");
     }
 
     /// On a mesh whose unclean vertices are a small part (a large grid: its boundary and
