@@ -22,9 +22,19 @@
 //! faces), this is local: only partial levels around them are made (the adaptive module's
 //! [`LocalLevels`], exact where their stencils reach), and every other vertex keeps the masks of
 //! the plan's own last level; the curve vertices, corners and valence-2 vertices then take the
-//! extension too (their normals come from fans at the extended level). Otherwise, and with
-//! semi-sharp creases (refined past the level where they become smooth) or the other rule sets,
-//! the whole plan is extended.
+//! extension too (their normals come from fans at the extended level). Otherwise the whole plan
+//! is extended.
+//!
+//! Semi-sharp creases and corners (sharpness `s`) must have left the last step's network: the
+//! vertices they make are never clean (their rules change later), so the extension reaches
+//! level `ceil(s) + 1`. That is local too when its partial levels make at most 1 /
+//! [`LOCAL_SHARE`] of the faces of the whole plan extended (which has 4^m times the plan's per
+//! level), in two stages: the vertices that are clean `clean` levels down (the smallest
+//! extension for the degree) get their stencils there, and only those on the features, with the
+//! curve vertices, corners and valence-2 vertices (their fans at the last level, as with the
+//! whole plan extended), go on, on partial levels past those around them alone: along a crease
+//! these grow about 2x per level, not 4x. Classic Catmull-Clark limits are not extended at all
+//! (below).
 //!
 //! Curve vertices (boundaries, infinitely sharp creases) lie on the curve's uniform B-spline of
 //! degree n (DESIGN.md §2): their limit position is the 1-D B-spline mask along the curve, exact;
@@ -43,7 +53,12 @@
 //! re-evaluating a deformed cage costs one evaluation of the plan (or of the whole extended
 //! refinement), the steps of the local partial levels, and one small gather per vertex.
 //!
-//! Classic Catmull-Clark limit positions use OpenSubdiv's limit masks (`catmark_limit`).
+//! Classic Catmull-Clark limit positions use OpenSubdiv's limit masks (`catmark_limit`) at the
+//! plan's last level, with no extension: where a semi-sharp feature is still sharp there, its
+//! current rule is used, as OpenSubdiv's `PrimvarRefiner::Limit` (and so Blender) does. Taking
+//! them past semi-sharp features on partial levels would need the classic sharpness and vertex
+//! rules ([`LevelSharpness`], Chaikin creasing) on partial levels, which only run the averaging
+//! rules, and would part from OpenSubdiv.
 //!
 //! Everything here is at the vertices and corners of the whole last level: holes change no rule
 //! (their points shape their neighbours), so the plan selects the drawing mesh's vertices and
@@ -110,7 +125,8 @@ pub(crate) struct Stencils {
     /// `local`).
     extra_levels: u32,
     /// The stencils of the vertices that are not clean at the plan's last level, on partial
-    /// levels past it around those vertices (their topology made once, here).
+    /// levels past it around those vertices (their topology made once, here); past semi-sharp
+    /// features, these have their own `local` for the vertices that are not clean there.
     local: Option<(Box<Stencils>, LocalLevels)>,
     /// The stencils (indices into `masks_of`) that `local` gives, in order.
     local_vertices: Vec<u32>,
@@ -584,26 +600,16 @@ fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
             let share = share.unwrap_or_default();
             let vertices = &st.local_vertices;
             let rings = local_rings(degree);
-            let local_at = |m: u32, allow_local: bool| {
-                let seeds = local_seeds(last, degree, vertices, m)?;
+            let local_at = |m: u32, seeds: Vec<u64>, allow_local: bool| {
                 let levels = LocalLevels::new(refinement, &seeds, m, vertices, rings)?;
                 local_stencils(refinement, vertices, m, levels, &semi_corners, allow_local)
             };
             // Past semi-sharp features, the first stage, `clean` levels down (made once).
             let mut first_stage = None;
             for &m in &candidates {
-                // Partial levels are made on every evaluation, at several times the cost of a
-                // cached level per face: around most of the mesh, the whole plan extended (its
-                // topology kept) is cheaper. Past semi-sharp features it has 4^m times the
-                // plan's faces, the partial levels about 2^m times those near the features:
-                // their own sizes decide.
-                if smooth == 0
-                    && share * local_seeds(last, degree, vertices, m)?.len() > last.num_faces()
-                {
-                    break;
-                }
                 if smooth > 0 && m > clean && first_stage.is_none() {
-                    first_stage = local_at(clean, true)?;
+                    let seeds = local_seeds(last, degree, vertices, clean)?;
+                    first_stage = local_at(clean, seeds, true)?;
                 }
                 let built = match first_stage.take() {
                     Some(first)
@@ -626,12 +632,22 @@ fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
                     }
                     kept => {
                         first_stage = kept;
-                        local_at(m, false)?
+                        let seeds = local_seeds(last, degree, vertices, m)?;
+                        // Partial levels are made on every evaluation, at several times the
+                        // cost of a cached level per face: around most of the mesh, the whole
+                        // plan extended (its topology kept) is cheaper.
+                        if smooth == 0 && share * seeds.len() > last.num_faces() {
+                            break;
+                        }
+                        local_at(m, seeds, false)?
                     }
                 };
                 let Some(built) = built else {
                     continue;
                 };
+                // Past semi-sharp features the whole plan extended has 4^m times the plan's
+                // faces per level, the partial levels about 2^m times those near the features:
+                // their sizes decide.
                 let whole_faces = (last.num_faces() as u64) * ((4u64 << (2 * m)) - 4) / 3;
                 if smooth > 0 && (share as u64) * local_faces(&built) > whole_faces {
                     break;
