@@ -1017,6 +1017,9 @@ impl Limit<'_> {
         curve: &[[T; N]],
         compact: &[[T; N]],
     ) -> Result<Vec<Vec<[T; N]>>> {
+        if stages.is_empty() {
+            return Ok(Vec::new());
+        }
         let even = self.refinement.options().degree.is_multiple_of(2);
         // The plan's whole last level goes through here: fallible.
         let three =
@@ -1029,13 +1032,18 @@ impl Limit<'_> {
         for first in (0..N).step_by(3) {
             let cage = three(compact, first)?;
             let (mut data, mut curve) = (three(two_d, first)?, three(curve, first)?);
-            for (levels, out) in stages.iter().zip(&mut out) {
-                (data, curve) = levels.evaluate(&cage, &data, &curve)?;
-                let mut layout = data.clone();
+            for (k, (levels, out)) in stages.iter().zip(&mut out).enumerate() {
+                let (mut fine, fine_curve) = levels.evaluate(&cage, &data, &curve)?;
+                // The last stage's data is needed no more: moved, not copied.
+                let mut layout = match k + 1 < stages.len() {
+                    true => fine.clone(),
+                    false => std::mem::take(&mut fine),
+                };
                 if even {
-                    layout.extend_from_slice(&curve);
+                    layout.extend_from_slice(&fine_curve);
                     layout.extend_from_slice(&cage);
                 }
+                (data, curve) = (fine, fine_curve);
                 if out.is_empty() {
                     *out = memory::filled(layout.len(), [T::default(); N])?;
                 }
