@@ -1366,6 +1366,39 @@ mod tests {
         (Cage::from_indices(8, &[4; 6], &indices).unwrap(), points)
     }
 
+    /// The stencils of `refinement` with the local extension wherever it can be made (the
+    /// share of the plan's faces not limited) and with the whole plan extended, and the largest
+    /// gaps between their limit positions and between their normals at `points`; both extend the
+    /// plan by as many levels.
+    fn local_and_whole(
+        refinement: &Refinement,
+        points: &[f64],
+        case: &str,
+    ) -> (Arc<Stencils>, Arc<Stencils>, f64, f64) {
+        let whole = LimitCache::default();
+        *whole.0.lock().unwrap() = Some(Arc::new(build(refinement, None).unwrap()));
+        let local = LimitCache::default();
+        *local.0.lock().unwrap() = Some(Arc::new(build(refinement, Some(0)).unwrap()));
+        let (p, n) = surface(refinement, &Scratch::default(), &local, points).unwrap();
+        let (q, m) = surface(refinement, &Scratch::default(), &whole, points).unwrap();
+        let extra = |c: &LimitCache| extra_levels(refinement, c).unwrap();
+        assert_eq!(extra(&local), extra(&whole), "{case}");
+        assert_eq!((p.len(), n.len()), (q.len(), m.len()), "{case}");
+        let worst = |a: &[f64], b: &[f64]| {
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0, f64::max)
+        };
+        let stencils = |c: &LimitCache| stencils(refinement, c).unwrap();
+        (
+            stencils(&local),
+            stencils(&whole),
+            worst(&p, &q),
+            worst(&n, &m),
+        )
+    }
+
     /// The local extension gives the limits of the whole plan extended (the stencils of the
     /// vertices clean at the plan's level are other masks of the same limit: equal to rounding;
     /// the others, curve normals included, are the same sums).
@@ -1391,33 +1424,13 @@ mod tests {
                         ..Options::default()
                     };
                     let refinement = Refinement::new(cage, &options).unwrap();
-                    let whole = LimitCache::default();
-                    let built = build(&refinement, None).unwrap();
-                    *whole.0.lock().unwrap() = Some(Arc::new(built));
-                    let local = LimitCache::default();
-                    // Local wherever it can be (the share of the plan's faces not limited).
-                    *local.0.lock().unwrap() = Some(Arc::new(build(&refinement, Some(0)).unwrap()));
-                    let (p, n) = surface(&refinement, &Scratch::default(), &local, points).unwrap();
-                    let (q, m) = surface(&refinement, &Scratch::default(), &whole, points).unwrap();
-                    let extra = |c: &LimitCache| extra_levels(&refinement, c).unwrap();
-                    assert_eq!(extra(&local), extra(&whole), "{name} {degree} L{levels}");
-                    let st = stencils(&refinement, &local).unwrap();
+                    let case = format!("{name} degree {degree} level {levels}");
+                    let (st, _, dp, dn) = local_and_whole(&refinement, points, &case);
                     engaged += usize::from(st.local.is_some());
-                    assert!(
-                        st.extended.is_none(),
-                        "{name} {degree} L{levels}: whole extension"
-                    );
-                    let worst = |a: &[f64], b: &[f64]| {
-                        a.iter()
-                            .zip(b)
-                            .map(|(x, y)| (x - y).abs())
-                            .fold(0.0, f64::max)
-                    };
-                    assert_eq!((p.len(), n.len()), (q.len(), m.len()));
-                    let (dp, dn) = (worst(&p, &q), worst(&n, &m));
+                    assert!(st.extended.is_none(), "{case}: whole extension");
                     assert!(
                         dp < 1e-12 && dn < 1e-11,
-                        "{name} degree {degree} level {levels}: positions {dp:e}, normals {dn:e}"
+                        "{case}: positions {dp:e}, normals {dn:e}"
                     );
                 }
             }
@@ -1483,30 +1496,14 @@ mod tests {
                         ..Options::default()
                     };
                     let refinement = Refinement::new(cage, &options).unwrap();
-                    let whole = LimitCache::default();
-                    *whole.0.lock().unwrap() = Some(Arc::new(build(&refinement, None).unwrap()));
-                    let local = LimitCache::default();
-                    *local.0.lock().unwrap() = Some(Arc::new(build(&refinement, Some(0)).unwrap()));
-                    let st = stencils(&refinement, &local).unwrap();
                     let case = format!("{name}, degree {degree}, level {levels}");
+                    let (st, whole, dp, dn) = local_and_whole(&refinement, points, &case);
                     assert!(
                         st.local.is_some() && st.extended.is_none(),
                         "{case}: not local"
                     );
+                    assert!(whole.extended.is_some());
                     staged += usize::from(st.local.as_ref().is_some_and(|l| l.0.local.is_some()));
-                    assert!(stencils(&refinement, &whole).unwrap().extended.is_some());
-                    let extra = |c: &LimitCache| extra_levels(&refinement, c).unwrap();
-                    assert_eq!(extra(&local), extra(&whole), "{case}");
-                    let (p, n) = surface(&refinement, &Scratch::default(), &local, points).unwrap();
-                    let (q, m) = surface(&refinement, &Scratch::default(), &whole, points).unwrap();
-                    let worst = |a: &[f64], b: &[f64]| {
-                        a.iter()
-                            .zip(b)
-                            .map(|(x, y)| (x - y).abs())
-                            .fold(0.0, f64::max)
-                    };
-                    assert_eq!((p.len(), n.len()), (q.len(), m.len()));
-                    let (dp, dn) = (worst(&p, &q), worst(&n, &m));
                     assert!(
                         dp < 1e-12 && dn < 1e-11,
                         "{case}: positions {dp:e}, normals {dn:e}"
