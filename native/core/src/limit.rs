@@ -580,7 +580,8 @@ fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
     let whole = |i: usize| i;
     let below = |w: usize| (w < outputs).then_some(w);
     let share = local.filter(|_| matches!(refinement.scheme(), Scheme::Averaging { .. }));
-    if smooth == 0 || (levels > 0 && share.is_some()) {
+    // A plan of level 0 has no step to make stencils on: always extended.
+    if levels > 0 && (smooth == 0 || share.is_some()) {
         // The stencils at the plan's own last level; with the averaging rules, the vertices
         // that are not clean there get theirs on partial levels around them.
         let curves = refinement.curve_networks().last().expect("a step");
