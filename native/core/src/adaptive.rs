@@ -230,6 +230,7 @@ type P<T> = [T; 3];
 type LevelParts<'a, T> = (&'a [P<T>], Vec<P<T>>);
 
 /// One partial level: a subset of the faces of uniform `M_j`, with its data.
+#[derive(Debug)]
 struct Part<T> {
     level: Level,
     face_uid: Vec<u64>,
@@ -958,11 +959,12 @@ fn cage_part<T: Scalar>(ctx: &Context<T>) -> Part<T> {
 }
 
 /// The partial levels past a plan's last level `L >= 1` (its refinement, all tables
-/// complete) around `seeds` (sorted faces of `M_L`) and their descendants, with the margin rings
-/// of the degree at every level: the limit's local extension. Their topology does not depend on
-/// the data, so it is made once ([`LocalLevels::new`]) and every evaluation runs only the steps
-/// on them ([`LocalLevels::evaluate`]). Every value whose stencil lies in the seeds' descendants
-/// is bitwise the uniform value of that level (module documentation).
+/// complete) around `seeds` (sorted faces of `M_L`) and those of their descendants that lie near
+/// some target vertices, with the margin rings of the degree at every level: the limit's local
+/// extension. Their topology does not depend on the data, so it is made once
+/// ([`LocalLevels::new`]) and every evaluation runs only the steps on them
+/// ([`LocalLevels::evaluate`]). Every value whose stencil lies in the seeds kept at the last
+/// level is bitwise the uniform value of that level (module documentation).
 #[derive(Debug)]
 pub(crate) struct LocalLevels {
     scheme: Scheme,
@@ -971,22 +973,64 @@ pub(crate) struct LocalLevels {
     /// and the last step's curve vertices or curve edges.
     keep: Vec<u32>,
     keep_curve: Vec<u32>,
-    /// `P_L, P_{L+1}, ...`: the coarse level of each step, the last one the result.
+    /// `P_L, P_{L+1}, ...`: the coarse level of each step.
     levels: Vec<Level>,
     steps: Vec<PartStep>,
-    /// The uniform ids of the last level's faces and vertices (sorted).
-    pub(crate) face_uid: Vec<u64>,
-    pub(crate) vert_uid: Vec<u64>,
-    /// The curve network of the step that made the last level, restricted to it.
-    pub(crate) network: CurveNetwork,
+    /// The last partial level: its topology, uniform ids and curve network (no data).
+    last: Part<f64>,
+    /// The level of `last`.
+    top: usize,
 }
 
 impl LocalLevels {
-    /// The `extra` partial levels past `refinement`'s last level around `seeds`.
-    pub(crate) fn new(refinement: &Refinement, seeds: &[u64], extra: u32) -> Result<LocalLevels> {
-        let options = refinement.options();
+    /// The `extra` partial levels past `refinement`'s last level around `seeds`, whose seeds at
+    /// the last level are the faces within `rings` face rings of the `targets` (vertices of
+    /// `M_L`; old vertices keep their ids), which `seeds` must hold at `M_L`'s spacing.
+    /// Each level keeps only the children of its seeds within `ceil(rings / 2^k)` rings of the
+    /// targets, `k` levels above the last (the children of `r` rings hold `2r` rings): along a
+    /// curve of targets the levels grow about 2x per level, not 4x as all descendants would.
+    pub(crate) fn new(
+        refinement: &Refinement,
+        seeds: &[u64],
+        extra: u32,
+        targets: &[u32],
+        rings: usize,
+    ) -> Result<LocalLevels> {
         let last = refinement.levels().last().expect("a level");
         let network = refinement.curve_networks().last().expect("a step");
+        let top = refinement.levels().len() - 1;
+        let from = (last, network, None, top);
+        LocalLevels::grow(refinement, from, seeds, extra, targets, rings)
+    }
+
+    /// The `extra` partial levels past this one's last level, as [`LocalLevels::new`] makes
+    /// them past a plan's: `seeds` are faces of [`LocalLevels::level`] (sorted), `targets`
+    /// still vertices of the plan's last level. Its evaluation starts from this one's.
+    pub(crate) fn extend(
+        &self,
+        refinement: &Refinement,
+        seeds: &[u64],
+        extra: u32,
+        targets: &[u32],
+        rings: usize,
+    ) -> Result<LocalLevels> {
+        let network = self.network();
+        let from = (&self.last.level, network, Some(&self.last), self.top);
+        LocalLevels::grow(refinement, from, seeds, extra, targets, rings)
+    }
+
+    /// The partial levels past `from` (a level, the network of the step that made it, its
+    /// part when it is partial, and its level index): see [`LocalLevels::new`].
+    fn grow(
+        refinement: &Refinement,
+        from: (&Level, &CurveNetwork, Option<&Part<f64>>, usize),
+        seeds: &[u64],
+        extra: u32,
+        targets: &[u32],
+        rings: usize,
+    ) -> Result<LocalLevels> {
+        let (last, network, ids, top) = from;
+        let options = refinement.options();
         let degree = options.degree;
         let ctx: Context<f64> = Context {
             cage: Vec::new(),
@@ -999,17 +1043,7 @@ impl LocalLevels {
             diagonal: 0.0,
             holes: Vec::new(),
         };
-        // What the partial levels will hold at most (the seeds' descendants with their margins,
-        // taken as twice the descendants, at every level), asked for before any of it: a typed
-        // refusal under the budget, and room that the address space must have (the partial
-        // levels' own tables are not allocated fallibly one by one).
-        let ahead = (2 * seeds.len() as u64) << (2 * extra);
-        let bytes = ahead.saturating_mul(4 * BYTES_PER_CORNER) * 4 / 3;
-        memory::check_request(bytes, ahead, options.memory_budget)?;
-        drop(memory::with_capacity::<u8>(
-            usize::try_from(bytes).map_err(|_| memory::refused_bytes(bytes))?,
-        )?);
-        // P_L: the margin rings around the seeds.
+        // The first partial level: the margin rings around the seeds.
         let mut kept = memory::filled(last.num_faces(), false)?;
         let frontier: Vec<usize> = seeds.iter().map(|&f| f as usize).collect();
         for &f in &frontier {
@@ -1019,45 +1053,74 @@ impl LocalLevels {
         let sub = restrict(last, &kept)?;
         let (network, kept_vertices, kept_edges) = network.restrict(&sub.vertex_map, &sub.edge_map);
         let odd = degree % 2 == 1;
-        let widen = |ids: &[u32]| -> Vec<u64> { ids.iter().map(|&i| i as u64).collect() };
+        // Uniform ids and counts (a plan's level is numbered by them, a partial one has its own).
+        let widen = |ids: &[u32], of: Option<&[u64]>| -> Vec<u64> {
+            match of {
+                Some(uids) => ids.iter().map(|&i| uids[i as usize]).collect(),
+                None => ids.iter().map(|&i| i as u64).collect(),
+            }
+        };
         let (keep, keep_curve) = match odd {
             true => (sub.vertices.clone(), kept_vertices),
             false => (sub.faces.clone(), kept_edges),
         };
+        let face_uid = widen(&sub.faces, ids.map(|p| &p.face_uid[..]));
         let mut part: Part<f64> = Part {
-            face_uid: widen(&sub.faces),
-            vert_uid: widen(&sub.vertices),
-            edge_uid: widen(&sub.edges),
+            vert_uid: widen(&sub.vertices, ids.map(|p| &p.vert_uid[..])),
+            edge_uid: widen(&sub.edges, ids.map(|p| &p.edge_uid[..])),
             edge_faces: (sub.edges.iter())
-                .map(|&e| last.edge_valence(e as usize) as u32)
+                .map(|&e| match ids {
+                    Some(p) => p.edge_faces[e as usize],
+                    None => last.edge_valence(e as usize) as u32,
+                })
                 .collect(),
             vert_faces: (sub.vertices.iter())
-                .map(|&v| last.corners_of_vertex(v as usize).len() as u32)
+                .map(|&v| match ids {
+                    Some(p) => p.vert_faces[v as usize],
+                    None => last.corners_of_vertex(v as usize).len() as u32,
+                })
                 .collect(),
             curves: network.next_curves(),
             network: Some(network),
             data: Vec::new(),
             curve: Vec::new(),
             points: Vec::new(),
-            counts: [
-                last.num_vertices as u64,
-                last.num_edges() as u64,
-                last.num_faces() as u64,
-                last.num_corners() as u64,
-            ],
+            counts: match ids {
+                Some(p) => p.counts,
+                None => [
+                    last.num_vertices as u64,
+                    last.num_edges() as u64,
+                    last.num_faces() as u64,
+                    last.num_corners() as u64,
+                ],
+            },
+            face_uid,
             level: sub.level,
         };
-        let top = refinement.levels().len() - 1;
-        let mut seeds = seeds.to_vec();
-        let mut levels = Vec::with_capacity(extra as usize + 1);
+        let mut seeds: Vec<u64> = match ids {
+            Some(p) => seeds.iter().map(|&f| p.face_uid[f as usize]).collect(),
+            None => seeds.to_vec(),
+        };
+        let mut levels = Vec::with_capacity(extra as usize);
         let mut steps = Vec::with_capacity(extra as usize);
-        for t in top..top + extra as usize {
-            seeds = children(&seeds)?;
+        let mut held = 0u64;
+        for (k, t) in (top..top + extra as usize).enumerate() {
+            // The refined level and what is kept so far, asked for before it is made: a typed
+            // refusal under the budget, and room that the address space must have (a level's
+            // own tables are not allocated fallibly one by one).
+            let fine = 4 * part.level.num_faces() as u64;
+            let bytes = fine.saturating_mul(4 * BYTES_PER_CORNER);
+            memory::check_request(held.saturating_add(bytes), fine, options.memory_budget)?;
+            drop(memory::with_capacity::<u8>(
+                usize::try_from(bytes).map_err(|_| memory::refused_bytes(bytes))?,
+            )?);
+            held = held.saturating_add(bytes);
+            let near = rings.div_ceil(1 << (extra as usize - k));
+            seeds = children(&near_targets(&part, &seeds, targets, near)?)?;
             let (step, next) = refine_topology(&ctx, t, &part, Keep::Around(&seeds))?;
             levels.push(std::mem::replace(&mut part, next).level);
             steps.push(step);
         }
-        levels.push(part.level);
         Ok(LocalLevels {
             scheme: ctx.scheme,
             odd,
@@ -1065,15 +1128,37 @@ impl LocalLevels {
             keep_curve,
             levels,
             steps,
-            face_uid: part.face_uid,
-            vert_uid: part.vert_uid,
-            network: part.network.expect("a refined part has its network"),
+            last: part,
+            top: top + extra as usize,
         })
+    }
+
+    /// The faces of the refined levels its evaluation makes: the work of one evaluation.
+    pub(crate) fn num_faces(&self) -> u64 {
+        self.steps.iter().map(|s| s.fine.num_faces() as u64).sum()
     }
 
     /// The last partial level.
     pub(crate) fn level(&self) -> &Level {
-        self.levels.last().expect("a level")
+        &self.last.level
+    }
+
+    /// The uniform ids of the last level's faces (sorted).
+    pub(crate) fn face_uid(&self) -> &[u64] {
+        &self.last.face_uid
+    }
+
+    /// The uniform ids of the last level's vertices (sorted).
+    pub(crate) fn vert_uid(&self) -> &[u64] {
+        &self.last.vert_uid
+    }
+
+    /// The curve network of the step that made the last level, restricted to it.
+    pub(crate) fn network(&self) -> &CurveNetwork {
+        self.last
+            .network
+            .as_ref()
+            .expect("a refined part has its network")
     }
 
     /// The data of the last partial level as a plan's run leaves it (per vertex for odd degrees,
@@ -1102,6 +1187,34 @@ impl LocalLevels {
         }
         Ok((data, curve))
     }
+}
+
+/// The faces of `seeds` (sorted uniform ids of faces of `part`) within `rings` face rings (at
+/// least one: the faces at the vertex) of the `targets` (uniform vertex ids, all in `part`).
+fn near_targets<T>(
+    part: &Part<T>,
+    seeds: &[u64],
+    targets: &[u32],
+    rings: usize,
+) -> Result<Vec<u64>> {
+    let level = &part.level;
+    let mut marked = memory::filled(level.num_faces(), false)?;
+    let mut frontier = Vec::new();
+    for &v in targets {
+        let w = (part.vert_uid.binary_search(&(v as u64)))
+            .map_err(|_| Error::Internal(format!("local levels: target vertex {v} missing")))?;
+        for &c in level.corners_of_vertex(w) {
+            let f = level.face_of(c as usize);
+            if !marked[f] {
+                marked[f] = true;
+                frontier.push(f);
+            }
+        }
+    }
+    level.grow_face_rings(&mut marked, frontier, rings.max(1) - 1);
+    Ok((seeds.iter().copied())
+        .filter(|&uid| part.face_of_uid(uid).is_some_and(|f| marked[f]))
+        .collect())
 }
 
 /// Which faces of a refined partial level are kept.

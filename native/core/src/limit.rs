@@ -22,9 +22,19 @@
 //! faces), this is local: only partial levels around them are made (the adaptive module's
 //! [`LocalLevels`], exact where their stencils reach), and every other vertex keeps the masks of
 //! the plan's own last level; the curve vertices, corners and valence-2 vertices then take the
-//! extension too (their normals come from fans at the extended level). Otherwise, and with
-//! semi-sharp creases (refined past the level where they become smooth) or the other rule sets,
-//! the whole plan is extended.
+//! extension too (their normals come from fans at the extended level). Otherwise the whole plan
+//! is extended.
+//!
+//! Semi-sharp creases and corners (sharpness `s`) must have left the last step's network: the
+//! vertices they make are never clean (their rules change later), so the extension reaches
+//! level `ceil(s) + 1`. That is local too when its partial levels make at most 1 /
+//! [`LOCAL_SHARE`] of the faces of the whole plan extended (which has 4^m times the plan's per
+//! level), in two stages: the vertices that are clean `clean` levels down (the smallest
+//! extension for the degree) get their stencils there, and only those on the features, with the
+//! curve vertices, corners and valence-2 vertices (their fans at the last level, as with the
+//! whole plan extended), go on, on partial levels past those around them alone: along a crease
+//! these grow about 2x per level, not 4x. Classic Catmull-Clark limits are not extended at all
+//! (below).
 //!
 //! Curve vertices (boundaries, infinitely sharp creases) lie on the curve's uniform B-spline of
 //! degree n (DESIGN.md §2): their limit position is the 1-D B-spline mask along the curve, exact;
@@ -43,7 +53,12 @@
 //! re-evaluating a deformed cage costs one evaluation of the plan (or of the whole extended
 //! refinement), the steps of the local partial levels, and one small gather per vertex.
 //!
-//! Classic Catmull-Clark limit positions use OpenSubdiv's limit masks (`catmark_limit`).
+//! Classic Catmull-Clark limit positions use OpenSubdiv's limit masks (`catmark_limit`) at the
+//! plan's last level, with no extension: where a semi-sharp feature is still sharp there, its
+//! current rule is used, as OpenSubdiv's `PrimvarRefiner::Limit` (and so Blender) does. Taking
+//! them past semi-sharp features on partial levels would need the classic sharpness and vertex
+//! rules ([`LevelSharpness`], Chaikin creasing) on partial levels, which only run the averaging
+//! rules, and would part from OpenSubdiv.
 //!
 //! Everything here is at the vertices and corners of the whole last level: holes change no rule
 //! (their points shape their neighbours), so the plan selects the drawing mesh's vertices and
@@ -110,7 +125,8 @@ pub(crate) struct Stencils {
     /// `local`).
     extra_levels: u32,
     /// The stencils of the vertices that are not clean at the plan's last level, on partial
-    /// levels past it around those vertices (their topology made once, here).
+    /// levels past it around those vertices (their topology made once, here); past semi-sharp
+    /// features, these have their own `local` for the vertices that are not clean there.
     local: Option<(Box<Stencils>, LocalLevels)>,
     /// The stencils (indices into `masks_of`) that `local` gives, in order.
     local_vertices: Vec<u32>,
@@ -152,14 +168,16 @@ struct Targets<'a> {
 }
 
 /// Builds the stencils on `last` (a plan's last level, an extended one's, or a partial level
-/// past it) with `curves` (the network of the step that made it) for `targets`. A target vertex
-/// that is not clean makes the result `None`, or with `allow_local`, a [`LimitMask::Local`]
-/// stencil (listed in `local`), to be built on a local extension.
+/// past it) with `curves` (the network of the step that made it) for `targets`; `semi_corners`
+/// are the cage vertices tagged semi-sharp (sorted). A target vertex that is not clean makes
+/// the result `None`, or with `allow_local`, a [`LimitMask::Local`] stencil (listed in
+/// `local`), to be built on a local extension.
 fn build_stencils(
     last: &Level,
     curves: &CurveNetwork,
     degree: u32,
     targets: &Targets,
+    semi_corners: &[u32],
     allow_local: bool,
 ) -> Result<Option<Stencils>> {
     let primal = degree % 2 == 1;
@@ -171,9 +189,7 @@ fn build_stencils(
     let cage_item = |v: usize| if primal { v } else { nf + nc + v };
     // Curve vertex of each vertex id (index into the step's curve vertices).
     let curve_of = |v: usize| curves.vertex_index(v as u32).map(|i| i as usize);
-    if curves.vertices().iter().any(|cv| cv.weight < 1.0) {
-        return Ok(None);
-    }
+    let transient = transient_curve_vertices(curves, semi_corners)?;
     let curve_index = |e: u32| curves.edge_index(e);
     let is_curve_edge = |e: u32| curve_index(e).is_some();
 
@@ -194,8 +210,18 @@ fn build_stencils(
     let stencil_of = |v: usize| -> Option<(LimitMask, Vec<u32>)> {
         if let Some(i) = curve_of(v) {
             let cv = &curves.vertices()[i];
+            if transient[i] {
+                return None;
+            }
             let Some([a, _]) = cv.edges else {
-                return Some((LimitMask::Corner, vec![cage_item(cv.pin as usize) as u32]));
+                // Odd degrees: the corner's own vertex, which holds its cage point at every
+                // level (on a partial level its index is not the cage vertex's).
+                let item = if primal {
+                    v
+                } else {
+                    cage_item(cv.pin as usize)
+                };
+                return Some((LimitMask::Corner, vec![item as u32]));
             };
             // Walk the polyline both ways: curve vertices (odd) or edges (even).
             let walk = |first_edge: u32, from: usize, count: usize| -> Option<Vec<u32>> {
@@ -214,6 +240,9 @@ fn build_stencils(
                         out.push((nf + edge) as u32);
                     }
                     let [x, y] = curves.vertices()[next].edges?;
+                    if transient[next] {
+                        return None;
+                    }
                     edge = if x as usize == edge { y } else { x } as usize;
                     at = next;
                 }
@@ -469,6 +498,32 @@ fn build_stencils(
     }))
 }
 
+/// Per curve vertex of `curves` (a step's network), true when its rules change in a later step:
+/// a semi-sharp feature makes it (an end of a semi-sharp curve edge, a blend, a corner by a
+/// semi-sharp tag of `semi_corners`, sorted cage vertices), or it is a corner whose cage point
+/// is unknown (cut off on a partial level). Such a vertex has no fixed 1-D or corner rule, so
+/// it is not clean: the limit must wait until the feature has become smooth.
+fn transient_curve_vertices(curves: &CurveNetwork, semi_corners: &[u32]) -> Result<Vec<bool>> {
+    let vertices = curves.vertices();
+    let mut transient = memory::filled(vertices.len(), false)?;
+    let mut curve_edges = memory::filled(vertices.len(), 0u8)?;
+    for edge in curves.edges() {
+        for end in edge.ends.into_iter().filter(|&x| x != NONE) {
+            curve_edges[end as usize] = curve_edges[end as usize].saturating_add(1);
+            transient[end as usize] |= is_semi_sharp(edge.sharpness);
+        }
+    }
+    for (i, cv) in vertices.iter().enumerate() {
+        // A corner on two curve edges (or none) is one by its tag alone: transient when the tag
+        // is finite (then it becomes a curve vertex, or smooth); on one or three it stays one.
+        let tagged = cv.edges.is_none() && matches!(curve_edges[i], 0 | 2);
+        let semi_tag = tagged && semi_corners.binary_search(&cv.pin).is_ok();
+        let cut_off = cv.edges.is_none() && cv.pin == NONE;
+        transient[i] |= cv.weight < 1.0 || semi_tag || cut_off;
+    }
+    Ok(transient)
+}
+
 /// The limit's part of a plan: the stencils, built on first use and kept.
 #[derive(Debug, Default)]
 pub(crate) struct LimitCache(Mutex<Option<Arc<Stencils>>>);
@@ -485,31 +540,37 @@ fn stencils(refinement: &Refinement, cache: &LimitCache) -> Result<Arc<Stencils>
 }
 
 /// Builds the stencils of `refinement`: at its last level where every vertex is clean there;
-/// else, with `local` (the [`LOCAL_SHARE`] it allows) and the averaging rules (and no semi-sharp
-/// feature), the vertices that are not clean on partial levels around them; else on the whole
-/// refinement extended.
+/// else, with `local` (the [`LOCAL_SHARE`] it allows) and the averaging rules, the vertices
+/// that are not clean (near irregular vertices, curves, and semi-sharp features until they
+/// have become smooth) on partial levels around them; else on the whole refinement extended.
 fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
     let options = *refinement.options();
     let levels = options.levels;
     let n = neighbourhood_size(options.degree) as u32;
-    // Semi-sharp features must have become smooth by the last level (corners on isolated
-    // vertices are no features: they have no place in the surface).
-    let cage = refinement.cage();
-    let finite = cage
-        .creases()
-        .iter()
-        .map(|c| c.sharpness)
-        .chain(refinement.features().corners.iter().map(|c| c.1))
+    // Semi-sharp features must have left the last step's network (corners on isolated vertices
+    // are no features: they have no place in the surface): a feature of sharpness s is in the
+    // networks of the steps from levels below s, so the last step must start at ceil(s).
+    let features = refinement.features();
+    let finite = (features.edge_sharpness.iter())
+        .chain(features.corners.iter().map(|c| &c.1))
+        .copied()
         .filter(|&s| is_semi_sharp(s))
         .fold(0.0f32, f32::max);
-    let first = (finite.ceil() as u32)
-        .saturating_sub(levels)
-        .max(u32::from(levels == 0));
+    let semi_corners: Vec<u32> = (features.corners.iter())
+        .filter(|c| is_semi_sharp(c.1))
+        .map(|c| c.0)
+        .collect();
+    let smooth = match finite > 0.0 {
+        true => (finite.ceil() as u32 + 1).saturating_sub(levels),
+        false => 0,
+    };
+    let first = smooth.max(u32::from(levels == 0));
     // Enough doubling to put N rings between a vertex and its nearest neighbour.
     let clean = (1..).find(|&m| (1u32 << m) > n).unwrap_or(1);
     let mut candidates = vec![first, first.max(clean)];
     candidates.extend((1..=MAX_EXTRA_LEVELS).map(|i| first.max(clean) + i));
     candidates.dedup();
+    candidates.retain(|&m| m > 0);
     // The last level's edge and vertex -> corner tables, fallibly (`levels()` would panic).
     refinement.complete_levels()?;
     let last = refinement.levels().last().expect("a level");
@@ -518,10 +579,11 @@ fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
     let degree = options.degree;
     let whole = |i: usize| i;
     let below = |w: usize| (w < outputs).then_some(w);
-    if first == 0 {
+    let share = local.filter(|_| matches!(refinement.scheme(), Scheme::Averaging { .. }));
+    // A plan of level 0 has no step to make stencils on: always extended.
+    if levels > 0 && (smooth == 0 || share.is_some()) {
         // The stencils at the plan's own last level; with the averaging rules, the vertices
         // that are not clean there get theirs on partial levels around them.
-        let share = local.filter(|_| matches!(refinement.scheme(), Scheme::Averaging { .. }));
         let curves = refinement.curve_networks().last().expect("a step");
         let targets = Targets {
             count: outputs,
@@ -530,29 +592,76 @@ fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
             corner: &Some,
             index: &below,
         };
-        if let Some(mut st) = build_stencils(last, curves, degree, &targets, share.is_some())? {
+        let allow_local = share.is_some();
+        let built = build_stencils(last, curves, degree, &targets, &semi_corners, allow_local)?;
+        if let Some(mut st) = built {
             if st.local_vertices.is_empty() {
                 return Ok(st);
             }
-            for m in (clean..).take(MAX_EXTRA_LEVELS as usize) {
-                let seeds = local_seeds(last, degree, &st.local_vertices, m)?;
-                // Partial levels are made on every evaluation, at several times the cost of a
-                // cached level per face: around most of the mesh, the whole plan extended (its
-                // topology kept) is cheaper.
-                if share.unwrap_or_default() * seeds.len() > last.num_faces() {
+            let share = share.unwrap_or_default();
+            let vertices = &st.local_vertices;
+            let rings = local_rings(degree);
+            let local_at = |m: u32, seeds: Vec<u64>, allow_local: bool| {
+                let levels = LocalLevels::new(refinement, &seeds, m, vertices, rings)?;
+                local_stencils(refinement, vertices, m, levels, &semi_corners, allow_local)
+            };
+            // Past semi-sharp features, the first stage, `clean` levels down (made once).
+            let mut first_stage = None;
+            for &m in &candidates {
+                if smooth > 0 && m > clean && first_stage.is_none() {
+                    let seeds = local_seeds(last, degree, vertices, clean)?;
+                    first_stage = local_at(clean, seeds, true)?;
+                }
+                let built = match first_stage.take() {
+                    Some(first)
+                        if smooth > 0 && m > clean && !first.0.local_vertices.is_empty() =>
+                    {
+                        let stage = (clean, &first);
+                        match staged_local_stencils(refinement, vertices, stage, m, &semi_corners)?
+                        {
+                            Some(second) => {
+                                let (mut st1, levels1) = first;
+                                st1.local = Some(second);
+                                st1.extra_levels = m;
+                                Some((st1, levels1))
+                            }
+                            None => {
+                                first_stage = Some(first);
+                                None
+                            }
+                        }
+                    }
+                    kept => {
+                        first_stage = kept;
+                        let seeds = local_seeds(last, degree, vertices, m)?;
+                        // Partial levels are made on every evaluation, at several times the
+                        // cost of a cached level per face: around most of the mesh, the whole
+                        // plan extended (its topology kept) is cheaper.
+                        if smooth == 0 && share * seeds.len() > last.num_faces() {
+                            break;
+                        }
+                        local_at(m, seeds, false)?
+                    }
+                };
+                let Some(built) = built else {
+                    continue;
+                };
+                // Past semi-sharp features the whole plan extended has 4^m times the plan's
+                // faces per level, the partial levels about 2^m times those near the features:
+                // their sizes decide.
+                let whole_faces = (last.num_faces() as u64) * ((4u64 << (2 * m)) - 4) / 3;
+                if smooth > 0 && (share as u64) * local_faces(&built) > whole_faces {
                     break;
                 }
-                if let Some(built) = local_stencils(refinement, &st.local_vertices, m, seeds)? {
-                    st.local = Some(built);
-                    st.extra_levels = m;
-                    return Ok(st);
-                }
+                st.local = Some(built);
+                st.extra_levels = m;
+                return Ok(st);
             }
         }
     }
-    for m in candidates.into_iter().filter(|&m| m > 0) {
+    for m in candidates {
         let extended = Refinement::new(
-            cage,
+            refinement.cage(),
             &Options {
                 levels: levels + m,
                 output: OutputKind::Primal,
@@ -571,7 +680,9 @@ fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
         };
         let ext_last = extended.levels().last().expect("a level");
         let curves = extended.curve_networks().last().expect("a step");
-        if let Some(mut st) = build_stencils(ext_last, curves, degree, &targets, false)? {
+        if let Some(mut st) =
+            build_stencils(ext_last, curves, degree, &targets, &semi_corners, false)?
+        {
             st.extended = Some((extended, Scratch::default()));
             st.extra_levels = m;
             return Ok(st);
@@ -605,21 +716,36 @@ fn local_seeds(last: &Level, degree: u32, vertices: &[u32], m: u32) -> Result<Ve
         .collect())
 }
 
+/// The faces a local extension's partial levels make, its stages' included.
+fn local_faces(local: &(Box<Stencils>, LocalLevels)) -> u64 {
+    let next = local.0.local.as_ref().map_or(0, local_faces);
+    local.1.num_faces() + next
+}
+
+/// Face rings around a target vertex that the last partial level must hold: what
+/// [`build_stencils`] reads around a vertex (its N rings, the valences of their vertices and
+/// 1-D masks N + 1 curve edges long), one ring more to spare.
+fn local_rings(degree: u32) -> usize {
+    neighbourhood_size(degree) + 2
+}
+
 /// The stencils of the output vertices `vertices` (of the plan's last level `M_L`, none clean
-/// there) on the partial level `M_{L+m}` made around them from `seeds` (faces of `M_L`), with
-/// those partial levels ([`LocalLevels`]); `None` when one of them is not clean there either.
+/// there) on the last level of `local`, partial levels made around them up to `M_{L+m}`;
+/// `None` when one of them is not clean there either, or with `allow_local`, those listed as
+/// local, for partial levels past these.
 fn local_stencils(
     refinement: &Refinement,
     vertices: &[u32],
     m: u32,
-    seeds: Vec<u64>,
+    local: LocalLevels,
+    semi_corners: &[u32],
+    allow_local: bool,
 ) -> Result<Option<(Box<Stencils>, LocalLevels)>> {
     let last = refinement.last_level();
     let degree = refinement.options().degree;
-    let local = LocalLevels::new(refinement, &seeds, m)?;
     let mut at = Vec::with_capacity(vertices.len());
     for &v in vertices {
-        match local.vert_uid.binary_search(&(v as u64)) {
+        match local.vert_uid().binary_search(&(v as u64)) {
             Ok(w) => at.push(w),
             Err(_) => return Ok(None),
         }
@@ -634,12 +760,15 @@ fn local_stencils(
     let vertex = |i: usize| at[i];
     let corner = |c: usize| {
         slot(last.corner_verts[c] as usize)?;
-        let f = local.face_uid.binary_search(&((c as u64) << shift)).ok()?;
+        let f = local
+            .face_uid()
+            .binary_search(&((c as u64) << shift))
+            .ok()?;
         Some(4 * f)
     };
     let outputs = last.num_vertices as u64;
     let index = |w: usize| {
-        let uid = local.vert_uid[w];
+        let uid = local.vert_uid()[w];
         (uid < outputs).then(|| slot(uid as usize)).flatten()
     };
     let targets = Targets {
@@ -649,10 +778,40 @@ fn local_stencils(
         corner: &corner,
         index: &index,
     };
-    Ok(
-        build_stencils(local.level(), &local.network, degree, &targets, false)?
-            .map(|st| (Box::new(st), local)),
-    )
+    let (level, network) = (local.level(), local.network());
+    let built = build_stencils(level, network, degree, &targets, semi_corners, allow_local)?;
+    Ok(built.map(|st| (Box::new(st), local)))
+}
+
+/// The local extension past semi-sharp features, `m` levels past `M_L`, in two stages: the
+/// vertices of `vertices` (of `M_L`, none clean there) that are clean `first` levels down get
+/// their stencils there (most of them: near the features but not on them, or near irregular
+/// vertices and curves); the others (on the features, and the curve vertices, corners and
+/// valence-2 vertices, whose fan normals are taken at the last level) on partial levels past
+/// those, around them alone. `None` when some vertex is not clean at `M_{L+m}`.
+fn staged_local_stencils(
+    refinement: &Refinement,
+    vertices: &[u32],
+    first: (u32, &(Box<Stencils>, LocalLevels)),
+    m: u32,
+    semi_corners: &[u32],
+) -> Result<Option<(Box<Stencils>, LocalLevels)>> {
+    let (m1, (st1, levels1)) = first;
+    let degree = refinement.options().degree;
+    let rest: Vec<u32> = (st1.local_vertices.iter())
+        .map(|&i| vertices[i as usize])
+        .collect();
+    let mut at = Vec::with_capacity(rest.len());
+    for &v in &rest {
+        match levels1.vert_uid().binary_search(&(v as u64)) {
+            Ok(w) => at.push(w as u32),
+            Err(_) => return Ok(None),
+        }
+    }
+    let seeds = local_seeds(levels1.level(), degree, &at, m - m1)?;
+    let rings = local_rings(degree);
+    let levels2 = levels1.extend(refinement, &seeds, m - m1, &rest, rings)?;
+    local_stencils(refinement, &rest, m, levels2, semi_corners, false)
 }
 
 /// How the limit of `refinement` is found, or why it cannot be (`normals`: normals too).
@@ -777,38 +936,50 @@ impl Limit<'_> {
             LimitMethod::Eigen => {
                 let st = stencils(r, self.cache)?;
                 let (data, curve) = self.limit_data(&st, &compact)?;
-                let (mut positions, vertex_normals) = stencil_values(&st, &data, normals)?;
-                let local = match &st.local {
-                    Some((local, levels)) => {
-                        // The local extension is made at the plan's own last level.
-                        let two_d = match r.options().degree % 2 {
-                            0 => &data[..r.last_level().num_faces()],
-                            _ => &data[..],
-                        };
-                        let ldata = self.local_data(levels, two_d, &curve, &compact)?;
-                        let (lpos, lnormals) = stencil_values(local, &ldata, normals)?;
-                        for (i, &v) in st.local_vertices.iter().enumerate() {
-                            positions[v as usize] = lpos[i];
-                        }
-                        Some(StencilValues {
-                            stencils: local.as_ref(),
-                            data: ldata,
-                            positions: lpos,
-                            normals: lnormals,
-                        })
-                    }
-                    None => None,
-                };
-                if !normals {
-                    return Ok((positions.into_flattened(), None));
+                let (positions, vertex_normals) = stencil_values(&st, &data, normals)?;
+                // The local extension's stages, each past the one before.
+                let mut chain = Vec::new();
+                let mut at = &*st;
+                while let Some((local, levels)) = &at.local {
+                    chain.push((local.as_ref(), levels));
+                    at = local;
                 }
-                let own = StencilValues {
+                // The local extension is made at the plan's own last level.
+                let two_d = match r.options().degree % 2 {
+                    0 => &data[..r.last_level().num_faces()],
+                    _ => &data[..],
+                };
+                let levels: Vec<&LocalLevels> = chain.iter().map(|&(_, l)| l).collect();
+                let ldata = self.local_data(&levels, two_d, &curve, &compact)?;
+                let mut stages = vec![StencilValues {
                     stencils: &st,
                     data,
                     positions,
                     normals: vertex_normals,
-                };
-                let normals = self.stencil_normals(&own, local.as_ref())?;
+                }];
+                for ((local, _), data) in chain.into_iter().zip(ldata) {
+                    let (positions, normals) = stencil_values(local, &data, normals)?;
+                    stages.push(StencilValues {
+                        stencils: local,
+                        data,
+                        positions,
+                        normals,
+                    });
+                }
+                // Each stage's local vertices take the positions of the next, from the last.
+                for s in (1..stages.len()).rev() {
+                    let (before, after) = stages.split_at_mut(s);
+                    let (own, next) = (&mut before[s - 1], &after[0]);
+                    for (i, &v) in own.stencils.local_vertices.iter().enumerate() {
+                        own.positions[v as usize] = next.positions[i];
+                    }
+                }
+                if !normals {
+                    let own = stages.swap_remove(0);
+                    return Ok((own.positions.into_flattened(), None));
+                }
+                let normals = self.stencil_normals(&stages)?;
+                let own = stages.swap_remove(0);
                 Ok((own.positions.into_flattened(), Some(normals)))
             }
         }
@@ -836,16 +1007,20 @@ impl Limit<'_> {
         Ok((data, curve))
     }
 
-    /// The data of the local extension's last level in the layout of [`Limit::limit_data`],
-    /// from the plan's last level `two_d` (per vertex or face) and 1-D `curve` data: the
-    /// partial levels carry three channels, so the channels go through them three at a time.
+    /// The data of the last level of each of the local extension's `stages` (each past the one
+    /// before, the first past the plan's) in the layout of [`Limit::limit_data`], from the
+    /// plan's last level `two_d` (per vertex or face) and 1-D `curve` data: the partial levels
+    /// carry three channels, so the channels go through them three at a time.
     fn local_data<T: Scalar, const N: usize>(
         &self,
-        levels: &LocalLevels,
+        stages: &[&LocalLevels],
         two_d: &[[T; N]],
         curve: &[[T; N]],
         compact: &[[T; N]],
-    ) -> Result<Vec<[T; N]>> {
+    ) -> Result<Vec<Vec<[T; N]>>> {
+        if stages.is_empty() {
+            return Ok(Vec::new());
+        }
         let even = self.refinement.options().degree.is_multiple_of(2);
         // The plan's whole last level goes through here: fallible.
         let three =
@@ -854,55 +1029,61 @@ impl Limit<'_> {
                     std::array::from_fn(|k| v.get(first + k).copied().unwrap_or_default())
                 }))
             };
-        let mut out: Vec<[T; N]> = Vec::new();
+        let mut out: Vec<Vec<[T; N]>> = vec![Vec::new(); stages.len()];
         for first in (0..N).step_by(3) {
             let cage = three(compact, first)?;
-            let (mut layout, local_curve) =
-                levels.evaluate(&cage, &three(two_d, first)?, &three(curve, first)?)?;
-            if even {
-                layout.extend_from_slice(&local_curve);
-                layout.extend_from_slice(&cage);
-            }
-            if out.is_empty() {
-                out = memory::filled(layout.len(), [T::default(); N])?;
-            }
-            for (o, x) in out.iter_mut().zip(&layout) {
-                let width = 3.min(N - first);
-                o[first..first + width].copy_from_slice(&x[..width]);
+            let (mut data, mut curve) = (three(two_d, first)?, three(curve, first)?);
+            for (k, (levels, out)) in stages.iter().zip(&mut out).enumerate() {
+                let (mut fine, fine_curve) = levels.evaluate(&cage, &data, &curve)?;
+                // The last stage's data is needed no more: moved, not copied.
+                let mut layout = match k + 1 < stages.len() {
+                    true => fine.clone(),
+                    false => std::mem::take(&mut fine),
+                };
+                if even {
+                    layout.extend_from_slice(&fine_curve);
+                    layout.extend_from_slice(&cage);
+                }
+                (data, curve) = (fine, fine_curve);
+                if out.is_empty() {
+                    *out = memory::filled(layout.len(), [T::default(); N])?;
+                }
+                for (o, x) in out.iter_mut().zip(&layout) {
+                    let width = 3.min(N - first);
+                    o[first..first + width].copy_from_slice(&x[..width]);
+                }
             }
         }
         Ok(out)
     }
 
-    /// Unit normals per output corner from the stencils' values `own` (see [`surface`]), those
-    /// of the local extension's where they are.
+    /// Unit normals per output corner from the values of the stencils' `stages` (the plan's,
+    /// then the local extension's; see [`surface`]): each vertex's from the stage that has its
+    /// stencil.
     fn stencil_normals<T: Scalar, const N: usize>(
         &self,
-        own: &StencilValues<T, N>,
-        local: Option<&StencilValues<T, N>>,
+        stages: &[StencilValues<T, N>],
     ) -> Result<Vec<T>> {
-        let st = own.stencils;
-        let fans = fan_normals(st, &own.data, &own.positions)?;
-        let local = match local {
-            Some(l) => Some((l, fan_normals(l.stencils, &l.data, &l.positions)?)),
-            None => None,
-        };
+        let fans = (stages.iter())
+            .map(|s| fan_normals(s.stencils, &s.data, &s.positions))
+            .collect::<Result<Vec<_>>>()?;
         let corners = &self.refinement.last_level().corner_verts;
         let out = gather_hinted(corners.len(), |c| {
-            let v = corners[c];
-            let n = match (st.masks_of[v as usize], &local) {
-                (LimitMask::Local, Some((l, lf))) => match l.stencils.corner_fan[c] {
-                    NONE => {
-                        let i = st.local_vertices.binary_search(&v).unwrap_or_default();
-                        l.normals[i]
-                    }
-                    f => lf[f as usize],
-                },
-                _ => match st.corner_fan[c] {
-                    NONE => own.normals[v as usize],
+            let mut i = corners[c];
+            let mut n = DVec3::ZERO;
+            for (stage, fans) in stages.iter().zip(&fans) {
+                let st = stage.stencils;
+                if st.masks_of[i as usize] == LimitMask::Local {
+                    // Its stencil is the next stage's at its place among the local ones.
+                    i = st.local_vertices.binary_search(&i).unwrap_or_default() as u32;
+                    continue;
+                }
+                n = match st.corner_fan[c] {
+                    NONE => stage.normals[i as usize],
                     f => fans[f as usize],
-                },
-            };
+                };
+                break;
+            }
             n.to_array().map(T::from_f64)
         })?;
         Ok(out.into_flattened())
@@ -1186,6 +1367,39 @@ mod tests {
         (Cage::from_indices(8, &[4; 6], &indices).unwrap(), points)
     }
 
+    /// The stencils of `refinement` with the local extension wherever it can be made (the
+    /// share of the plan's faces not limited) and with the whole plan extended, and the largest
+    /// gaps between their limit positions and between their normals at `points`; both extend the
+    /// plan by as many levels.
+    fn local_and_whole(
+        refinement: &Refinement,
+        points: &[f64],
+        case: &str,
+    ) -> (Arc<Stencils>, Arc<Stencils>, f64, f64) {
+        let whole = LimitCache::default();
+        *whole.0.lock().unwrap() = Some(Arc::new(build(refinement, None).unwrap()));
+        let local = LimitCache::default();
+        *local.0.lock().unwrap() = Some(Arc::new(build(refinement, Some(0)).unwrap()));
+        let (p, n) = surface(refinement, &Scratch::default(), &local, points).unwrap();
+        let (q, m) = surface(refinement, &Scratch::default(), &whole, points).unwrap();
+        let extra = |c: &LimitCache| extra_levels(refinement, c).unwrap();
+        assert_eq!(extra(&local), extra(&whole), "{case}");
+        assert_eq!((p.len(), n.len()), (q.len(), m.len()), "{case}");
+        let worst = |a: &[f64], b: &[f64]| {
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0, f64::max)
+        };
+        let stencils = |c: &LimitCache| stencils(refinement, c).unwrap();
+        (
+            stencils(&local),
+            stencils(&whole),
+            worst(&p, &q),
+            worst(&n, &m),
+        )
+    }
+
     /// The local extension gives the limits of the whole plan extended (the stencils of the
     /// vertices clean at the plan's level are other masks of the same limit: equal to rounding;
     /// the others, curve normals included, are the same sums).
@@ -1211,33 +1425,13 @@ mod tests {
                         ..Options::default()
                     };
                     let refinement = Refinement::new(cage, &options).unwrap();
-                    let whole = LimitCache::default();
-                    let built = build(&refinement, None).unwrap();
-                    *whole.0.lock().unwrap() = Some(Arc::new(built));
-                    let local = LimitCache::default();
-                    // Local wherever it can be (the share of the plan's faces not limited).
-                    *local.0.lock().unwrap() = Some(Arc::new(build(&refinement, Some(0)).unwrap()));
-                    let (p, n) = surface(&refinement, &Scratch::default(), &local, points).unwrap();
-                    let (q, m) = surface(&refinement, &Scratch::default(), &whole, points).unwrap();
-                    let extra = |c: &LimitCache| extra_levels(&refinement, c).unwrap();
-                    assert_eq!(extra(&local), extra(&whole), "{name} {degree} L{levels}");
-                    let st = stencils(&refinement, &local).unwrap();
+                    let case = format!("{name} degree {degree} level {levels}");
+                    let (st, _, dp, dn) = local_and_whole(&refinement, points, &case);
                     engaged += usize::from(st.local.is_some());
-                    assert!(
-                        st.extended.is_none(),
-                        "{name} {degree} L{levels}: whole extension"
-                    );
-                    let worst = |a: &[f64], b: &[f64]| {
-                        a.iter()
-                            .zip(b)
-                            .map(|(x, y)| (x - y).abs())
-                            .fold(0.0, f64::max)
-                    };
-                    assert_eq!((p.len(), n.len()), (q.len(), m.len()));
-                    let (dp, dn) = (worst(&p, &q), worst(&n, &m));
+                    assert!(st.extended.is_none(), "{case}: whole extension");
                     assert!(
                         dp < 1e-12 && dn < 1e-11,
-                        "{name} degree {degree} level {levels}: positions {dp:e}, normals {dn:e}"
+                        "{case}: positions {dp:e}, normals {dn:e}"
                     );
                 }
             }
@@ -1246,6 +1440,79 @@ mod tests {
             engaged >= 40,
             "the local extension was used {engaged} times of 48"
         );
+    }
+
+    /// Semi-sharp creases and corners take the local extension too: the vertices near them get
+    /// partial levels until the features have become smooth, and their limits are those of the
+    /// whole plan extended that far (to rounding, as in
+    /// `local_extension_matches_the_whole_plan_extended`), with the same extra levels.
+    #[test]
+    fn semi_sharp_local_extension_matches_the_whole_plan_extended() {
+        let (grid, grid_points) = grid(5);
+        // Grid vertex (i, j) is 6i + j: a chain inside the grid (ends on one crease edge), a
+        // row from boundary to boundary (corners where it meets the boundary), an infinitely
+        // sharp crease going on as a semi-sharp one.
+        let inside = |s: f32| [(13, 14, s), (14, 15, s), (15, 16, s)];
+        let row = |s: f32| {
+            [
+                (18, 19, s),
+                (19, 20, s),
+                (20, 21, s),
+                (21, 22, s),
+                (22, 23, s),
+            ]
+        };
+        let creased = |creases: &[(i64, i64, f32)]| grid.clone().with_creases(creases).unwrap();
+        let (cube, cube_points) = cube();
+        let top = |s: f32| [(4, 6, s), (6, 7, s), (7, 5, s), (5, 4, s)];
+        let cases = [
+            ("inside 0.5", creased(&inside(0.5)), &grid_points),
+            ("row 1.5", creased(&row(1.5)), &grid_points),
+            ("inside 2.5", creased(&inside(2.5)), &grid_points),
+            ("row 2", creased(&row(2.0)), &grid_points),
+            (
+                "sharp then 1.5",
+                creased(&[(8, 14, f32::INFINITY), (14, 15, 1.5)]),
+                &grid_points,
+            ),
+            (
+                "corners 1.5 inside, 0.5 on the boundary",
+                grid.clone().with_corners(&[(14, 1.5), (2, 0.5)]).unwrap(),
+                &grid_points,
+            ),
+            (
+                "cube loop 2.5",
+                cube.clone().with_creases(&top(2.5)).unwrap(),
+                &cube_points,
+            ),
+        ];
+        // Cases in two stages (some vertices clean before the features are smooth).
+        let mut staged = 0;
+        for (name, cage, points) in &cases {
+            for degree in 2..=9 {
+                for levels in 1..=2 {
+                    let options = Options {
+                        degree,
+                        levels,
+                        ..Options::default()
+                    };
+                    let refinement = Refinement::new(cage, &options).unwrap();
+                    let case = format!("{name}, degree {degree}, level {levels}");
+                    let (st, whole, dp, dn) = local_and_whole(&refinement, points, &case);
+                    assert!(
+                        st.local.is_some() && st.extended.is_none(),
+                        "{case}: not local"
+                    );
+                    assert!(whole.extended.is_some());
+                    staged += usize::from(st.local.as_ref().is_some_and(|l| l.0.local.is_some()));
+                    assert!(
+                        dp < 1e-12 && dn < 1e-11,
+                        "{case}: positions {dp:e}, normals {dn:e}"
+                    );
+                }
+            }
+        }
+        assert!(staged >= 20, "{staged} of 112 cases in two stages");
     }
 
     /// On a mesh whose unclean vertices are a small part (a large grid: its boundary and
