@@ -16,7 +16,9 @@
 //! Performance notes: a step over a quad level runs its replication and first two averages as
 //! one pass over the coarse faces (nothing of the first average is stored but, on dual data,
 //! the old vertices' points; bitwise the separate passes); the other passes gather through the
-//! coarse level's tables, looked up once per pass ([`Tables`]). The
+//! coarse level's tables, looked up once per pass ([`Tables`]) and, on quad levels, walked in
+//! step with their output (`parallel::fill_zip`: a quarter fewer instructions than rayon's
+//! per-item collect for cached averaging 4). The
 //! working buffers come from a [`Scratch`] that a plan keeps between evaluations, so that a
 //! cached re-evaluation pays page faults only for the array it returns.
 
@@ -32,7 +34,7 @@ use rayon::prelude::*;
 
 use crate::curves::{CurveNetwork, CurveVertex, LevelSharpness};
 use crate::error::Result;
-use crate::parallel::{gather_into, gather_sections, hinted_or_abort, with_capacity_hinted, CHUNK};
+use crate::parallel::{fill_zip, gather_sections, hinted_or_abort, with_capacity_hinted, CHUNK};
 use crate::scalar::{add, reciprocal, scale, zero, Scalar, Value};
 use crate::scheme::Scheme;
 use crate::topology::{Level, NONE};
@@ -598,32 +600,44 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         let coarse = step.coarse;
         let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
         let f: &[Value<T, N>] = &self.faces;
-        let quarter = T::from_f64(0.25);
-        let half = T::from_f64(0.5);
         let t = Tables::of(coarse);
-        gather_sections(
-            out,
-            [nv, ne, step.fine.num_vertices - nv - ne],
-            |w| {
-                let corners = t.corners_of_vertex(w);
-                let sum = corners.iter().fold(zero(), |s, &c| add(s, f[c as usize]));
-                scale(sum, reciprocal(corners.len()))
-            },
-            |e| match t.edge_corners[e] {
-                [c, NONE] => scale(add(f[c as usize], f[t.next(c as usize)]), half),
-                [c, d] => {
-                    let (c, d) = (c as usize, d as usize);
-                    let s = add(add(f[c], f[t.next(c)]), add(f[d], f[t.next(d)]));
-                    scale(s, quarter)
-                }
-            },
-            |face| {
-                let corners = t.face_corners(face);
-                let k = corners.len();
-                let sum = f[corners].iter().fold(zero(), |s, &x| add(s, x));
-                scale(sum, reciprocal(k))
-            },
-        );
+        if !t.quads {
+            gather_sections(
+                out,
+                [nv, ne, step.fine.num_vertices - nv - ne],
+                |w| vertex_face_mean(&t, f, w),
+                |e| edge_corner_mean(&t, f, t.edge_corners[e]),
+                |face| {
+                    let corners = t.face_corners(face);
+                    let k = corners.len();
+                    let sum = f[corners].iter().fold(zero(), |s, &x| add(s, x));
+                    scale(sum, reciprocal(k))
+                },
+            );
+            return;
+        }
+        // A quad level: the same sums, each section walking its table in step with the output.
+        let n = step.fine.num_vertices;
+        out.clear();
+        if out.capacity() < n {
+            *out = hinted_or_abort(n);
+        }
+        let (olds, rest) = out.spare_capacity_mut()[..n].split_at_mut(nv);
+        let (edges, faces) = rest.split_at_mut(ne);
+        fill_zip(olds, &t.vertex_offsets[..nv], |w, _| {
+            vertex_face_mean(&t, f, w)
+        });
+        fill_zip(edges, t.edge_corners, |_, &corners| {
+            edge_corner_mean(&t, f, corners)
+        });
+        let (quads, _) = f.as_chunks::<4>();
+        let quarter = T::from_f64(0.25);
+        fill_zip(faces, &quads[..faces.len()], |_, q| {
+            scale(q.iter().fold(zero(), |s, &x| add(s, x)), quarter)
+        });
+        // SAFETY: the three fills initialised the first `n` items (a panic would have unwound
+        // past here).
+        unsafe { out.set_len(n) };
     }
 
     /// Dual -> primal average on the fine level of `step`, with the 1-D half on its curves.
@@ -640,14 +654,21 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         let mut out = self.take_faces();
         let v: &[Value<T, N>] = &self.vertices;
         let (quads, _) = fine.corner_verts.as_chunks::<4>();
-        gather_into(&mut out, fine.num_faces(), |f| {
-            let q = quads[f];
+        let n = fine.num_faces();
+        out.clear();
+        if out.capacity() < n {
+            out = hinted_or_abort(n);
+        }
+        fill_zip(&mut out.spare_capacity_mut()[..n], &quads[..n], |_, q| {
             let s = add(
                 add(v[q[0] as usize], v[q[1] as usize]),
                 add(v[q[2] as usize], v[q[3] as usize]),
             );
             scale(s, quarter)
         });
+        // SAFETY: `fill_zip` initialised the first `n` items (a panic would have unwound past
+        // here).
+        unsafe { out.set_len(n) };
         self.faces = Cow::Owned(out);
         let dual = match &self.curve {
             CurveData::Primal(curve) => curve_to_dual(curves, curve),
@@ -821,6 +842,37 @@ fn edge_face_mean<T: Scalar, const N: usize>(
             add(f[t.face_of(c as usize)], f[t.face_of(d as usize)]),
             T::from_f64(0.5),
         ),
+    }
+}
+
+/// The centroid of the fine faces at old vertex `w` (its coarse corners) from dual data `f` of
+/// the fine level: its point after a dual -> primal average.
+#[inline(always)]
+fn vertex_face_mean<T: Scalar, const N: usize>(
+    t: &Tables,
+    f: &[Value<T, N>],
+    w: usize,
+) -> Value<T, N> {
+    let corners = t.corners_of_vertex(w);
+    let sum = corners.iter().fold(zero(), |s, &c| add(s, f[c as usize]));
+    scale(sum, reciprocal(corners.len()))
+}
+
+/// The centroid of the fine faces at the edge point of a coarse edge with `corners` (the fine
+/// faces of those corners and of their successors) from dual data `f` of the fine level.
+#[inline(always)]
+fn edge_corner_mean<T: Scalar, const N: usize>(
+    t: &Tables,
+    f: &[Value<T, N>],
+    corners: [u32; 2],
+) -> Value<T, N> {
+    match corners {
+        [c, NONE] => scale(add(f[c as usize], f[t.next(c as usize)]), T::from_f64(0.5)),
+        [c, d] => {
+            let (c, d) = (c as usize, d as usize);
+            let s = add(add(f[c], f[t.next(c)]), add(f[d], f[t.next(d)]));
+            scale(s, T::from_f64(0.25))
+        }
     }
 }
 
