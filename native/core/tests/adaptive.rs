@@ -10,7 +10,7 @@ use bidegree::{
     triangle_template, AdaptiveData, AdaptiveMesh, AdaptiveOptions, AdaptiveStage, Boundary, Cage,
     Error, FaceVaryingMode, Level, Options, Plan, Scalar,
 };
-use common::{cage, grid, Random};
+use common::{cage, grid, Random, FACE_VARYING_MODES};
 
 /// A closed pentagonal prism with a pyramid roof: a pentagon, quads and triangles, vertices of
 /// valence 3, 4 and 5; points jittered so that refinement is uneven.
@@ -830,17 +830,11 @@ fn adaptive_face_varying_values_equal_uniform_ones_bitwise() {
     let (grid, points) = bumped_grid(n, 2.0);
     let grid = grid.with_creases(&[(8, 9, 10.0), (9, 10, 1.5)]).unwrap();
     let uvs = seamed_uvs(&grid, &points, n);
-    let modes = [
-        FaceVaryingMode::None,
-        FaceVaryingMode::CornersOnly,
-        FaceVaryingMode::CornersPlus1,
-        FaceVaryingMode::CornersPlus2,
-        FaceVaryingMode::Boundaries,
-        FaceVaryingMode::All,
-    ];
     for degree in 1..=9 {
-        let sets: Vec<(&[f64], usize, FaceVaryingMode)> =
-            modes.iter().map(|&m| (&uvs[..], 2, m)).collect();
+        let sets: Vec<(&[f64], usize, FaceVaryingMode)> = FACE_VARYING_MODES
+            .iter()
+            .map(|&m| (&uvs[..], 2, m))
+            .collect();
         let data = AdaptiveData {
             vertex_values: None,
             face_varying: sets.clone(),
@@ -851,7 +845,7 @@ fn adaptive_face_varying_values_equal_uniform_ones_bitwise() {
             subdivide_adaptive_with_data(&grid, &points, &options(degree, 3, tolerance), &data)
                 .unwrap();
         assert!(levels_used(&mesh) >= 2 || degree == 1, "degree {degree}");
-        assert_eq!(mesh.face_varying.len(), modes.len());
+        assert_eq!(mesh.face_varying.len(), FACE_VARYING_MODES.len());
         for values in &mesh.face_varying {
             assert_eq!(values.len(), 2 * 3 * mesh.triangles.len());
         }

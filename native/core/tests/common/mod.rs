@@ -1,7 +1,17 @@
 //! Cages shared by the integration tests.
 #![allow(dead_code)]
 
-use bidegree::{Cage, Options, Plan};
+use bidegree::{Cage, FaceVaryingMode, Options, Plan};
+
+/// Every face-varying interpolation mode, in OpenSubdiv's order.
+pub const FACE_VARYING_MODES: [FaceVaryingMode; 6] = [
+    FaceVaryingMode::None,
+    FaceVaryingMode::CornersOnly,
+    FaceVaryingMode::CornersPlus1,
+    FaceVaryingMode::CornersPlus2,
+    FaceVaryingMode::Boundaries,
+    FaceVaryingMode::All,
+];
 
 /// A deterministic pseudo-random stream in [0, 1) (splitmix64).
 pub struct Random(pub u64);
