@@ -76,7 +76,7 @@
 //! face point), so that the diagonals of four siblings meet at their parent's centre (the 4-8
 //! tiling of Fig. 13). No T-junctions arise: both sides of every edge use the same vertices.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashSet;
 use std::hash::{BuildHasherDefault, Hasher};
 
 use crate::curves::{CageFeatures, Curve, CurveNetwork};
@@ -112,7 +112,6 @@ impl Hasher for IdHasher {
 }
 
 type IdSet = HashSet<u64, BuildHasherDefault<IdHasher>>;
-type IdMap<V> = HashMap<u64, V, BuildHasherDefault<IdHasher>>;
 
 /// Options of an adaptive subdivision request.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -1737,11 +1736,6 @@ fn triangulate<T: Scalar>(
     leaves: &[Vec<u64>],
 ) -> Result<Drawn<T>> {
     let max_level = parts.len() - 1;
-    let mut index: IdMap<u32> = IdMap::default();
-    let mut points = Vec::new();
-    let mut vertex_level = Vec::new();
-    let mut vertex_id = Vec::new();
-    let mut vertex_at = Vec::new();
     let leaf_faces = |t: usize| -> Result<Vec<usize>> {
         leaves[t]
             .iter()
@@ -1752,20 +1746,63 @@ fn triangulate<T: Scalar>(
             })
             .collect()
     };
+    // Per level, the output vertex of each vertex of its partial level (`NONE` if not drawn at
+    // this level or finer): flat tables in place of a map by uniform id. Levels are numbered
+    // from the finest down, each leaf's corners in order, so a vertex is numbered where it is
+    // first met in that order, at the finest level of the leaves around it.
+    let mut drawn_as: Vec<Vec<u32>> = vec![Vec::new(); max_level + 1];
+    let mut points = Vec::new();
+    let mut vertex_level = Vec::new();
+    let mut vertex_id = Vec::new();
+    let mut vertex_at = Vec::new();
     for t in (1..=max_level).rev() {
         let part = &parts[t];
-        for f in leaf_faces(t)? {
-            for &v in &part.level.corner_verts[4 * f..4 * f + 4] {
-                let uid = part.vert_uid[v as usize];
-                index.entry(uid).or_insert_with(|| {
-                    points.extend_from_slice(&part.points[v as usize]);
-                    vertex_at.push((t as u32, v));
-                    vertex_level.push(t as u32);
-                    vertex_id.push(uid);
-                    (vertex_id.len() - 1) as u32
-                });
+        let mut here = memory::filled(part.vert_uid.len(), NONE)?;
+        if t < max_level {
+            // An old vertex keeps its uniform id: the vertices of level t + 1 below level t's
+            // vertex count are level t's, drawn there (or finer) already.
+            let (finer, finer_drawn) = (&parts[t + 1], &drawn_as[t + 1]);
+            let mut v = 0;
+            for (w, &uid) in finer.vert_uid.iter().enumerate() {
+                if uid >= part.counts[0] {
+                    break;
+                }
+                if finer_drawn[w] == NONE {
+                    continue;
+                }
+                while v < part.vert_uid.len() && part.vert_uid[v] < uid {
+                    v += 1;
+                }
+                if part.vert_uid.get(v) == Some(&uid) {
+                    here[v] = finer_drawn[w];
+                }
             }
         }
+        for f in leaf_faces(t)? {
+            for &v in &part.level.corner_verts[4 * f..4 * f + 4] {
+                let v = v as usize;
+                if here[v] == NONE {
+                    here[v] = vertex_id.len() as u32;
+                    points.extend_from_slice(&part.points[v]);
+                    vertex_at.push((t as u32, v as u32));
+                    vertex_level.push(t as u32);
+                    vertex_id.push(part.vert_uid[v]);
+                }
+            }
+        }
+        drawn_as[t] = here;
+    }
+    // Per level below the last, the faces of its partial level that are refined.
+    let mut is_refined: Vec<Vec<bool>> = vec![Vec::new(); max_level + 1];
+    for t in 1..max_level {
+        let part = &parts[t];
+        let mut flags = memory::filled(part.face_uid.len(), false)?;
+        for &u in &refined[t] {
+            if let Some(f) = part.face_of_uid(u) {
+                flags[f] = true;
+            }
+        }
+        is_refined[t] = flags;
     }
     let templates: Vec<Vec<[u8; 3]>> = (0..16).map(triangle_template).collect();
     // The side `k` of the leaf a template edge between slots `p` and `q` lies on (both among
@@ -1791,7 +1828,7 @@ fn triangulate<T: Scalar>(
             let mut mask = 0u8;
             for k in 0..4 {
                 let corner = 4 * f + k;
-                slots[2 * k] = index[&part.vert_uid[level.corner_verts[corner] as usize]];
+                slots[2 * k] = drawn_as[t][level.corner_verts[corner] as usize];
                 if t == max_level {
                     continue;
                 }
@@ -1802,8 +1839,8 @@ fn triangulate<T: Scalar>(
                     if other == NONE || other as usize == corner {
                         return false;
                     }
-                    let neighbour = part.face_uid[(other >> 2) as usize];
-                    !ctx.is_hole(t, neighbour) && refined[t].contains(&neighbour)
+                    let g = (other >> 2) as usize;
+                    is_refined[t][g] && !ctx.is_hole(t, part.face_uid[g])
                 };
                 let finer = if manifold {
                     // Two slots at most, without the slot iterator.
@@ -1813,12 +1850,15 @@ fn triangulate<T: Scalar>(
                 };
                 if finer {
                     let uid = part.counts[0] + part.edge_uid[e];
-                    slots[2 * k + 1] = *index.get(&uid).ok_or_else(|| {
-                        Error::Internal(format!(
+                    let finer = &parts[t + 1];
+                    let at = finer.vert_uid.binary_search(&uid).ok();
+                    slots[2 * k + 1] = at.map_or(NONE, |w| drawn_as[t + 1][w]);
+                    if slots[2 * k + 1] == NONE {
+                        return Err(Error::Internal(format!(
                             "adaptive: edge point {uid} of level {} missing",
                             t + 1
-                        ))
-                    })?;
+                        )));
+                    }
                     mask |= 1 << k;
                 }
             }
