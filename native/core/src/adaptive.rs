@@ -1325,48 +1325,39 @@ fn refine_topology<T, U>(
             4 * coarse.face_uid[k >> 2] + (k & 3) as u64
         }
     };
-    // Uniform ids of the fine level.
-    let face_uid: Vec<u64> = (0..fine.num_faces()).map(corner_uid).collect();
-    let vert_uid: Vec<u64> = (0..fine.num_vertices)
-        .map(|w| {
-            if w < cnv {
-                coarse.vert_uid[w]
-            } else if w < cnv + cne {
-                nv + coarse.edge_uid[w - cnv]
-            } else {
-                nv + ne + coarse.face_uid[w - cnv - cne]
-            }
-        })
-        .collect();
-    let edge_uid: Vec<u64> = (0..fine.num_edges())
-        .map(|i| {
-            if i < 2 * cne {
-                2 * coarse.edge_uid[i >> 1] + (i & 1) as u64
-            } else {
-                2 * ne + corner_uid(i - 2 * cne)
-            }
-        })
-        .collect();
-    let edge_faces: Vec<u32> = (0..fine.num_edges())
-        .map(|i| {
-            if i < 2 * cne {
-                coarse.edge_faces[i >> 1]
-            } else {
-                2
-            }
-        })
-        .collect();
-    let vert_faces: Vec<u32> = (0..fine.num_vertices)
-        .map(|w| {
-            if w < cnv {
-                coarse.vert_faces[w]
-            } else if w < cnv + cne {
-                2 * coarse.edge_faces[w - cnv]
-            } else {
-                c.face_corners(w - cnv - cne).len() as u32
-            }
-        })
-        .collect();
+    // Uniform ids of the fine level, asked for only where the next part keeps an item.
+    let vert_uid = |w: usize| -> u64 {
+        if w < cnv {
+            coarse.vert_uid[w]
+        } else if w < cnv + cne {
+            nv + coarse.edge_uid[w - cnv]
+        } else {
+            nv + ne + coarse.face_uid[w - cnv - cne]
+        }
+    };
+    let edge_uid = |i: usize| -> u64 {
+        if i < 2 * cne {
+            2 * coarse.edge_uid[i >> 1] + (i & 1) as u64
+        } else {
+            2 * ne + corner_uid(i - 2 * cne)
+        }
+    };
+    let edge_faces = |i: usize| -> u32 {
+        if i < 2 * cne {
+            coarse.edge_faces[i >> 1]
+        } else {
+            2
+        }
+    };
+    let vert_faces = |w: usize| -> u32 {
+        if w < cnv {
+            coarse.vert_faces[w]
+        } else if w < cnv + cne {
+            2 * coarse.edge_faces[w - cnv]
+        } else {
+            c.face_corners(w - cnv - cne).len() as u32
+        }
+    };
 
     // The curve network of this partial level, as the uniform plan makes it (its corners are
     // the cage's tagged vertices that it has; a corner keeps the point of its cage vertex).
@@ -1405,11 +1396,12 @@ fn refine_topology<T, U>(
     let mut frontier: Vec<usize> = Vec::with_capacity(seeds.len());
     // Both lists are sorted: one merge walk finds every seed.
     let mut f = 0;
+    let nfine = fine.num_faces();
     for &s in seeds {
-        while f < face_uid.len() && face_uid[f] < s {
+        while f < nfine && corner_uid(f) < s {
             f += 1;
         }
-        if f == face_uid.len() || face_uid[f] != s {
+        if f == nfine || corner_uid(f) != s {
             return Err(Error::Internal(format!(
                 "adaptive: seed face {s} of level {} missing",
                 t + 1
@@ -1425,19 +1417,17 @@ fn refine_topology<T, U>(
     let sub = restrict(&fine, &keep)?;
     let (kept_network, kept_vertices, kept_edges) =
         network.restrict(&sub.vertex_map, &sub.edge_map);
-    let pick = |values: &[u64], map: &[u32]| -> Vec<u64> {
-        map.iter().map(|&i| values[i as usize]).collect()
+    let pick = |map: &[u32], of: &dyn Fn(usize) -> u64| -> Vec<u64> {
+        map.iter().map(|&i| of(i as usize)).collect()
     };
     let counts = [nv + ne + nf, 2 * ne + ncorners, ncorners, 4 * ncorners];
     let next = Part {
-        face_uid: pick(&face_uid, &sub.faces),
-        vert_uid: pick(&vert_uid, &sub.vertices),
-        edge_uid: pick(&edge_uid, &sub.edges),
-        edge_faces: sub.edges.iter().map(|&e| edge_faces[e as usize]).collect(),
-        vert_faces: sub
-            .vertices
-            .iter()
-            .map(|&v| vert_faces[v as usize])
+        face_uid: pick(&sub.faces, &corner_uid),
+        vert_uid: pick(&sub.vertices, &vert_uid),
+        edge_uid: pick(&sub.edges, &edge_uid),
+        edge_faces: sub.edges.iter().map(|&e| edge_faces(e as usize)).collect(),
+        vert_faces: (sub.vertices.iter())
+            .map(|&v| vert_faces(v as usize))
             .collect(),
         curves: kept_network.next_curves(),
         network: Some(kept_network),
