@@ -85,6 +85,7 @@ use crate::face_varying::{face_varying_mesh, FaceVaryingMode, Topology};
 use crate::memory;
 use crate::mesh::{check_values, validate_geometry, Cage};
 use crate::options::{check_degree, check_levels, Boundary, Options};
+use crate::parallel::{fill_csr, gather_hinted, in_pool, prefix_offsets, zeroed_hinted};
 use crate::refinement::Refinement;
 use crate::scalar::{reciprocal, Scalar};
 use crate::scheme::{decrement, Scheme};
@@ -341,8 +342,20 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
     adaptive(cage, points, options, margin, &AdaptiveData::default())
 }
 
-/// The adaptive subdivision of every entry point.
+/// The adaptive subdivision of every entry point, run on a thread of rayon's pool: its many
+/// short parallel loops then split and join there ([`in_pool`]).
 fn adaptive<T: Scalar>(
+    cage: &Cage,
+    points: &[T],
+    options: &AdaptiveOptions,
+    margin: usize,
+    extra: &AdaptiveData<T>,
+) -> Result<AdaptiveMesh<T>> {
+    in_pool(|| adaptive_in_pool(cage, points, options, margin, extra))
+}
+
+/// [`adaptive`], on a thread of the pool.
+fn adaptive_in_pool<T: Scalar>(
     cage: &Cage,
     points: &[T],
     options: &AdaptiveOptions,
@@ -1392,8 +1405,7 @@ fn refine_topology<T, U>(
         Keep::Around(seeds) => (seeds, ctx.margin),
         Keep::Faces(faces) => (faces, 0),
     };
-    let mut keep = vec![false; fine.num_faces()];
-    let mut frontier: Vec<usize> = Vec::with_capacity(seeds.len());
+    let mut keep = memory::filled(fine.num_faces(), false)?;
     // Both lists are sorted: one merge walk finds every seed.
     let mut f = 0;
     let nfine = fine.num_faces();
@@ -1407,12 +1419,9 @@ fn refine_topology<T, U>(
                 t + 1
             )));
         }
-        if !keep[f] {
-            keep[f] = true;
-            frontier.push(f);
-        }
+        keep[f] = true;
     }
-    fine.grow_face_rings(&mut keep, frontier, margin);
+    let keep = grow_rings(&fine, keep, margin)?;
 
     let sub = restrict(&fine, &keep)?;
     let (kept_network, kept_vertices, kept_edges) =
@@ -1447,6 +1456,26 @@ fn refine_topology<T, U>(
     Ok((step, next))
 }
 
+/// The faces of the quad level `level` within `rings` vertex rings of the faces `marked`: each
+/// ring adds the faces sharing a vertex with the last (as [`Level::grow_face_rings`]), as two
+/// gathers in fixed chunks (the vertices of marked faces, the faces at marked vertices) rather
+/// than a walk from a frontier, so that it runs in parallel with a result independent of the
+/// threads.
+fn grow_rings(level: &Level, marked: Vec<bool>, rings: usize) -> Result<Vec<bool>> {
+    let (offsets, corners) = level.vertex_corner_table();
+    let mut faces = marked;
+    for _ in 0..rings {
+        let at_vertex = gather_hinted(level.num_vertices, |v| {
+            (corners[offsets[v] as usize..offsets[v + 1] as usize].iter())
+                .any(|&c| faces[c as usize >> 2])
+        })?;
+        faces = gather_hinted(level.num_faces(), |f| {
+            (level.corner_verts[4 * f..4 * f + 4].iter()).any(|&v| at_vertex[v as usize])
+        })?;
+    }
+    Ok(faces)
+}
+
 /// A level restricted to some of its faces, with the old ids of what it kept and the new id of
 /// every old vertex and edge (`NONE` if dropped).
 struct Sub {
@@ -1460,73 +1489,69 @@ struct Sub {
 
 /// The quad level `fine` restricted to the faces marked in `keep`, numbered in the order of the
 /// old ids; each vertex keeps its corners in the old order, each edge its faces in the old slot
-/// order (a lone remaining face moves to the first slot).
+/// order (a lone remaining face moves to the first slot). Every table is a gather or a prefix
+/// sum in fixed chunks ([`crate::parallel`]), so the result does not depend on the threads.
 fn restrict(fine: &Level, keep: &[bool]) -> Result<Sub> {
-    let faces: Vec<u32> = (0..keep.len() as u32)
-        .filter(|&f| keep[f as usize])
-        .collect();
-    // The maps have the whole level's size (the limit restricts a plan's last level): fallible.
-    let mut corner_map = memory::filled(fine.num_corners(), NONE)?;
-    for (i, &f) in faces.iter().enumerate() {
-        for k in 0..4 {
-            corner_map[4 * f as usize + k] = (4 * i + k) as u32;
+    let kept_face = |c: u32| c != NONE && keep[c as usize >> 2];
+    // New ids: prefix sums of what is kept (the maps have the whole level's size, as the limit
+    // restricts a plan's last level: fallible).
+    let face_at = prefix_offsets(keep.len(), |f| keep[f] as u32)?;
+    let faces = kept_items(&face_at)?;
+    let corner_map = gather_hinted(fine.num_corners(), |c| {
+        let f = c >> 2;
+        if keep[f] {
+            4 * face_at[f] + (c & 3) as u32
+        } else {
+            NONE
         }
-    }
-    let mut vert_map = memory::filled(fine.num_vertices, NONE)?;
-    let mut edge_map = memory::filled(fine.num_edges(), NONE)?;
-    for &f in &faces {
-        for k in 4 * f as usize..4 * f as usize + 4 {
-            vert_map[fine.corner_verts[k] as usize] = 0;
-            edge_map[fine.corner_edges()[k] as usize] = 0;
-        }
-    }
-    let mut vertices = Vec::new();
-    for (v, m) in vert_map.iter_mut().enumerate() {
-        if *m != NONE {
-            *m = vertices.len() as u32;
-            vertices.push(v as u32);
-        }
-    }
-    let mut edges = Vec::new();
-    for (e, m) in edge_map.iter_mut().enumerate() {
-        if *m != NONE {
-            *m = edges.len() as u32;
-            edges.push(e as u32);
-        }
-    }
-    let mut corner_verts = Vec::with_capacity(4 * faces.len());
-    let mut corner_edges = Vec::with_capacity(4 * faces.len());
-    for &f in &faces {
-        for k in 4 * f as usize..4 * f as usize + 4 {
-            corner_verts.push(vert_map[fine.corner_verts[k] as usize]);
-            corner_edges.push(edge_map[fine.corner_edges()[k] as usize]);
-        }
-    }
-    let edge_verts = edges
-        .iter()
-        .map(|&e| fine.edge_verts()[e as usize].map(|v| vert_map[v as usize]))
-        .collect();
+    })?;
+    let (offsets, corners) = fine.vertex_corner_table();
+    let corners_of = |v: usize| &corners[offsets[v] as usize..offsets[v + 1] as usize];
+    let vert_at = prefix_offsets(fine.num_vertices, |v| {
+        corners_of(v).iter().any(|&c| kept_face(c)) as u32
+    })?;
+    let vertices = kept_items(&vert_at)?;
+    let vert_map = new_ids(&vert_at)?;
+    let manifold = fine.edges().more.is_empty();
+    let edge_at = prefix_offsets(fine.num_edges(), |e| {
+        let kept = if manifold {
+            fine.edge_corners()[e].into_iter().any(kept_face)
+        } else {
+            fine.edge_slots(e).any(kept_face)
+        };
+        kept as u32
+    })?;
+    let edges = kept_items(&edge_at)?;
+    let edge_map = new_ids(&edge_at)?;
+    let old_corner = |i: usize| 4 * faces[i >> 2] as usize + (i & 3);
+    let corner_verts = gather_hinted(4 * faces.len(), |i| {
+        vert_map[fine.corner_verts[old_corner(i)] as usize]
+    })?;
+    let corner_edges = gather_hinted(4 * faces.len(), |i| {
+        edge_map[fine.corner_edges()[old_corner(i)] as usize]
+    })?;
+    let edge_verts = gather_hinted(edges.len(), |i| {
+        fine.edge_verts()[edges[i] as usize].map(|v| vert_map[v as usize])
+    })?;
     let mut more = Vec::new();
-    let edge_corners: Vec<[u32; 2]> = if fine.edges().more.is_empty() {
+    let edge_corners: Vec<[u32; 2]> = if manifold {
         // Two slots at most: the common case, without the slot iterator.
-        (edges.iter())
-            .map(|&e| {
-                let [a, b] = fine.edge_corners()[e as usize].map(|c| {
-                    if c == NONE {
-                        NONE
-                    } else {
-                        corner_map[c as usize]
-                    }
-                });
-                if a == NONE {
-                    [b, NONE]
+        gather_hinted(edges.len(), |i| {
+            let [a, b] = fine.edge_corners()[edges[i] as usize].map(|c| {
+                if c == NONE {
+                    NONE
                 } else {
-                    [a, b]
+                    corner_map[c as usize]
                 }
-            })
-            .collect()
+            });
+            if a == NONE {
+                [b, NONE]
+            } else {
+                [a, b]
+            }
+        })?
     } else {
-        let mut edge_corners = Vec::with_capacity(edges.len());
+        let mut edge_corners = memory::with_capacity(edges.len())?;
         for (i, &e) in edges.iter().enumerate() {
             let mut slots = (fine.edge_slots(e as usize))
                 .map(|c| corner_map[c as usize])
@@ -1536,18 +1561,20 @@ fn restrict(fine: &Level, keep: &[bool]) -> Result<Sub> {
         }
         edge_corners
     };
-    let mut vert_corner_offsets = Vec::with_capacity(vertices.len() + 1);
-    let mut vert_corners = Vec::with_capacity(corner_verts.len());
-    vert_corner_offsets.push(0u32);
-    for &v in &vertices {
-        for &c in fine.corners_of_vertex(v as usize) {
-            let m = corner_map[c as usize];
-            if m != NONE {
-                vert_corners.push(m);
-            }
+    let vert_corner_offsets = prefix_offsets(vertices.len(), |i| {
+        (corners_of(vertices[i] as usize).iter())
+            .filter(|&&c| kept_face(c))
+            .count() as u32
+    })?;
+    let mut vert_corners = zeroed_hinted::<u32>(corner_verts.len())?;
+    fill_csr(&vert_corner_offsets, &mut vert_corners, |i, out| {
+        let kept = (corners_of(vertices[i] as usize).iter())
+            .map(|&c| corner_map[c as usize])
+            .filter(|&c| c != NONE);
+        for (o, c) in out.iter_mut().zip(kept) {
+            *o = c;
         }
-        vert_corner_offsets.push(vert_corners.len() as u32);
-    }
+    });
     let mut level = Level::from_quad_tables(
         vertices.len(),
         corner_verts,
@@ -1577,6 +1604,32 @@ fn restrict(fine: &Level, keep: &[bool]) -> Result<Sub> {
         vertex_map: vert_map,
         edge_map,
     })
+}
+
+/// The items kept, in order, from the prefix sums `at` of their 0/1 flags.
+fn kept_items(at: &[u32]) -> Result<Vec<u32>> {
+    let mut items = zeroed_hinted::<u32>(at[at.len() - 1] as usize)?;
+    fill_csr(at, &mut items, |item, slot| {
+        if let Some(s) = slot.first_mut() {
+            *s = item as u32;
+        }
+    });
+    Ok(items)
+}
+
+/// Each item's new id from the prefix sums `at` of the 0/1 flags of what is kept, `NONE` for
+/// an item dropped.
+fn new_ids(at: &[u32]) -> Result<Vec<u32>> {
+    gather_hinted(
+        at.len() - 1,
+        |i| {
+            if at[i + 1] > at[i] {
+                at[i]
+            } else {
+                NONE
+            }
+        },
+    )
 }
 
 /// Flatness of nodes at level `t` (see the module documentation), from their children's
@@ -1726,16 +1779,24 @@ fn triangulate<T: Scalar>(
     leaves: &[Vec<u64>],
 ) -> Result<Drawn<T>> {
     let max_level = parts.len() - 1;
-    let leaf_faces = |t: usize| -> Result<Vec<usize>> {
-        leaves[t]
-            .iter()
-            .map(|&u| {
-                parts[t].face_of_uid(u).ok_or_else(|| {
-                    Error::Internal(format!("adaptive: leaf {u} of level {t} missing"))
-                })
-            })
-            .collect()
-    };
+    // The leaves' faces in their partial levels: both lists are sorted, one merge walk each.
+    let mut leaf_faces: Vec<Vec<usize>> = vec![Vec::new(); max_level + 1];
+    for (t, faces) in leaf_faces.iter_mut().enumerate().skip(1) {
+        let face_uid = &parts[t].face_uid;
+        *faces = memory::with_capacity(leaves[t].len())?;
+        let mut f = 0;
+        for &u in &leaves[t] {
+            while f < face_uid.len() && face_uid[f] < u {
+                f += 1;
+            }
+            if face_uid.get(f) != Some(&u) {
+                return Err(Error::Internal(format!(
+                    "adaptive: leaf {u} of level {t} missing"
+                )));
+            }
+            faces.push(f);
+        }
+    }
     // Per level, the output vertex of each vertex of its partial level (`NONE` if not drawn at
     // this level or finer): flat tables in place of a map by uniform id. Levels are numbered
     // from the finest down, each leaf's corners in order, so a vertex is numbered where it is
@@ -1768,7 +1829,7 @@ fn triangulate<T: Scalar>(
                 }
             }
         }
-        for f in leaf_faces(t)? {
+        for &f in &leaf_faces[t] {
             for &v in &part.level.corner_verts[4 * f..4 * f + 4] {
                 let v = v as usize;
                 if here[v] == NONE {
@@ -1803,17 +1864,13 @@ fn triangulate<T: Scalar>(
             (0..4).find(|&k| on(p, k) && on(q, k)).unwrap_or(4) as u8
         })
     });
-    let mut triangles = Vec::new();
-    let mut face_origin = Vec::new();
-    let mut triangle_level = Vec::new();
-    let mut corner_at = Vec::new();
-    let (mut edge_origin, mut edge_level, mut edge_sharpness) =
-        (Vec::new(), Vec::new(), Vec::new());
+    // Each leaf's template slots and case, first: the outputs are then allocated once.
+    let mut cases: Vec<([u32; 8], u8)> = memory::with_capacity(leaves.iter().map(Vec::len).sum())?;
     for t in 1..=max_level {
         let part = &parts[t];
         let level = &part.level;
         let manifold = level.edges().more.is_empty();
-        for f in leaf_faces(t)? {
+        for &f in &leaf_faces[t] {
             let mut slots = [NONE; 8];
             let mut mask = 0u8;
             for k in 0..4 {
@@ -1852,6 +1909,24 @@ fn triangulate<T: Scalar>(
                     mask |= 1 << k;
                 }
             }
+            cases.push((slots, mask));
+        }
+    }
+    let num_triangles: usize = (cases.iter())
+        .map(|&(_, mask)| templates[mask as usize].len())
+        .sum();
+    let mut triangles = memory::with_capacity(num_triangles)?;
+    let mut face_origin = memory::with_capacity(num_triangles)?;
+    let mut triangle_level = memory::with_capacity(num_triangles)?;
+    let mut corner_at = memory::with_capacity(3 * num_triangles)?;
+    let mut edge_origin = memory::with_capacity(3 * num_triangles)?;
+    let mut edge_level = memory::with_capacity(3 * num_triangles)?;
+    let mut edge_sharpness = memory::with_capacity(3 * num_triangles)?;
+    let mut case = cases.iter();
+    for t in 1..=max_level {
+        let part = &parts[t];
+        let level = &part.level;
+        for (&f, &(slots, mask)) in leaf_faces[t].iter().zip(case.by_ref()) {
             let origin = ctx.level0.corner_faces[(part.face_uid[f] >> (2 * (t - 1))) as usize];
             // The cage edge under each side of the leaf.
             let sides: [u32; 4] = std::array::from_fn(|k| {
