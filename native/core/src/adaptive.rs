@@ -1497,19 +1497,21 @@ fn restrict(fine: &Level, keep: &[bool]) -> Result<Sub> {
     // restricts a plan's last level: fallible).
     let face_at = prefix_offsets(keep.len(), |f| keep[f] as u32)?;
     let faces = kept_items(&face_at)?;
-    let corner_map = gather_hinted(fine.num_corners(), |c| {
-        let f = c >> 2;
+    let corner_map = |c: u32| -> u32 {
+        let f = c as usize >> 2;
         if keep[f] {
-            4 * face_at[f] + (c & 3) as u32
+            4 * face_at[f] + (c & 3)
         } else {
             NONE
         }
-    })?;
+    };
     let (offsets, corners) = fine.vertex_corner_table();
     let corners_of = |v: usize| &corners[offsets[v] as usize..offsets[v + 1] as usize];
-    let vert_at = prefix_offsets(fine.num_vertices, |v| {
-        corners_of(v).iter().any(|&c| kept_face(c)) as u32
+    // Per vertex, its corners kept: a vertex is kept with its first.
+    let vert_count = gather_hinted(fine.num_vertices, |v| {
+        corners_of(v).iter().filter(|&&c| kept_face(c)).count() as u32
     })?;
+    let vert_at = prefix_offsets(fine.num_vertices, |v| (vert_count[v] > 0) as u32)?;
     let vertices = kept_items(&vert_at)?;
     let vert_map = new_ids(&vert_at)?;
     let manifold = fine.edges().more.is_empty();
@@ -1523,13 +1525,15 @@ fn restrict(fine: &Level, keep: &[bool]) -> Result<Sub> {
     })?;
     let edges = kept_items(&edge_at)?;
     let edge_map = new_ids(&edge_at)?;
-    let old_corner = |i: usize| 4 * faces[i >> 2] as usize + (i & 3);
-    let corner_verts = gather_hinted(4 * faces.len(), |i| {
-        vert_map[fine.corner_verts[old_corner(i)] as usize]
-    })?;
-    let corner_edges = gather_hinted(4 * faces.len(), |i| {
-        edge_map[fine.corner_edges()[old_corner(i)] as usize]
-    })?;
+    // A face's four corners at once (one lookup of the face).
+    let quad_of = |table: &[u32], map: &[u32], i: usize| -> [u32; 4] {
+        let first = 4 * faces[i] as usize;
+        std::array::from_fn(|k| map[table[first + k] as usize])
+    };
+    let corner_verts =
+        gather_hinted(faces.len(), |i| quad_of(&fine.corner_verts, &vert_map, i))?.into_flattened();
+    let corner_edges = gather_hinted(faces.len(), |i| quad_of(fine.corner_edges(), &edge_map, i))?
+        .into_flattened();
     let edge_verts = gather_hinted(edges.len(), |i| {
         fine.edge_verts()[edges[i] as usize].map(|v| vert_map[v as usize])
     })?;
@@ -1541,7 +1545,7 @@ fn restrict(fine: &Level, keep: &[bool]) -> Result<Sub> {
                 if c == NONE {
                     NONE
                 } else {
-                    corner_map[c as usize]
+                    corner_map(c)
                 }
             });
             if a == NONE {
@@ -1554,22 +1558,18 @@ fn restrict(fine: &Level, keep: &[bool]) -> Result<Sub> {
         let mut edge_corners = memory::with_capacity(edges.len())?;
         for (i, &e) in edges.iter().enumerate() {
             let mut slots = (fine.edge_slots(e as usize))
-                .map(|c| corner_map[c as usize])
+                .map(corner_map)
                 .filter(|&c| c != NONE);
             edge_corners.push([slots.next().unwrap_or(NONE), slots.next().unwrap_or(NONE)]);
             more.extend(slots.map(|c| (i as u32, c)));
         }
         edge_corners
     };
-    let vert_corner_offsets = prefix_offsets(vertices.len(), |i| {
-        (corners_of(vertices[i] as usize).iter())
-            .filter(|&&c| kept_face(c))
-            .count() as u32
-    })?;
+    let vert_corner_offsets = prefix_offsets(vertices.len(), |i| vert_count[vertices[i] as usize])?;
     let mut vert_corners = zeroed_hinted::<u32>(corner_verts.len())?;
     fill_csr(&vert_corner_offsets, &mut vert_corners, |i, out| {
         let kept = (corners_of(vertices[i] as usize).iter())
-            .map(|&c| corner_map[c as usize])
+            .map(|&c| corner_map(c))
             .filter(|&c| c != NONE);
         for (o, c) in out.iter_mut().zip(kept) {
             *o = c;
