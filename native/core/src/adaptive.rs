@@ -1313,15 +1313,17 @@ fn refine_part<T: Scalar>(
     };
     let (data, curve) = run.into_parts();
     let points = drawing.as_deref().unwrap_or(&data);
-    next.points = step.vertices.iter().map(|&v| points[v as usize]).collect();
-    next.data = step.keep(odd).iter().map(|&i| data[i as usize]).collect();
-    next.curve = step.keep_curve.iter().map(|&i| curve[i as usize]).collect();
+    let pick =
+        |values: &[P<T>], keep: &[u32]| gather_hinted(keep.len(), |i| values[keep[i] as usize]);
+    next.points = pick(points, &step.vertices)?;
+    next.data = pick(&data, step.keep(odd))?;
+    next.curve = pick(&curve, &step.keep_curve)?;
     Ok(next)
 }
 
 /// The topology of one step `P_t -> P_{t+1}`: refine, keep the faces `keep` names. Returns the
 /// step and the next part, without data.
-fn refine_topology<T, U>(
+fn refine_topology<T: Sync, U>(
     ctx: &Context<U>,
     t: usize,
     coarse: &Part<T>,
@@ -1426,18 +1428,16 @@ fn refine_topology<T, U>(
     let sub = restrict(&fine, &keep)?;
     let (kept_network, kept_vertices, kept_edges) =
         network.restrict(&sub.vertex_map, &sub.edge_map);
-    let pick = |map: &[u32], of: &dyn Fn(usize) -> u64| -> Vec<u64> {
-        map.iter().map(|&i| of(i as usize)).collect()
-    };
+    fn pick<V: Send>(map: &[u32], of: impl Fn(usize) -> V + Sync + Send) -> Result<Vec<V>> {
+        gather_hinted(map.len(), |i| of(map[i] as usize))
+    }
     let counts = [nv + ne + nf, 2 * ne + ncorners, ncorners, 4 * ncorners];
     let next = Part {
-        face_uid: pick(&sub.faces, &corner_uid),
-        vert_uid: pick(&sub.vertices, &vert_uid),
-        edge_uid: pick(&sub.edges, &edge_uid),
-        edge_faces: sub.edges.iter().map(|&e| edge_faces(e as usize)).collect(),
-        vert_faces: (sub.vertices.iter())
-            .map(|&v| vert_faces(v as usize))
-            .collect(),
+        face_uid: pick(&sub.faces, corner_uid)?,
+        vert_uid: pick(&sub.vertices, vert_uid)?,
+        edge_uid: pick(&sub.edges, edge_uid)?,
+        edge_faces: pick(&sub.edges, edge_faces)?,
+        vert_faces: pick(&sub.vertices, vert_faces)?,
         curves: kept_network.next_curves(),
         network: Some(kept_network),
         data: Vec::new(),
@@ -1650,40 +1650,39 @@ fn measure<T: Scalar>(
     let dist = |a: [f64; 3], b: [f64; 3]| -> f64 {
         ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
     };
-    nodes
-        .iter()
-        .map(|&u| {
-            let mut corner = [[0.0; 3]; 4];
-            let mut mid = [[0.0; 3]; 4];
-            let mut centre = [0.0; 3];
-            // The four children have consecutive uniform ids, so consecutive places.
-            let first = fine
-                .face_of_uid(4 * u)
-                .filter(|&f| fine.face_uid.get(f + 3) == Some(&(4 * u + 3)))
-                .ok_or_else(|| {
-                    Error::Internal(format!("adaptive: child of node {u} (level {t}) missing"))
-                })?;
-            for k in 0..4 {
-                let f = first + k;
-                let q = &fine.level.corner_verts[4 * f..4 * f + 4];
-                corner[k] = p(q[0]);
-                mid[k] = p(q[1]);
-                centre = p(q[2]);
+    let errors = gather_hinted(nodes.len(), |i| -> Result<f64> {
+        let u = nodes[i];
+        let mut corner = [[0.0; 3]; 4];
+        let mut mid = [[0.0; 3]; 4];
+        let mut centre = [0.0; 3];
+        // The four children have consecutive uniform ids, so consecutive places.
+        let first = fine
+            .face_of_uid(4 * u)
+            .filter(|&f| fine.face_uid.get(f + 3) == Some(&(4 * u + 3)))
+            .ok_or_else(|| {
+                Error::Internal(format!("adaptive: child of node {u} (level {t}) missing"))
+            })?;
+        for k in 0..4 {
+            let f = first + k;
+            let q = &fine.level.corner_verts[4 * f..4 * f + 4];
+            corner[k] = p(q[0]);
+            mid[k] = p(q[1]);
+            centre = p(q[2]);
+        }
+        let mut error = 0.0f64;
+        let mut mean = [0.0; 3];
+        for k in 0..4 {
+            let (a, b) = (corner[k], corner[(k + 1) & 3]);
+            let m = [0, 1, 2].map(|i| 0.5 * (a[i] + b[i]));
+            error = error.max(dist(mid[k], m));
+            for i in 0..3 {
+                mean[i] += 0.25 * a[i];
             }
-            let mut error = 0.0f64;
-            let mut mean = [0.0; 3];
-            for k in 0..4 {
-                let (a, b) = (corner[k], corner[(k + 1) & 3]);
-                let m = [0, 1, 2].map(|i| 0.5 * (a[i] + b[i]));
-                error = error.max(dist(mid[k], m));
-                for i in 0..3 {
-                    mean[i] += 0.25 * a[i];
-                }
-            }
-            error = error.max(dist(centre, mean));
-            Ok(error * scale_by)
-        })
-        .collect()
+        }
+        error = error.max(dist(centre, mean));
+        Ok(error * scale_by)
+    })?;
+    errors.into_iter().collect()
 }
 
 /// Refines node `node` of level `t` and, by the vertex restriction criterion, every leaf parent
