@@ -43,6 +43,12 @@
 //! triangulation need; a query that meets an incomplete vertex is reported as
 //! [`Error::Internal`] rather than answered wrongly.
 //!
+//! Bookkeeping. Making a partial level (its margin rings, its restriction to them, its uniform
+//! ids and picked data) and measuring its nodes are gathers and prefix sums in fixed chunks
+//! ([`crate::parallel`]): parallel, with results that do not depend on the number of threads.
+//! Lookups by uniform id go through the sorted id lists (merge walks) and flat per-level tables,
+//! not hash maps; the refined sets are the only ones.
+//!
 //! # Refinement
 //! Levels are decided one at a time: level j's nodes are evaluated together with their children
 //! (the partial levels are extended up to level j + 1), each node's error measured
