@@ -10,7 +10,7 @@
 //!          target/release/examples/callgrind "$@" 2>&1 | awk '/Collected/ {print $4}'; }
 //! for case in fresh-averaging-3 cached-averaging-3 fresh-classic-3 cached-classic-3 \
 //!             fresh-averaging-4 cached-averaging-4 fresh-averaging-9 cached-averaging-9 \
-//!             limit-surface-4 adaptive-4 limit-ico-4 limit-first-ico-4 limit-first-fan-400-9 \
+//!             limit-surface-4 adaptive-4 adaptive-flat-4-5 adaptive-uniform-4-5 limit-ico-4 limit-first-ico-4 limit-first-fan-400-9 \
 //!             limit-first-ngon-1000-9 limit-semisharp-4 limit-sharp-4 \
 //!             uvs-classic-3 uvs-averaging-4 uvs-first-classic-3 uvs-first-averaging-4 \
 //!             uvs-shared-classic-3 uvs-shared-averaging-4 \
@@ -24,7 +24,9 @@
 //! "fresh" is `Plan::new` and one `evaluate`; "cached" one `evaluate` through a plan that has
 //! already evaluated once (its kept buffers warm); the limit case is `limit_surface` on a new
 //! plan (stencils built on the first call) and the adaptive case one `subdivide_adaptive` at
-//! tolerance 1e-4, max level 3. "uvs" is a cached `evaluate_face_varying` of UVs with a seam
+//! tolerance 1e-4, max level 3; "adaptive-flat-D-L" and "adaptive-uniform-D-L" are the two sides
+//! of a row of the adaptive bench (`benches/adaptive.rs`: its cage, degree D, max level L), the
+//! adaptive one at the uniform surface's error (measured outside the counted work). "uvs" is a cached `evaluate_face_varying` of UVs with a seam
 //! around every base patch (mode `boundaries`), to compare with "cached" of the same scheme;
 //! "uvs-first" is a new plan's first `evaluate_face_varying` (the face-varying mesh built), to
 //! compare with "fresh"; "uvs-shared" the cached UVs in the indexed form
@@ -39,6 +41,8 @@ use bidegree::{subdivide_adaptive, AdaptiveOptions, Cage, FaceVaryingMode, Optio
 
 #[path = "../benches/cages/mod.rs"]
 mod cages;
+#[path = "../benches/cages/flat.rs"]
+mod flat;
 
 fn main() {
     let usage = || -> ! {
@@ -222,6 +226,55 @@ fn main() {
         measured(&|| {
             black_box(subdivide_adaptive(&cage, &points, &adaptive).unwrap());
         });
+    } else if let Some((uniform, degree, level)) = case
+        .strip_prefix("adaptive-flat-")
+        .map(|rest| (false, rest))
+        .or_else(|| {
+            case.strip_prefix("adaptive-uniform-")
+                .map(|rest| (true, rest))
+        })
+        .and_then(|(uniform, rest)| {
+            let (d, l) = rest.split_once('-')?;
+            Some((uniform, d.parse::<u32>().ok()?, l.parse::<u32>().ok()?))
+        })
+    {
+        // adaptive-flat-D-L and adaptive-uniform-D-L: the two sides of a row of the adaptive
+        // bench (its cage, degree D, max level L), adaptive at the tolerance of the uniform
+        // surface's own error (measured outside the counted work) and the uniform plan's
+        // `Plan::new` and `evaluate`.
+        let (cage, points) = flat::flat_with_detail(16);
+        let adaptive = |tolerance: f64, measure_leaves: bool| AdaptiveOptions {
+            degree,
+            max_level: level,
+            tolerance,
+            measure_leaves,
+            ..AdaptiveOptions::default()
+        };
+        if uniform {
+            let o = Options {
+                degree,
+                levels: level,
+                ..Options::default()
+            };
+            measured(&|| {
+                let plan = Plan::new(&cage, &o).unwrap();
+                black_box(plan.evaluate(&points, 3).unwrap());
+            });
+        } else {
+            // For a profile of the adaptive work alone, ADAPTIVE_TOLERANCE_BITS (the tolerance's
+            // f64 bits, printed by a run without it) skips the measurement of the uniform error.
+            let tolerance = match std::env::var("ADAPTIVE_TOLERANCE_BITS") {
+                Ok(bits) => f64::from_bits(bits.parse().unwrap_or_else(|_| usage())),
+                Err(_) => subdivide_adaptive(&cage, &points, &adaptive(0.0, true))
+                    .unwrap()
+                    .max_error
+                    .unwrap(),
+            };
+            eprintln!("tolerance bits: {}", tolerance.to_bits());
+            measured(&|| {
+                black_box(subdivide_adaptive(&cage, &points, &adaptive(tolerance, false)).unwrap());
+            });
+        }
     } else {
         usage()
     }

@@ -43,6 +43,12 @@
 //! triangulation need; a query that meets an incomplete vertex is reported as
 //! [`Error::Internal`] rather than answered wrongly.
 //!
+//! Bookkeeping. Making a partial level (its margin rings, its restriction to them, its uniform
+//! ids and picked data) and measuring its nodes are gathers and prefix sums in fixed chunks
+//! ([`crate::parallel`]): parallel, with results that do not depend on the number of threads.
+//! Lookups by uniform id go through the sorted id lists (merge walks) and flat per-level tables,
+//! not hash maps; the refined sets are the only ones.
+//!
 //! # Refinement
 //! Levels are decided one at a time: level j's nodes are evaluated together with their children
 //! (the partial levels are extended up to level j + 1), each node's error measured
@@ -76,7 +82,7 @@
 //! face point), so that the diagonals of four siblings meet at their parent's centre (the 4-8
 //! tiling of Fig. 13). No T-junctions arise: both sides of every edge use the same vertices.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashSet;
 use std::hash::{BuildHasherDefault, Hasher};
 
 use crate::curves::{CageFeatures, Curve, CurveNetwork};
@@ -85,6 +91,7 @@ use crate::face_varying::{face_varying_mesh, FaceVaryingMode, Topology};
 use crate::memory;
 use crate::mesh::{check_values, validate_geometry, Cage};
 use crate::options::{check_degree, check_levels, Boundary, Options};
+use crate::parallel::{fill_csr, gather_hinted, in_pool, prefix_offsets, zeroed_hinted};
 use crate::refinement::Refinement;
 use crate::scalar::{reciprocal, Scalar};
 use crate::scheme::{decrement, Scheme};
@@ -112,7 +119,6 @@ impl Hasher for IdHasher {
 }
 
 type IdSet = HashSet<u64, BuildHasherDefault<IdHasher>>;
-type IdMap<V> = HashMap<u64, V, BuildHasherDefault<IdHasher>>;
 
 /// Options of an adaptive subdivision request.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -342,8 +348,20 @@ pub fn subdivide_adaptive_with_margin<T: Scalar>(
     adaptive(cage, points, options, margin, &AdaptiveData::default())
 }
 
-/// The adaptive subdivision of every entry point.
+/// The adaptive subdivision of every entry point, run on a thread of rayon's pool: its many
+/// short parallel loops then split and join there ([`in_pool`]).
 fn adaptive<T: Scalar>(
+    cage: &Cage,
+    points: &[T],
+    options: &AdaptiveOptions,
+    margin: usize,
+    extra: &AdaptiveData<T>,
+) -> Result<AdaptiveMesh<T>> {
+    in_pool(|| adaptive_in_pool(cage, points, options, margin, extra))
+}
+
+/// [`adaptive`], on a thread of the pool.
+fn adaptive_in_pool<T: Scalar>(
     cage: &Cage,
     points: &[T],
     options: &AdaptiveOptions,
@@ -1301,15 +1319,17 @@ fn refine_part<T: Scalar>(
     };
     let (data, curve) = run.into_parts();
     let points = drawing.as_deref().unwrap_or(&data);
-    next.points = step.vertices.iter().map(|&v| points[v as usize]).collect();
-    next.data = step.keep(odd).iter().map(|&i| data[i as usize]).collect();
-    next.curve = step.keep_curve.iter().map(|&i| curve[i as usize]).collect();
+    let pick =
+        |values: &[P<T>], keep: &[u32]| gather_hinted(keep.len(), |i| values[keep[i] as usize]);
+    next.points = pick(points, &step.vertices)?;
+    next.data = pick(&data, step.keep(odd))?;
+    next.curve = pick(&curve, &step.keep_curve)?;
     Ok(next)
 }
 
 /// The topology of one step `P_t -> P_{t+1}`: refine, keep the faces `keep` names. Returns the
 /// step and the next part, without data.
-fn refine_topology<T, U>(
+fn refine_topology<T: Sync, U>(
     ctx: &Context<U>,
     t: usize,
     coarse: &Part<T>,
@@ -1326,48 +1346,39 @@ fn refine_topology<T, U>(
             4 * coarse.face_uid[k >> 2] + (k & 3) as u64
         }
     };
-    // Uniform ids of the fine level.
-    let face_uid: Vec<u64> = (0..fine.num_faces()).map(corner_uid).collect();
-    let vert_uid: Vec<u64> = (0..fine.num_vertices)
-        .map(|w| {
-            if w < cnv {
-                coarse.vert_uid[w]
-            } else if w < cnv + cne {
-                nv + coarse.edge_uid[w - cnv]
-            } else {
-                nv + ne + coarse.face_uid[w - cnv - cne]
-            }
-        })
-        .collect();
-    let edge_uid: Vec<u64> = (0..fine.num_edges())
-        .map(|i| {
-            if i < 2 * cne {
-                2 * coarse.edge_uid[i >> 1] + (i & 1) as u64
-            } else {
-                2 * ne + corner_uid(i - 2 * cne)
-            }
-        })
-        .collect();
-    let edge_faces: Vec<u32> = (0..fine.num_edges())
-        .map(|i| {
-            if i < 2 * cne {
-                coarse.edge_faces[i >> 1]
-            } else {
-                2
-            }
-        })
-        .collect();
-    let vert_faces: Vec<u32> = (0..fine.num_vertices)
-        .map(|w| {
-            if w < cnv {
-                coarse.vert_faces[w]
-            } else if w < cnv + cne {
-                2 * coarse.edge_faces[w - cnv]
-            } else {
-                c.face_corners(w - cnv - cne).len() as u32
-            }
-        })
-        .collect();
+    // Uniform ids of the fine level, asked for only where the next part keeps an item.
+    let vert_uid = |w: usize| -> u64 {
+        if w < cnv {
+            coarse.vert_uid[w]
+        } else if w < cnv + cne {
+            nv + coarse.edge_uid[w - cnv]
+        } else {
+            nv + ne + coarse.face_uid[w - cnv - cne]
+        }
+    };
+    let edge_uid = |i: usize| -> u64 {
+        if i < 2 * cne {
+            2 * coarse.edge_uid[i >> 1] + (i & 1) as u64
+        } else {
+            2 * ne + corner_uid(i - 2 * cne)
+        }
+    };
+    let edge_faces = |i: usize| -> u32 {
+        if i < 2 * cne {
+            coarse.edge_faces[i >> 1]
+        } else {
+            2
+        }
+    };
+    let vert_faces = |w: usize| -> u32 {
+        if w < cnv {
+            coarse.vert_faces[w]
+        } else if w < cnv + cne {
+            2 * coarse.edge_faces[w - cnv]
+        } else {
+            c.face_corners(w - cnv - cne).len() as u32
+        }
+    };
 
     // The curve network of this partial level, as the uniform plan makes it (its corners are
     // the cage's tagged vertices that it has; a corner keeps the point of its cage vertex).
@@ -1402,44 +1413,37 @@ fn refine_topology<T, U>(
         Keep::Around(seeds) => (seeds, ctx.margin),
         Keep::Faces(faces) => (faces, 0),
     };
-    let mut keep = vec![false; fine.num_faces()];
-    let mut frontier: Vec<usize> = Vec::with_capacity(seeds.len());
+    let mut keep = memory::filled(fine.num_faces(), false)?;
     // Both lists are sorted: one merge walk finds every seed.
     let mut f = 0;
+    let nfine = fine.num_faces();
     for &s in seeds {
-        while f < face_uid.len() && face_uid[f] < s {
+        while f < nfine && corner_uid(f) < s {
             f += 1;
         }
-        if f == face_uid.len() || face_uid[f] != s {
+        if f == nfine || corner_uid(f) != s {
             return Err(Error::Internal(format!(
                 "adaptive: seed face {s} of level {} missing",
                 t + 1
             )));
         }
-        if !keep[f] {
-            keep[f] = true;
-            frontier.push(f);
-        }
+        keep[f] = true;
     }
-    fine.grow_face_rings(&mut keep, frontier, margin);
+    let keep = grow_rings(&fine, keep, margin)?;
 
     let sub = restrict(&fine, &keep)?;
     let (kept_network, kept_vertices, kept_edges) =
         network.restrict(&sub.vertex_map, &sub.edge_map);
-    let pick = |values: &[u64], map: &[u32]| -> Vec<u64> {
-        map.iter().map(|&i| values[i as usize]).collect()
-    };
+    fn pick<V: Send>(map: &[u32], of: impl Fn(usize) -> V + Sync + Send) -> Result<Vec<V>> {
+        gather_hinted(map.len(), |i| of(map[i] as usize))
+    }
     let counts = [nv + ne + nf, 2 * ne + ncorners, ncorners, 4 * ncorners];
     let next = Part {
-        face_uid: pick(&face_uid, &sub.faces),
-        vert_uid: pick(&vert_uid, &sub.vertices),
-        edge_uid: pick(&edge_uid, &sub.edges),
-        edge_faces: sub.edges.iter().map(|&e| edge_faces[e as usize]).collect(),
-        vert_faces: sub
-            .vertices
-            .iter()
-            .map(|&v| vert_faces[v as usize])
-            .collect(),
+        face_uid: pick(&sub.faces, corner_uid)?,
+        vert_uid: pick(&sub.vertices, vert_uid)?,
+        edge_uid: pick(&sub.edges, edge_uid)?,
+        edge_faces: pick(&sub.edges, edge_faces)?,
+        vert_faces: pick(&sub.vertices, vert_faces)?,
         curves: kept_network.next_curves(),
         network: Some(kept_network),
         data: Vec::new(),
@@ -1458,6 +1462,26 @@ fn refine_topology<T, U>(
     Ok((step, next))
 }
 
+/// The faces of the quad level `level` within `rings` vertex rings of the faces `marked`: each
+/// ring adds the faces sharing a vertex with the last (as [`Level::grow_face_rings`]), as two
+/// gathers in fixed chunks (the vertices of marked faces, the faces at marked vertices) rather
+/// than a walk from a frontier, so that it runs in parallel with a result independent of the
+/// threads.
+fn grow_rings(level: &Level, marked: Vec<bool>, rings: usize) -> Result<Vec<bool>> {
+    let (offsets, corners) = level.vertex_corner_table();
+    let mut faces = marked;
+    for _ in 0..rings {
+        let at_vertex = gather_hinted(level.num_vertices, |v| {
+            (corners[offsets[v] as usize..offsets[v + 1] as usize].iter())
+                .any(|&c| faces[c as usize >> 2])
+        })?;
+        faces = gather_hinted(level.num_faces(), |f| {
+            (level.corner_verts[4 * f..4 * f + 4].iter()).any(|&v| at_vertex[v as usize])
+        })?;
+    }
+    Ok(faces)
+}
+
 /// A level restricted to some of its faces, with the old ids of what it kept and the new id of
 /// every old vertex and edge (`NONE` if dropped).
 struct Sub {
@@ -1471,94 +1495,92 @@ struct Sub {
 
 /// The quad level `fine` restricted to the faces marked in `keep`, numbered in the order of the
 /// old ids; each vertex keeps its corners in the old order, each edge its faces in the old slot
-/// order (a lone remaining face moves to the first slot).
+/// order (a lone remaining face moves to the first slot). Every table is a gather or a prefix
+/// sum in fixed chunks ([`crate::parallel`]), so the result does not depend on the threads.
 fn restrict(fine: &Level, keep: &[bool]) -> Result<Sub> {
-    let faces: Vec<u32> = (0..keep.len() as u32)
-        .filter(|&f| keep[f as usize])
-        .collect();
-    // The maps have the whole level's size (the limit restricts a plan's last level): fallible.
-    let mut corner_map = memory::filled(fine.num_corners(), NONE)?;
-    for (i, &f) in faces.iter().enumerate() {
-        for k in 0..4 {
-            corner_map[4 * f as usize + k] = (4 * i + k) as u32;
+    let kept_face = |c: u32| c != NONE && keep[c as usize >> 2];
+    // New ids: prefix sums of what is kept (the maps have the whole level's size, as the limit
+    // restricts a plan's last level: fallible).
+    let face_at = prefix_offsets(keep.len(), |f| keep[f] as u32)?;
+    let faces = kept_items(&face_at)?;
+    let corner_map = |c: u32| -> u32 {
+        let f = c as usize >> 2;
+        if keep[f] {
+            4 * face_at[f] + (c & 3)
+        } else {
+            NONE
         }
-    }
-    let mut vert_map = memory::filled(fine.num_vertices, NONE)?;
-    let mut edge_map = memory::filled(fine.num_edges(), NONE)?;
-    for &f in &faces {
-        for k in 4 * f as usize..4 * f as usize + 4 {
-            vert_map[fine.corner_verts[k] as usize] = 0;
-            edge_map[fine.corner_edges()[k] as usize] = 0;
-        }
-    }
-    let mut vertices = Vec::new();
-    for (v, m) in vert_map.iter_mut().enumerate() {
-        if *m != NONE {
-            *m = vertices.len() as u32;
-            vertices.push(v as u32);
-        }
-    }
-    let mut edges = Vec::new();
-    for (e, m) in edge_map.iter_mut().enumerate() {
-        if *m != NONE {
-            *m = edges.len() as u32;
-            edges.push(e as u32);
-        }
-    }
-    let mut corner_verts = Vec::with_capacity(4 * faces.len());
-    let mut corner_edges = Vec::with_capacity(4 * faces.len());
-    for &f in &faces {
-        for k in 4 * f as usize..4 * f as usize + 4 {
-            corner_verts.push(vert_map[fine.corner_verts[k] as usize]);
-            corner_edges.push(edge_map[fine.corner_edges()[k] as usize]);
-        }
-    }
-    let edge_verts = edges
-        .iter()
-        .map(|&e| fine.edge_verts()[e as usize].map(|v| vert_map[v as usize]))
-        .collect();
+    };
+    let (offsets, corners) = fine.vertex_corner_table();
+    let corners_of = |v: usize| &corners[offsets[v] as usize..offsets[v + 1] as usize];
+    // Per vertex, its corners kept: a vertex is kept with its first.
+    let vert_count = gather_hinted(fine.num_vertices, |v| {
+        corners_of(v).iter().filter(|&&c| kept_face(c)).count() as u32
+    })?;
+    let vert_at = prefix_offsets(fine.num_vertices, |v| (vert_count[v] > 0) as u32)?;
+    let vertices = kept_items(&vert_at)?;
+    let vert_map = new_ids(&vert_at)?;
+    let manifold = fine.edges().more.is_empty();
+    let edge_at = prefix_offsets(fine.num_edges(), |e| {
+        let kept = if manifold {
+            fine.edge_corners()[e].into_iter().any(kept_face)
+        } else {
+            fine.edge_slots(e).any(kept_face)
+        };
+        kept as u32
+    })?;
+    let edges = kept_items(&edge_at)?;
+    let edge_map = new_ids(&edge_at)?;
+    // A face's four corners at once (one lookup of the face).
+    let quad_of = |table: &[u32], map: &[u32], i: usize| -> [u32; 4] {
+        let first = 4 * faces[i] as usize;
+        std::array::from_fn(|k| map[table[first + k] as usize])
+    };
+    let corner_verts =
+        gather_hinted(faces.len(), |i| quad_of(&fine.corner_verts, &vert_map, i))?.into_flattened();
+    let corner_edges = gather_hinted(faces.len(), |i| quad_of(fine.corner_edges(), &edge_map, i))?
+        .into_flattened();
+    let edge_verts = gather_hinted(edges.len(), |i| {
+        fine.edge_verts()[edges[i] as usize].map(|v| vert_map[v as usize])
+    })?;
     let mut more = Vec::new();
-    let edge_corners: Vec<[u32; 2]> = if fine.edges().more.is_empty() {
+    let edge_corners: Vec<[u32; 2]> = if manifold {
         // Two slots at most: the common case, without the slot iterator.
-        (edges.iter())
-            .map(|&e| {
-                let [a, b] = fine.edge_corners()[e as usize].map(|c| {
-                    if c == NONE {
-                        NONE
-                    } else {
-                        corner_map[c as usize]
-                    }
-                });
-                if a == NONE {
-                    [b, NONE]
+        gather_hinted(edges.len(), |i| {
+            let [a, b] = fine.edge_corners()[edges[i] as usize].map(|c| {
+                if c == NONE {
+                    NONE
                 } else {
-                    [a, b]
+                    corner_map(c)
                 }
-            })
-            .collect()
+            });
+            if a == NONE {
+                [b, NONE]
+            } else {
+                [a, b]
+            }
+        })?
     } else {
-        let mut edge_corners = Vec::with_capacity(edges.len());
+        let mut edge_corners = memory::with_capacity(edges.len())?;
         for (i, &e) in edges.iter().enumerate() {
             let mut slots = (fine.edge_slots(e as usize))
-                .map(|c| corner_map[c as usize])
+                .map(corner_map)
                 .filter(|&c| c != NONE);
             edge_corners.push([slots.next().unwrap_or(NONE), slots.next().unwrap_or(NONE)]);
             more.extend(slots.map(|c| (i as u32, c)));
         }
         edge_corners
     };
-    let mut vert_corner_offsets = Vec::with_capacity(vertices.len() + 1);
-    let mut vert_corners = Vec::with_capacity(corner_verts.len());
-    vert_corner_offsets.push(0u32);
-    for &v in &vertices {
-        for &c in fine.corners_of_vertex(v as usize) {
-            let m = corner_map[c as usize];
-            if m != NONE {
-                vert_corners.push(m);
-            }
+    let vert_corner_offsets = prefix_offsets(vertices.len(), |i| vert_count[vertices[i] as usize])?;
+    let mut vert_corners = zeroed_hinted::<u32>(corner_verts.len())?;
+    fill_csr(&vert_corner_offsets, &mut vert_corners, |i, out| {
+        let kept = (corners_of(vertices[i] as usize).iter())
+            .map(|&c| corner_map(c))
+            .filter(|&c| c != NONE);
+        for (o, c) in out.iter_mut().zip(kept) {
+            *o = c;
         }
-        vert_corner_offsets.push(vert_corners.len() as u32);
-    }
+    });
     let mut level = Level::from_quad_tables(
         vertices.len(),
         corner_verts,
@@ -1590,6 +1612,32 @@ fn restrict(fine: &Level, keep: &[bool]) -> Result<Sub> {
     })
 }
 
+/// The items kept, in order, from the prefix sums `at` of their 0/1 flags.
+fn kept_items(at: &[u32]) -> Result<Vec<u32>> {
+    let mut items = zeroed_hinted::<u32>(at[at.len() - 1] as usize)?;
+    fill_csr(at, &mut items, |item, slot| {
+        if let Some(s) = slot.first_mut() {
+            *s = item as u32;
+        }
+    });
+    Ok(items)
+}
+
+/// Each item's new id from the prefix sums `at` of the 0/1 flags of what is kept, `NONE` for
+/// an item dropped.
+fn new_ids(at: &[u32]) -> Result<Vec<u32>> {
+    gather_hinted(
+        at.len() - 1,
+        |i| {
+            if at[i + 1] > at[i] {
+                at[i]
+            } else {
+                NONE
+            }
+        },
+    )
+}
+
 /// Flatness of nodes at level `t` (see the module documentation), from their children's
 /// drawing points at level `t + 1`.
 fn measure<T: Scalar>(
@@ -1608,40 +1656,39 @@ fn measure<T: Scalar>(
     let dist = |a: [f64; 3], b: [f64; 3]| -> f64 {
         ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
     };
-    nodes
-        .iter()
-        .map(|&u| {
-            let mut corner = [[0.0; 3]; 4];
-            let mut mid = [[0.0; 3]; 4];
-            let mut centre = [0.0; 3];
-            // The four children have consecutive uniform ids, so consecutive places.
-            let first = fine
-                .face_of_uid(4 * u)
-                .filter(|&f| fine.face_uid.get(f + 3) == Some(&(4 * u + 3)))
-                .ok_or_else(|| {
-                    Error::Internal(format!("adaptive: child of node {u} (level {t}) missing"))
-                })?;
-            for k in 0..4 {
-                let f = first + k;
-                let q = &fine.level.corner_verts[4 * f..4 * f + 4];
-                corner[k] = p(q[0]);
-                mid[k] = p(q[1]);
-                centre = p(q[2]);
+    let errors = gather_hinted(nodes.len(), |i| -> Result<f64> {
+        let u = nodes[i];
+        let mut corner = [[0.0; 3]; 4];
+        let mut mid = [[0.0; 3]; 4];
+        let mut centre = [0.0; 3];
+        // The four children have consecutive uniform ids, so consecutive places.
+        let first = fine
+            .face_of_uid(4 * u)
+            .filter(|&f| fine.face_uid.get(f + 3) == Some(&(4 * u + 3)))
+            .ok_or_else(|| {
+                Error::Internal(format!("adaptive: child of node {u} (level {t}) missing"))
+            })?;
+        for k in 0..4 {
+            let f = first + k;
+            let q = &fine.level.corner_verts[4 * f..4 * f + 4];
+            corner[k] = p(q[0]);
+            mid[k] = p(q[1]);
+            centre = p(q[2]);
+        }
+        let mut error = 0.0f64;
+        let mut mean = [0.0; 3];
+        for k in 0..4 {
+            let (a, b) = (corner[k], corner[(k + 1) & 3]);
+            let m = [0, 1, 2].map(|i| 0.5 * (a[i] + b[i]));
+            error = error.max(dist(mid[k], m));
+            for i in 0..3 {
+                mean[i] += 0.25 * a[i];
             }
-            let mut error = 0.0f64;
-            let mut mean = [0.0; 3];
-            for k in 0..4 {
-                let (a, b) = (corner[k], corner[(k + 1) & 3]);
-                let m = [0, 1, 2].map(|i| 0.5 * (a[i] + b[i]));
-                error = error.max(dist(mid[k], m));
-                for i in 0..3 {
-                    mean[i] += 0.25 * a[i];
-                }
-            }
-            error = error.max(dist(centre, mean));
-            Ok(error * scale_by)
-        })
-        .collect()
+        }
+        error = error.max(dist(centre, mean));
+        Ok(error * scale_by)
+    })?;
+    errors.into_iter().collect()
 }
 
 /// Refines node `node` of level `t` and, by the vertex restriction criterion, every leaf parent
@@ -1737,35 +1784,81 @@ fn triangulate<T: Scalar>(
     leaves: &[Vec<u64>],
 ) -> Result<Drawn<T>> {
     let max_level = parts.len() - 1;
-    let mut index: IdMap<u32> = IdMap::default();
+    // The leaves' faces in their partial levels: both lists are sorted, one merge walk each.
+    let mut leaf_faces: Vec<Vec<usize>> = vec![Vec::new(); max_level + 1];
+    for (t, faces) in leaf_faces.iter_mut().enumerate().skip(1) {
+        let face_uid = &parts[t].face_uid;
+        *faces = memory::with_capacity(leaves[t].len())?;
+        let mut f = 0;
+        for &u in &leaves[t] {
+            while f < face_uid.len() && face_uid[f] < u {
+                f += 1;
+            }
+            if face_uid.get(f) != Some(&u) {
+                return Err(Error::Internal(format!(
+                    "adaptive: leaf {u} of level {t} missing"
+                )));
+            }
+            faces.push(f);
+        }
+    }
+    // Per level, the output vertex of each vertex of its partial level (`NONE` if not drawn at
+    // this level or finer): flat tables in place of a map by uniform id. Levels are numbered
+    // from the finest down, each leaf's corners in order, so a vertex is numbered where it is
+    // first met in that order, at the finest level of the leaves around it.
+    let mut drawn_as: Vec<Vec<u32>> = vec![Vec::new(); max_level + 1];
     let mut points = Vec::new();
     let mut vertex_level = Vec::new();
     let mut vertex_id = Vec::new();
     let mut vertex_at = Vec::new();
-    let leaf_faces = |t: usize| -> Result<Vec<usize>> {
-        leaves[t]
-            .iter()
-            .map(|&u| {
-                parts[t].face_of_uid(u).ok_or_else(|| {
-                    Error::Internal(format!("adaptive: leaf {u} of level {t} missing"))
-                })
-            })
-            .collect()
-    };
     for t in (1..=max_level).rev() {
         let part = &parts[t];
-        for f in leaf_faces(t)? {
-            for &v in &part.level.corner_verts[4 * f..4 * f + 4] {
-                let uid = part.vert_uid[v as usize];
-                index.entry(uid).or_insert_with(|| {
-                    points.extend_from_slice(&part.points[v as usize]);
-                    vertex_at.push((t as u32, v));
-                    vertex_level.push(t as u32);
-                    vertex_id.push(uid);
-                    (vertex_id.len() - 1) as u32
-                });
+        let mut here = memory::filled(part.vert_uid.len(), NONE)?;
+        if t < max_level {
+            // An old vertex keeps its uniform id: the vertices of level t + 1 below level t's
+            // vertex count are level t's, drawn there (or finer) already.
+            let (finer, finer_drawn) = (&parts[t + 1], &drawn_as[t + 1]);
+            let mut v = 0;
+            for (w, &uid) in finer.vert_uid.iter().enumerate() {
+                if uid >= part.counts[0] {
+                    break;
+                }
+                if finer_drawn[w] == NONE {
+                    continue;
+                }
+                while v < part.vert_uid.len() && part.vert_uid[v] < uid {
+                    v += 1;
+                }
+                if part.vert_uid.get(v) == Some(&uid) {
+                    here[v] = finer_drawn[w];
+                }
             }
         }
+        for &f in &leaf_faces[t] {
+            for &v in &part.level.corner_verts[4 * f..4 * f + 4] {
+                let v = v as usize;
+                if here[v] == NONE {
+                    here[v] = vertex_id.len() as u32;
+                    points.extend_from_slice(&part.points[v]);
+                    vertex_at.push((t as u32, v as u32));
+                    vertex_level.push(t as u32);
+                    vertex_id.push(part.vert_uid[v]);
+                }
+            }
+        }
+        drawn_as[t] = here;
+    }
+    // Per level below the last, the faces of its partial level that are refined.
+    let mut is_refined: Vec<Vec<bool>> = vec![Vec::new(); max_level + 1];
+    for t in 1..max_level {
+        let part = &parts[t];
+        let mut flags = memory::filled(part.face_uid.len(), false)?;
+        for &u in &refined[t] {
+            if let Some(f) = part.face_of_uid(u) {
+                flags[f] = true;
+            }
+        }
+        is_refined[t] = flags;
     }
     let templates: Vec<Vec<[u8; 3]>> = (0..16).map(triangle_template).collect();
     // The side `k` of the leaf a template edge between slots `p` and `q` lies on (both among
@@ -1776,22 +1869,18 @@ fn triangulate<T: Scalar>(
             (0..4).find(|&k| on(p, k) && on(q, k)).unwrap_or(4) as u8
         })
     });
-    let mut triangles = Vec::new();
-    let mut face_origin = Vec::new();
-    let mut triangle_level = Vec::new();
-    let mut corner_at = Vec::new();
-    let (mut edge_origin, mut edge_level, mut edge_sharpness) =
-        (Vec::new(), Vec::new(), Vec::new());
+    // Each leaf's template slots and case, first: the outputs are then allocated once.
+    let mut cases: Vec<([u32; 8], u8)> = memory::with_capacity(leaves.iter().map(Vec::len).sum())?;
     for t in 1..=max_level {
         let part = &parts[t];
         let level = &part.level;
         let manifold = level.edges().more.is_empty();
-        for f in leaf_faces(t)? {
+        for &f in &leaf_faces[t] {
             let mut slots = [NONE; 8];
             let mut mask = 0u8;
             for k in 0..4 {
                 let corner = 4 * f + k;
-                slots[2 * k] = index[&part.vert_uid[level.corner_verts[corner] as usize]];
+                slots[2 * k] = drawn_as[t][level.corner_verts[corner] as usize];
                 if t == max_level {
                     continue;
                 }
@@ -1802,8 +1891,8 @@ fn triangulate<T: Scalar>(
                     if other == NONE || other as usize == corner {
                         return false;
                     }
-                    let neighbour = part.face_uid[(other >> 2) as usize];
-                    !ctx.is_hole(t, neighbour) && refined[t].contains(&neighbour)
+                    let g = (other >> 2) as usize;
+                    is_refined[t][g] && !ctx.is_hole(t, part.face_uid[g])
                 };
                 let finer = if manifold {
                     // Two slots at most, without the slot iterator.
@@ -1813,15 +1902,36 @@ fn triangulate<T: Scalar>(
                 };
                 if finer {
                     let uid = part.counts[0] + part.edge_uid[e];
-                    slots[2 * k + 1] = *index.get(&uid).ok_or_else(|| {
-                        Error::Internal(format!(
+                    let finer = &parts[t + 1];
+                    let at = finer.vert_uid.binary_search(&uid).ok();
+                    slots[2 * k + 1] = at.map_or(NONE, |w| drawn_as[t + 1][w]);
+                    if slots[2 * k + 1] == NONE {
+                        return Err(Error::Internal(format!(
                             "adaptive: edge point {uid} of level {} missing",
                             t + 1
-                        ))
-                    })?;
+                        )));
+                    }
                     mask |= 1 << k;
                 }
             }
+            cases.push((slots, mask));
+        }
+    }
+    let num_triangles: usize = (cases.iter())
+        .map(|&(_, mask)| templates[mask as usize].len())
+        .sum();
+    let mut triangles = memory::with_capacity(num_triangles)?;
+    let mut face_origin = memory::with_capacity(num_triangles)?;
+    let mut triangle_level = memory::with_capacity(num_triangles)?;
+    let mut corner_at = memory::with_capacity(3 * num_triangles)?;
+    let mut edge_origin = memory::with_capacity(3 * num_triangles)?;
+    let mut edge_level = memory::with_capacity(3 * num_triangles)?;
+    let mut edge_sharpness = memory::with_capacity(3 * num_triangles)?;
+    let mut case = cases.iter();
+    for t in 1..=max_level {
+        let part = &parts[t];
+        let level = &part.level;
+        for (&f, &(slots, mask)) in leaf_faces[t].iter().zip(case.by_ref()) {
             let origin = ctx.level0.corner_faces[(part.face_uid[f] >> (2 * (t - 1))) as usize];
             // The cage edge under each side of the leaf.
             let sides: [u32; 4] = std::array::from_fn(|k| {
