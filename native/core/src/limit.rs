@@ -79,7 +79,7 @@ use crate::error::{Error, Result};
 use crate::evaluate::{in_groups_of_four, run, run_parts};
 use crate::memory;
 use crate::options::{Options, OutputKind};
-use crate::parallel::{gather_hinted, CHUNK};
+use crate::parallel::{gather_hinted, gather_indexed, CHUNK};
 use crate::refinement::Refinement;
 use crate::scalar::{add, mad, scale, zero, Scalar, Value};
 use crate::scheme::catmark::{
@@ -1303,18 +1303,10 @@ impl Limit<'_> {
         let fans = (stages.iter())
             .map(|s| fan_normals(s.stencils, &s.data, &s.positions))
             .collect::<Result<Vec<_>>>()?;
-        let corners = &self.refinement.last_level().corner_verts;
-        // Most corners take the plan's own stencil's normal, converted once per vertex.
-        let own = &stages[0];
-        let plain = gather_hinted(own.normals.len(), |i| {
-            own.normals[i].to_array().map(T::from_f64)
-        })?;
-        let out = gather_hinted(corners.len(), |c| {
+        let last = self.refinement.last_level();
+        let corners = &last.corner_verts;
+        let resolved = |c: usize| {
             let mut i = corners[c];
-            let st = own.stencils;
-            if st.corner_fan[c] == NONE && st.masks_of[i as usize] != LimitMask::Local {
-                return plain[i as usize];
-            }
             let mut n = DVec3::ZERO;
             for (stage, fans) in stages.iter().zip(&fans) {
                 let st = stage.stencils;
@@ -1330,7 +1322,21 @@ impl Limit<'_> {
                 break;
             }
             n.to_array().map(T::from_f64)
+        };
+        // Most corners take the plan's own stencil's normal at their vertex (a gather by the
+        // corner table); the corners at the vertices of the local extension and of the fans
+        // are then put right.
+        let own = &stages[0];
+        let plain = gather_hinted(own.normals.len(), |i| {
+            own.normals[i].to_array().map(T::from_f64)
         })?;
+        let mut out = gather_indexed(&plain, corners)?;
+        let st = own.stencils;
+        for &v in st.local_vertices.iter().chain(&st.fan_vertex) {
+            for &c in last.corners_of_vertex(v as usize) {
+                out[c as usize] = resolved(c as usize);
+            }
+        }
         Ok(out.into_flattened())
     }
 }
