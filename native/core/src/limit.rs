@@ -626,20 +626,24 @@ impl QuadWalk<'_> {
     fn interior(&self, v: usize, seen: &mut Seen, items: &mut Vec<u32>) -> Walked {
         let l = self.level;
         let (twins, verts, regular) = (&self.twins[..], &l.corner_verts[..], &self.regular[..]);
+        // On a quad, next(c) and prev(c) turn within the face's four corners; next(next(c))
+        // is c ^ 2.
         let next = |c: usize| (c & !3) | ((c + 1) & 3);
+        let prev = |c: usize| (c & !3) | ((c + 3) & 3);
         let twin = |c: usize| {
             let t = twins[c];
             (t != NONE).then_some(t as usize)
         };
-        let (n, primal) = (self.n, self.primal);
+        let (n, side, primal) = (self.n, self.n + 1, self.primal);
         let corners = l.corners_of_vertex(v);
         let (Some(&first), k) = (corners.first(), corners.len()) else {
             return Walked::Other;
         };
         let first = first as usize;
         let centre = verts[first];
-        seen.start(1 + k * n * (n + 1));
+        seen.start(1 + k * n * side);
         seen.insert(centre);
+        items.reserve(1 + k * n * side);
         if primal {
             items.push(centre);
         }
@@ -649,39 +653,44 @@ impl QuadWalk<'_> {
             let mut start = first;
             for s in 0..k {
                 if s > 0 {
-                    start = twin(next(next(next(start))))?;
+                    start = twin(prev(start))?;
                     if start == first {
                         return Some(None);
                     }
                 }
-                let mut row = start;
-                for i in 0..=n {
-                    if i > 0 {
-                        row = next(twin(next(row))?);
+                // Row 0 (along the sector's first edge): its faces (even degrees).
+                let mut o = start;
+                for j in 0..side {
+                    if j > 0 {
+                        o = twin(o ^ 2)?;
                     }
+                    if !primal && j < n {
+                        items.push((o >> 2) as u32);
+                    }
+                }
+                // Rows 1..=N: their vertices (within N rings, not the centre) must be regular
+                // and all different (the neighbourhood is a disc).
+                let mut row = start;
+                for i in 1..side {
+                    row = next(twin(next(row))?);
                     let mut o = row;
-                    for j in 0..=n {
+                    for j in 0..side {
                         if j > 0 {
-                            o = twin(next(next(o)))?;
+                            o = twin(o ^ 2)?;
                         }
-                        // The vertices within N rings (but the centre): regular, and all
-                        // different (the neighbourhood is a disc).
-                        if i > 0 {
-                            let w = verts[o];
-                            if !regular[w as usize] || !seen.insert(w) {
-                                return None;
-                            }
-                            if primal {
-                                items.push(w);
-                            }
+                        let w = verts[o];
+                        if !regular[w as usize] || !seen.insert(w) {
+                            return None;
                         }
-                        if !primal && i < n && j < n {
+                        if primal {
+                            items.push(w);
+                        } else if i < n && j < n {
                             items.push((o >> 2) as u32);
                         }
                     }
                 }
             }
-            Some((twin(next(next(next(start))))? == first).then_some(k))
+            Some((twin(prev(start))? == first).then_some(k))
         };
         match walk(seen, items) {
             None => Walked::NotClean,
