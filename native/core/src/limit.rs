@@ -702,7 +702,7 @@ impl QuadWalk<'_> {
 }
 
 /// A set of vertex ids for one neighbourhood at a time, kept between neighbourhoods: open
-/// addressing, each entry stamped with the neighbourhood's vertex, so a new neighbourhood
+/// addressing, each entry stamped with its neighbourhood's number, so a new neighbourhood
 /// starts without clearing the table.
 #[derive(Default)]
 struct Seen {
