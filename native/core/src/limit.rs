@@ -79,7 +79,7 @@ use crate::error::{Error, Result};
 use crate::evaluate::{in_groups_of_four, run, run_parts};
 use crate::memory;
 use crate::options::{Options, OutputKind};
-use crate::parallel::gather_hinted;
+use crate::parallel::{gather_hinted, gather_indexed, CHUNK};
 use crate::refinement::Refinement;
 use crate::scalar::{add, mad, scale, zero, Scalar, Value};
 use crate::scheme::catmark::{
@@ -89,6 +89,7 @@ use crate::scheme::Scheme;
 use crate::scheme::{cardinal_bspline, is_infinitely_sharp, is_semi_sharp, is_sharp, LimitMethod};
 use crate::step::{Final, Parts, Scratch};
 use crate::topology::{Level, NONE};
+use rayon::prelude::*;
 
 /// Extra levels tried at most beyond the first guess before giving up.
 const MAX_EXTRA_LEVELS: u32 = 8;
@@ -138,9 +139,10 @@ pub(crate) struct Stencils {
     items: Vec<u32>,
     /// Interior masks by valence.
     masks: Vec<Arc<VertexMasks>>,
-    /// The same masks with tangents, per item its position and two tangent weights (empty
-    /// where there are no tangents): one walk over a stencil's data gives all three.
-    joint: Vec<Vec<[f64; 3]>>,
+    /// The same masks with tangents, per item its position and two tangent weights and a zero
+    /// (empty where there are no tangents): one walk over a stencil's data gives all three,
+    /// in two-lane vector operations.
+    joint: Vec<Vec<[f64; 4]>>,
     /// The 1-D position mask along curves (symmetric, centred).
     curve_mask: Vec<f64>,
     /// Fan of each output face corner at a curve vertex or corner (index into `fan_offsets`),
@@ -156,12 +158,14 @@ pub(crate) struct Stencils {
 }
 
 /// Which vertices and corners of a level [`build_stencils`] makes stencils for: stencil `i` is
-/// at level vertex `vertex(i)`; output corner `c` is level corner `corner(c)` (`None`: not
-/// one of the target's); `index(w)` is the stencil of level vertex `w`, if any. (The plan's
-/// stencil `i` is output vertex `i`; a local one is its parent's `local_vertices[i]`.)
+/// at level vertex `vertex(i)` and output vertex `output_vertex(i)`; output corner `c` (of
+/// `output`, the plan's last level) is level corner `corner(c)` (`None`: not one of the
+/// target's); `index(w)` is the stencil of level vertex `w`, if any. (The plan's stencil `i`
+/// is output vertex `i`; a local one is its parent's `local_vertices[i]`.)
 struct Targets<'a> {
     count: usize,
-    output_corners: usize,
+    output: &'a Level,
+    output_vertex: &'a (dyn Fn(usize) -> usize + Sync),
     vertex: &'a (dyn Fn(usize) -> usize + Sync),
     corner: &'a (dyn Fn(usize) -> Option<usize> + Sync),
     index: &'a (dyn Fn(usize) -> Option<usize> + Sync),
@@ -298,8 +302,55 @@ fn build_stencils(
         };
         Some((mask, items.iter().map(|&(_, i)| i as u32).collect()))
     };
+    // On a quad level (every level past the cage) the interior stencils are walked on a table
+    // of twin corners and one of regular vertices (valence 4, on no curve), each chunk of
+    // vertices writing into its own buffers: no allocation, sort or search per vertex.
+    let quads = last.is_quads();
+    let walk = match quads {
+        true => Some(QuadWalk {
+            level: last,
+            twins: twin_corners(last)?,
+            regular: gather_hinted(last.num_vertices, |w| {
+                last.corners_of_vertex(w).len() == 4 && curve_of(w).is_none()
+            })?,
+            n,
+            primal,
+        }),
+        false => None,
+    };
+    let chunk_stencils = |range: std::ops::Range<usize>| -> Result<ChunkStencils> {
+        let mut chunk = ChunkStencils::default();
+        let mut seen = Seen::default();
+        for t in range {
+            let v = (targets.vertex)(t);
+            let at = chunk.items.len();
+            let general = |items: &mut Vec<u32>| {
+                items.truncate(at);
+                stencil_of(v).map(|(mask, its)| {
+                    items.extend(its);
+                    mask
+                })
+            };
+            let mask = match &walk {
+                Some(walk) if curve_of(v).is_none() => {
+                    match walk.interior(v, &mut seen, &mut chunk.items) {
+                        Walked::Clean(mask) => Some(mask),
+                        Walked::NotClean => None,
+                        Walked::Other => general(&mut chunk.items),
+                    }
+                }
+                _ => general(&mut chunk.items),
+            };
+            if mask.is_none() {
+                chunk.items.truncate(at);
+            }
+            chunk.masks.push(mask);
+            chunk.ends.push(chunk.items.len() as u32);
+        }
+        Ok(chunk)
+    };
     // The tables are allocated fallibly; the per-vertex stencils are gathered a block of
-    // vertices at a time, so that what is held besides the tables stays small.
+    // vertices at a time (in fixed chunks), so that what is held besides the tables stays small.
     const BLOCK: usize = 1 << 16;
     let outputs = targets.count;
     let mut masks_of = memory::with_capacity(outputs)?;
@@ -309,41 +360,52 @@ fn build_stencils(
     offsets.push(0u32);
     for start in (0..outputs).step_by(BLOCK) {
         let end = (start + BLOCK).min(outputs);
-        let block = gather_hinted(end - start, |i| stencil_of((targets.vertex)(start + i)))?;
-        if !allow_local && block.iter().any(Option::is_none) {
+        let chunks: Vec<ChunkStencils> = (start..end)
+            .step_by(CHUNK)
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|from| chunk_stencils(from..(from + CHUNK).min(end)))
+            .collect::<Result<_>>()?;
+        if !allow_local && chunks.iter().any(|c| c.masks.contains(&None)) {
             return Ok(None);
         }
-        let size: usize = block.iter().flatten().map(|(_, its)| its.len()).sum();
+        let size: usize = chunks.iter().map(|c| c.items.len()).sum();
         if items.capacity() - items.len() < size {
             // Doubling, as `extend` would grow it.
             let more = size.max(items.len());
             memory::reserve(&mut items, more)?;
         }
-        for (i, stencil) in block.into_iter().enumerate() {
-            let Some((mask, its)) = stencil else {
-                local.push((start + i) as u32);
-                masks_of.push(LimitMask::Local);
-                offsets.push(items.len() as u32);
-                continue;
-            };
-            let mut index_of = |k: u32| {
-                let at = match valences.iter().position(|&x| x == k as usize) {
-                    Some(at) => at,
-                    None => {
-                        valences.push(k as usize);
-                        valences.len() - 1
-                    }
+        let mut t = start;
+        for chunk in chunks {
+            let base = items.len() as u32;
+            for (&mask, &end) in chunk.masks.iter().zip(&chunk.ends) {
+                let Some(mask) = mask else {
+                    local.push(t as u32);
+                    masks_of.push(LimitMask::Local);
+                    offsets.push(base + end);
+                    t += 1;
+                    continue;
                 };
-                at as u32
-            };
-            let mask = match mask {
-                LimitMask::Interior(k) => LimitMask::Interior(index_of(k)),
-                LimitMask::Valence2(k) => LimitMask::Valence2(index_of(k)),
-                m => m,
-            };
-            masks_of.push(mask);
-            items.extend(its);
-            offsets.push(items.len() as u32);
+                let mut index_of = |k: u32| {
+                    let at = match valences.iter().position(|&x| x == k as usize) {
+                        Some(at) => at,
+                        None => {
+                            valences.push(k as usize);
+                            valences.len() - 1
+                        }
+                    };
+                    at as u32
+                };
+                let mask = match mask {
+                    LimitMask::Interior(k) => LimitMask::Interior(index_of(k)),
+                    LimitMask::Valence2(k) => LimitMask::Valence2(index_of(k)),
+                    m => m,
+                };
+                masks_of.push(mask);
+                offsets.push(base + end);
+                t += 1;
+            }
+            items.extend_from_slice(&chunk.items);
         }
     }
     if !local.is_empty() {
@@ -368,14 +430,14 @@ fn build_stencils(
         .iter()
         .map(|m| match &m.tangents {
             [a, b] if !a.is_empty() => (m.position.iter().zip(a).zip(b))
-                .map(|((&p, &a), &b)| [p, a, b])
+                .map(|((&p, &a), &b)| [p, a, b, 0.0])
                 .collect(),
             _ => Vec::new(),
         })
         .collect();
 
     // Fans at curve vertices and corners, one per output corner there: (level corner, stencil).
-    let output_corners = targets.output_corners;
+    let output_corners = targets.output.num_corners();
     let on_curve = |c: usize| {
         let d = (targets.corner)(c)?;
         let i = (targets.index)(last.corner_verts[d] as usize)?;
@@ -385,10 +447,22 @@ fn build_stencils(
         );
         fan.then_some((d, i))
     };
+    // Only the output corners at the stencils' own vertices can have a fan there (in order).
+    let mut fan_candidates: Vec<u32> = Vec::new();
+    for (i, mask) in masks_of.iter().enumerate() {
+        if matches!(
+            mask,
+            LimitMask::Curve | LimitMask::Corner | LimitMask::Valence2(_)
+        ) {
+            let at = (targets.output_vertex)(i);
+            fan_candidates.extend_from_slice(targets.output.corners_of_vertex(at));
+        }
+    }
+    fan_candidates.sort_unstable();
     // At most one fan per such corner, and at most three items per corner of a fan (its
     // outline, or its faces and two curve edges).
-    let fan_corners = (0..output_corners)
-        .filter(|&c| on_curve(c).is_some())
+    let fan_corners = (fan_candidates.iter())
+        .filter(|&&c| on_curve(c as usize).is_some())
         .count();
     let mut corner_fan = memory::filled(output_corners, NONE)?;
     let mut fan_offsets = memory::with_capacity(fan_corners + 1)?;
@@ -400,10 +474,12 @@ fn build_stencils(
     fan_of_start
         .try_reserve(fan_corners)
         .map_err(|_| memory::refused_bytes(16 * fan_corners as u64))?;
-    for (c, fan) in corner_fan.iter_mut().enumerate() {
+    for &c in &fan_candidates {
+        let c = c as usize;
         let Some((d, i)) = on_curve(c) else {
             continue;
         };
+        let fan = &mut corner_fan[c];
         // Clockwise to the fan's start: across outgoing edges until a curve edge.
         let mut start = d;
         let mut closed = false;
@@ -498,6 +574,173 @@ fn build_stencils(
     }))
 }
 
+/// The stencils of a chunk of targets: per target its mask (`None`: not clean) and the end of
+/// its items in `items`.
+#[derive(Default)]
+struct ChunkStencils {
+    masks: Vec<Option<LimitMask>>,
+    ends: Vec<u32>,
+    items: Vec<u32>,
+}
+
+/// Per corner of a quad level, the corner across its outgoing edge in the neighbouring face
+/// ([`Level::opposite`]), `NONE` at a boundary or a non-manifold edge: one load per step of
+/// the neighbourhood walks.
+fn twin_corners(level: &Level) -> Result<Vec<u32>> {
+    let edges = level.corner_edges();
+    gather_hinted(level.num_corners(), |c| {
+        level
+            .opposite(edges[c] as usize, c)
+            .map_or(NONE, |o| o as u32)
+    })
+}
+
+/// The interior stencils of a quad level: the walk of [`sector_frames`] and the checks of
+/// [`build_stencils`] on tables made once per level.
+struct QuadWalk<'a> {
+    level: &'a Level,
+    /// [`twin_corners`] of the level.
+    twins: Vec<u32>,
+    /// Per vertex: interior of valence 4 and on no curve.
+    regular: Vec<bool>,
+    /// The neighbourhood size `N`.
+    n: usize,
+    primal: bool,
+}
+
+/// What [`QuadWalk::interior`] found.
+enum Walked {
+    /// A clean neighbourhood: the mask (by valence), the items written.
+    Clean(LimitMask),
+    /// Not clean.
+    NotClean,
+    /// The walk around the centre does not close after its valence's sectors (a
+    /// non-manifold vertex): left to the general walk.
+    Other,
+}
+
+impl QuadWalk<'_> {
+    /// The stencil of interior vertex `v`, its items appended to `items` in the order of
+    /// [`frame_items`] (past their length on entry they are garbage unless it is clean): the
+    /// frames of [`sector_frames`], each read as it is walked. `seen` is kept between calls.
+    fn interior(&self, v: usize, seen: &mut Seen, items: &mut Vec<u32>) -> Walked {
+        let l = self.level;
+        let (twins, verts, regular) = (&self.twins[..], &l.corner_verts[..], &self.regular[..]);
+        // On a quad, next(c) and prev(c) turn within the face's four corners; next(next(c))
+        // is c ^ 2.
+        let next = |c: usize| (c & !3) | ((c + 1) & 3);
+        let prev = |c: usize| (c & !3) | ((c + 3) & 3);
+        let twin = |c: usize| {
+            let t = twins[c];
+            (t != NONE).then_some(t as usize)
+        };
+        let (n, side, primal) = (self.n, self.n + 1, self.primal);
+        let corners = l.corners_of_vertex(v);
+        let (Some(&first), k) = (corners.first(), corners.len()) else {
+            return Walked::Other;
+        };
+        let first = first as usize;
+        let centre = verts[first];
+        seen.start(1 + k * n * side);
+        seen.insert(centre);
+        items.reserve(1 + k * n * side);
+        if primal {
+            items.push(centre);
+        }
+        let walk = |seen: &mut Seen, items: &mut Vec<u32>| -> Option<Option<usize>> {
+            // Sector by sector counter-clockwise, as `SectorGrid`: the next sector lies across
+            // the incoming edge of this one's corner at the centre.
+            let mut start = first;
+            for s in 0..k {
+                if s > 0 {
+                    start = twin(prev(start))?;
+                    if start == first {
+                        return Some(None);
+                    }
+                }
+                // Row 0 (along the sector's first edge): its faces (even degrees).
+                let mut o = start;
+                for j in 0..side {
+                    if j > 0 {
+                        o = twin(o ^ 2)?;
+                    }
+                    if !primal && j < n {
+                        items.push((o >> 2) as u32);
+                    }
+                }
+                // Rows 1..=N: their vertices (within N rings, not the centre) must be regular
+                // and all different (the neighbourhood is a disc).
+                let mut row = start;
+                for i in 1..side {
+                    row = next(twin(next(row))?);
+                    let mut o = row;
+                    for j in 0..side {
+                        if j > 0 {
+                            o = twin(o ^ 2)?;
+                        }
+                        let w = verts[o];
+                        if !regular[w as usize] || !seen.insert(w) {
+                            return None;
+                        }
+                        if primal {
+                            items.push(w);
+                        } else if i < n && j < n {
+                            items.push((o >> 2) as u32);
+                        }
+                    }
+                }
+            }
+            Some((twin(prev(start))? == first).then_some(k))
+        };
+        match walk(seen, items) {
+            None => Walked::NotClean,
+            Some(None) => Walked::Other,
+            Some(Some(2)) => Walked::Clean(LimitMask::Valence2(2)),
+            Some(Some(k)) => Walked::Clean(LimitMask::Interior(k as u32)),
+        }
+    }
+}
+
+/// A set of vertex ids for one neighbourhood at a time, kept between neighbourhoods: open
+/// addressing, each entry stamped with its neighbourhood's number, so a new neighbourhood
+/// starts without clearing the table.
+#[derive(Default)]
+struct Seen {
+    slots: Vec<u64>,
+    bits: u32,
+    stamp: u64,
+}
+
+impl Seen {
+    /// Starts the (empty) set of a new neighbourhood of at most `len` vertices.
+    fn start(&mut self, len: usize) {
+        let need = (2 * len).next_power_of_two().max(64);
+        if self.slots.len() < need {
+            self.slots = vec![0; need];
+            self.bits = need.trailing_zeros();
+        }
+        self.stamp += 1;
+    }
+
+    /// Adds `w`; false if it was there.
+    fn insert(&mut self, w: u32) -> bool {
+        let mask = self.slots.len() - 1;
+        let key = self.stamp << 32 | u64::from(w);
+        let mut h = (u64::from(w).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - self.bits)) as usize;
+        loop {
+            let e = self.slots[h];
+            if e >> 32 != self.stamp {
+                self.slots[h] = key;
+                return true;
+            }
+            if e == key {
+                return false;
+            }
+            h = (h + 1) & mask;
+        }
+    }
+}
+
 /// Per curve vertex of `curves` (a step's network), true when its rules change in a later step:
 /// a semi-sharp feature makes it (an end of a semi-sharp curve edge, a blend, a corner by a
 /// semi-sharp tag of `semi_corners`, sorted cage vertices), or it is a corner whose cage point
@@ -575,7 +818,6 @@ fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
     refinement.complete_levels()?;
     let last = refinement.levels().last().expect("a level");
     let outputs = last.num_vertices;
-    let output_corners = last.num_corners();
     let degree = options.degree;
     let whole = |i: usize| i;
     let below = |w: usize| (w < outputs).then_some(w);
@@ -587,7 +829,8 @@ fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
         let curves = refinement.curve_networks().last().expect("a step");
         let targets = Targets {
             count: outputs,
-            output_corners,
+            output: last,
+            output_vertex: &whole,
             vertex: &whole,
             corner: &Some,
             index: &below,
@@ -673,7 +916,8 @@ fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
         let corner = |c: usize| Some(c * spread);
         let targets = Targets {
             count: outputs,
-            output_corners,
+            output: last,
+            output_vertex: &whole,
             vertex: &whole,
             corner: &corner,
             index: &below,
@@ -773,7 +1017,8 @@ fn local_stencils(
     };
     let targets = Targets {
         count: vertices.len(),
-        output_corners: last.num_corners(),
+        output: last,
+        output_vertex: &|i| vertices[i] as usize,
         vertex: &vertex,
         corner: &corner,
         index: &index,
@@ -1067,8 +1312,9 @@ impl Limit<'_> {
         let fans = (stages.iter())
             .map(|s| fan_normals(s.stencils, &s.data, &s.positions))
             .collect::<Result<Vec<_>>>()?;
-        let corners = &self.refinement.last_level().corner_verts;
-        let out = gather_hinted(corners.len(), |c| {
+        let last = self.refinement.last_level();
+        let corners = &last.corner_verts;
+        let resolved = |c: usize| {
             let mut i = corners[c];
             let mut n = DVec3::ZERO;
             for (stage, fans) in stages.iter().zip(&fans) {
@@ -1085,7 +1331,21 @@ impl Limit<'_> {
                 break;
             }
             n.to_array().map(T::from_f64)
+        };
+        // Most corners take the plan's own stencil's normal at their vertex (a gather by the
+        // corner table); the corners at the vertices of the local extension and of the fans
+        // are then put right.
+        let own = &stages[0];
+        let plain = gather_hinted(own.normals.len(), |i| {
+            own.normals[i].to_array().map(T::from_f64)
         })?;
+        let mut out = gather_indexed(&plain, corners)?;
+        let st = own.stencils;
+        for &v in st.local_vertices.iter().chain(&st.fan_vertex) {
+            for &c in last.corners_of_vertex(v as usize) {
+                out[c as usize] = resolved(c as usize);
+            }
+        }
         Ok(out.into_flattened())
     }
 }
@@ -1304,22 +1564,22 @@ fn combine<T: Scalar, const N: usize>(data: &[[T; N]], items: &[u32], weights: &
 }
 
 /// The three sums `sum w_i[j] data[items_i]` (`j` = position, the two tangents) in one walk,
-/// accumulated in f64 in the order of [`combine`].
+/// accumulated in f64 in the order of [`combine`] (per channel, the three sums side by side).
 fn combine_joint<T: Scalar, const N: usize>(
     data: &[[T; N]],
     items: &[u32],
-    weights: &[[f64; 3]],
+    weights: &[[f64; 4]],
 ) -> [[f64; N]; 3] {
-    let mut acc = [[0.0f64; N]; 3];
+    let mut acc = [[0.0f64; 4]; N];
     for (&i, w) in items.iter().zip(weights) {
         let x = data[i as usize].map(T::to_f64);
-        for (acc, &w) in acc.iter_mut().zip(w) {
-            for k in 0..N {
-                acc[k] += w * x[k];
+        for (acc, &x) in acc.iter_mut().zip(&x) {
+            for (a, &w) in acc.iter_mut().zip(w) {
+                *a += w * x;
             }
         }
     }
-    acc
+    std::array::from_fn(|j| std::array::from_fn(|k| acc[k][j]))
 }
 
 #[cfg(test)]
