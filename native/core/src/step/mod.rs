@@ -605,7 +605,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
             gather_sections(
                 out,
                 [nv, ne, step.fine.num_vertices - nv - ne],
-                |w| vertex_face_mean(&t, f, w),
+                |w| vertex_corner_mean(&t, f, w),
                 |e| edge_corner_mean(&t, f, t.edge_corners[e]),
                 |face| {
                     let corners = t.face_corners(face);
@@ -625,7 +625,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         let (olds, rest) = out.spare_capacity_mut()[..n].split_at_mut(nv);
         let (edges, faces) = rest.split_at_mut(ne);
         fill_zip(olds, &t.vertex_offsets[..nv], |w, _| {
-            vertex_face_mean(&t, f, w)
+            vertex_corner_mean(&t, f, w)
         });
         fill_zip(edges, t.edge_corners, |_, &corners| {
             edge_corner_mean(&t, f, corners)
@@ -845,10 +845,10 @@ fn edge_face_mean<T: Scalar, const N: usize>(
     }
 }
 
-/// The centroid of the fine faces at old vertex `w` (its coarse corners) from dual data `f` of
-/// the fine level: its point after a dual -> primal average.
+/// The centroid of the fine faces at old vertex `w` (they are its coarse corners: unlike
+/// [`vertex_face_centroid`], `f` is dual data of the fine level) after a dual -> primal average.
 #[inline(always)]
-fn vertex_face_mean<T: Scalar, const N: usize>(
+fn vertex_corner_mean<T: Scalar, const N: usize>(
     t: &Tables,
     f: &[Value<T, N>],
     w: usize,
