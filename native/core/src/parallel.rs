@@ -77,17 +77,7 @@ pub(crate) fn gather_hinted<V: Send>(
 /// the instructions of [`gather_hinted`] with a closure that reads both.
 pub(crate) fn gather_indexed<V: Copy + Send + Sync>(source: &[V], index: &[u32]) -> Result<Vec<V>> {
     let mut v = with_capacity_hinted(index.len())?;
-    v.spare_capacity_mut()[..index.len()]
-        .par_chunks_mut(CHUNK)
-        .zip(index.par_chunks(CHUNK))
-        .for_each(|(out, index)| {
-            for (o, &i) in out.iter_mut().zip(index) {
-                o.write(source[i as usize]);
-            }
-        });
-    // SAFETY: the chunks cover the first `index.len()` items, each written once (a panic
-    // would have unwound past here).
-    unsafe { v.set_len(index.len()) };
+    gather_zip(&mut v, index, |_, &i| source[i as usize]);
     Ok(v)
 }
 
@@ -248,6 +238,23 @@ pub(crate) fn fill_zip<R: Sync, V: Send>(
                 item.write(f(start + i, row));
             }
         });
+}
+
+/// `out` becomes `f(i, &rows[i])` for every row ([`fill_zip`]), reusing its allocation when it
+/// has room.
+pub(crate) fn gather_zip<R: Sync, V: Send>(
+    out: &mut Vec<V>,
+    rows: &[R],
+    f: impl Fn(usize, &R) -> V + Sync + Send,
+) {
+    let n = rows.len();
+    out.clear();
+    if out.capacity() < n {
+        *out = hinted_or_abort(n);
+    }
+    fill_zip(&mut out.spare_capacity_mut()[..n], rows, f);
+    // SAFETY: `fill_zip` initialised the first `n` items (a panic would have unwound past here).
+    unsafe { out.set_len(n) };
 }
 
 /// `out[i] = f(i)` (initialising every item), in parallel chunks of [`CHUNK`] items, each

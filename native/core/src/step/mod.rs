@@ -34,7 +34,9 @@ use rayon::prelude::*;
 
 use crate::curves::{CurveNetwork, CurveVertex, LevelSharpness};
 use crate::error::Result;
-use crate::parallel::{fill_zip, gather_sections, hinted_or_abort, with_capacity_hinted, CHUNK};
+use crate::parallel::{
+    fill_zip, gather_sections, gather_zip, hinted_or_abort, with_capacity_hinted, CHUNK,
+};
 use crate::scalar::{add, reciprocal, scale, zero, Scalar, Value};
 use crate::scheme::Scheme;
 use crate::topology::{Level, NONE};
@@ -617,6 +619,8 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
             return;
         }
         // A quad level: the same sums, each section walking its table in step with the output.
+        // The old vertices walk their offsets only to go through `fill_zip`: with the plain
+        // `fill` LLVM stopped inlining this closure (cached averaging 4: +14 % instructions).
         let n = step.fine.num_vertices;
         out.clear();
         if out.capacity() < n {
@@ -654,21 +658,13 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         let mut out = self.take_faces();
         let v: &[Value<T, N>] = &self.vertices;
         let (quads, _) = fine.corner_verts.as_chunks::<4>();
-        let n = fine.num_faces();
-        out.clear();
-        if out.capacity() < n {
-            out = hinted_or_abort(n);
-        }
-        fill_zip(&mut out.spare_capacity_mut()[..n], &quads[..n], |_, q| {
+        gather_zip(&mut out, &quads[..fine.num_faces()], |_, q| {
             let s = add(
                 add(v[q[0] as usize], v[q[1] as usize]),
                 add(v[q[2] as usize], v[q[3] as usize]),
             );
             scale(s, quarter)
         });
-        // SAFETY: `fill_zip` initialised the first `n` items (a panic would have unwound past
-        // here).
-        unsafe { out.set_len(n) };
         self.faces = Cow::Owned(out);
         let dual = match &self.curve {
             CurveData::Primal(curve) => curve_to_dual(curves, curve),
