@@ -88,7 +88,7 @@ use crate::scheme::catmark::{
 use crate::scheme::Scheme;
 use crate::scheme::{cardinal_bspline, is_infinitely_sharp, is_semi_sharp, is_sharp, LimitMethod};
 use crate::step::{Final, Parts, Scratch};
-use crate::topology::{Level, NONE};
+use crate::topology::{quad_next, quad_prev, Level, NONE};
 use rayon::prelude::*;
 
 /// Extra levels tried at most beyond the first guess before giving up.
@@ -628,8 +628,7 @@ impl QuadWalk<'_> {
         let (twins, verts, regular) = (&self.twins[..], &l.corner_verts[..], &self.regular[..]);
         // On a quad, next(c) and prev(c) turn within the face's four corners; next(next(c))
         // is c ^ 2.
-        let next = |c: usize| (c & !3) | ((c + 1) & 3);
-        let prev = |c: usize| (c & !3) | ((c + 3) & 3);
+        let (next, prev) = (quad_next, quad_prev);
         let twin = |c: usize| {
             let t = twins[c];
             (t != NONE).then_some(t as usize)

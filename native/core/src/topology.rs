@@ -267,7 +267,7 @@ impl Level {
     #[inline]
     pub fn next(&self, corner: usize) -> usize {
         if self.is_quads() {
-            (corner & !3) | ((corner + 1) & 3)
+            quad_next(corner)
         } else {
             let r = self.face_corners(self.corner_faces[corner] as usize);
             if corner + 1 == r.end {
@@ -282,7 +282,7 @@ impl Level {
     #[inline]
     pub fn prev(&self, corner: usize) -> usize {
         if self.is_quads() {
-            (corner & !3) | ((corner + 3) & 3)
+            quad_prev(corner)
         } else {
             let r = self.face_corners(self.corner_faces[corner] as usize);
             if corner == r.start {
@@ -942,6 +942,19 @@ fn vertex_corners(num_vertices: usize, corner_verts: &[u32]) -> Result<(Vec<u32>
         fill[v as usize] += 1;
     }
     Ok((offsets, vert_corners))
+}
+
+/// The next corner around a quad of a quad level (its four corners are `4f..4f + 4`), with no
+/// lookup: [`Level::next`] there, for the passes that know their level is all quads.
+#[inline(always)]
+pub(crate) fn quad_next(corner: usize) -> usize {
+    (corner & !3) | ((corner + 1) & 3)
+}
+
+/// The previous corner around a quad of a quad level ([`quad_next`]).
+#[inline(always)]
+pub(crate) fn quad_prev(corner: usize) -> usize {
+    (corner & !3) | ((corner + 3) & 3)
 }
 
 #[cfg(test)]

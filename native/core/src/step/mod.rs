@@ -39,7 +39,7 @@ use crate::parallel::{
 };
 use crate::scalar::{add, reciprocal, scale, zero, Scalar, Value};
 use crate::scheme::Scheme;
-use crate::topology::{Level, NONE};
+use crate::topology::{quad_next, Level, NONE};
 
 /// What one step reads besides the data: its two levels, its curve network and, for the
 /// classic Catmull-Clark rules, the sharpness and rules of both levels.
@@ -118,7 +118,7 @@ impl<'a> Tables<'a> {
     #[inline(always)]
     fn next(&self, corner: usize) -> usize {
         if self.quads {
-            (corner & !3) | ((corner + 1) & 3)
+            quad_next(corner)
         } else {
             self.level.next(corner)
         }
