@@ -11,6 +11,7 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 from conftest import (
@@ -108,10 +109,12 @@ def test_a_killed_worker_is_retried(inputs: dict[str, Path], tmp_path: Path) -> 
     assert proc.returncode == 0, stdout + stderr
     assert "bidegree batch: 3 done, 0 failed" in stdout
     (line,) = [ln for ln in progress_lines(stdout) if "slow.blend" in ln]
-    assert "after 2 attempts" in line
+    # Exactly 2: one worker died holding the task and nothing else may cost it an attempt (a
+    # retry used by an OSError shows as "Compute Failed" in the workers' log, in stderr).
+    assert "after 2 attempts" in line, stdout + stderr
 
     manifest = read_manifest(out)
-    assert manifest["slow.blend"]["attempts"] == 2
+    assert manifest["slow.blend"]["attempts"] == 2, stdout + stderr
     # A file that was waiting in the killed worker's queue counts an attempt too (distributed
     # counts it towards allowed-failures): with 3 files for 2 workers it may have been.
     assert manifest["cube.obj"]["attempts"] in (1, 2) and manifest["grid.obj"]["attempts"] in (1, 2)
@@ -123,6 +126,41 @@ def test_a_killed_worker_is_retried(inputs: dict[str, Path], tmp_path: Path) -> 
             assert (out / o["path"]).stat().st_size == o["bytes"]
     assert len(blend_meshes(out / "slow.bidegree.blend")) == 3
     assert "def Mesh" in usd_text(out / "slow_Suzanne.001.usdc")
+
+
+@pytest.mark.xfail(
+    strict=True,
+    raises=FileNotFoundError,
+    reason="convert_file's os.makedirs of its partial folder loses the race with another "
+    "worker's rmdir of the empty partial root; fixed in convert.py outside this branch "
+    "(native/ is off limits here): remove this mark with that fix",
+)
+def test_a_partial_root_removed_meanwhile_costs_no_attempt(
+    inputs: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Workers share ``OUT/.bidegree-partial``: each removes it when it finds it empty (a file of
+    its own started or finished). One doing so between ``os.makedirs``' check that the folder is
+    there and its ``mkdir`` of another worker's partial folder must not fail that file's attempt
+    (an ``OSError`` there is retried, and counted, by distributed)."""
+    from bidegree.options import Options
+    from bidegree_blender.batch.convert import PARTIAL_DIR, Job, convert_file
+
+    out = tmp_path / "out"
+    out.mkdir()
+    mkdir, raced = os.mkdir, []
+
+    def racing_mkdir(path: Any, mode: int = 0o777, **kwargs: Any) -> None:
+        if Path(path).parent.name == PARTIAL_DIR and not raced:
+            raced.append(path)
+            os.rmdir(Path(path).parent)  # the other worker's rmdir, just then
+        mkdir(path, mode, **kwargs)
+
+    monkeypatch.setattr(os, "mkdir", racing_mkdir)
+    record = convert_file(str(inputs["cube"]), Job(str(out), Options(levels=1)))
+    monkeypatch.undo()
+    assert raced
+    assert record.ok, record.error
+    assert output_files(out) == {"cube.bidegree.blend"}
 
 
 @pytest.fixture
