@@ -128,13 +128,6 @@ def test_a_killed_worker_is_retried(inputs: dict[str, Path], tmp_path: Path) -> 
     assert "def Mesh" in usd_text(out / "slow_Suzanne.001.usdc")
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=FileNotFoundError,
-    reason="convert_file's os.makedirs of its partial folder loses the race with another "
-    "worker's rmdir of the empty partial root; fixed in convert.py outside this branch "
-    "(native/ is off limits here): remove this mark with that fix",
-)
 def test_a_partial_root_removed_meanwhile_costs_no_attempt(
     inputs: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -149,6 +149,24 @@ def _remove_partial_root(out_dir: str) -> None:
         pass
 
 
+def _make_partial_folder(folder: str) -> None:
+    """``os.makedirs(folder)``, again when another process removed :data:`PARTIAL_DIR` meanwhile.
+
+    Another worker's :func:`_remove_partial_root` (a file of its own finished, or started) may
+    remove the empty partial root between ``makedirs``' check that it exists and its ``mkdir`` of
+    ``folder``: a ``FileNotFoundError`` that is no I/O failure and must not cost the file one of
+    its retries. Nothing removes the root once ``folder`` is in it.
+    """
+    for _ in range(100):
+        try:
+            os.makedirs(folder)
+            return
+        except FileNotFoundError:
+            if not os.path.isdir(os.path.dirname(os.path.dirname(folder))):
+                raise  # the output folder itself is gone: a real failure
+    os.makedirs(folder)
+
+
 def _now() -> str:
     return datetime.now(UTC).isoformat(timespec="seconds")
 
@@ -306,7 +324,7 @@ def convert_file(path: str, job: Job) -> FileRecord:
             input_sha256 = file_sha256(path)
         except OSError as exc:
             return failed_record(path, job, exc)
-        os.makedirs(folder)
+        _make_partial_folder(folder)
         try:
             names, objects, faces = _write_outputs(path, job, stem, folder)
         except (OSError, MemoryError):
