@@ -21,6 +21,7 @@
 //! ```
 //!
 //! Cage: the 3,840-quad ico-quad sphere of the OpenSubdiv benchmark, f32 points, level 3.
+//! A scheme is `classic-3` or `averaging-D` for any degree D (`cached-averaging-7`, ...).
 //! "fresh" is `Plan::new` and one `evaluate`; "cached" one `evaluate` through a plan that has
 //! already evaluated once (its kept buffers warm); the limit case is `limit_surface` on a new
 //! plan (stencils built on the first call) and the adaptive case one `subdivide_adaptive` at
@@ -68,11 +69,11 @@ fn main() {
     };
     let scheme = |name: &str| -> Option<Options> {
         Some(match name {
-            "averaging-3" => options(3, Rules::Averaging),
             "classic-3" => options(3, Rules::Classic),
-            "averaging-4" => options(4, Rules::Averaging),
-            "averaging-9" => options(9, Rules::Averaging),
-            _ => return None,
+            _ => options(
+                name.strip_prefix("averaging-")?.parse().ok()?,
+                Rules::Averaging,
+            ),
         })
     };
     // fresh-fins-SCHEME, fresh-flipped-SCHEME: the same sphere made non-manifold (issue 13), for
