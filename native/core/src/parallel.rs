@@ -284,7 +284,10 @@ pub(crate) fn scatter_uninit<V: Send, const G: usize>(
         "scatter: names not strictly increasing"
     );
     if let Some(&last) = at.last() {
-        assert!(G * (last as usize + 1) <= out.len(), "scatter: name out of range");
+        assert!(
+            G * (last as usize + 1) <= out.len(),
+            "scatter: name out of range"
+        );
     }
     struct Out<V>(*mut MaybeUninit<V>);
     // SAFETY: the tasks write disjoint groups (the names are distinct) and read nothing.
@@ -296,7 +299,12 @@ pub(crate) fn scatter_uninit<V: Send, const G: usize>(
             let group = value(name as usize);
             for (k, v) in group.into_iter().enumerate() {
                 // SAFETY: in range (checked above) and written by this task only.
-                unsafe { target.0.add(G * name as usize + k).write(MaybeUninit::new(v)) };
+                unsafe {
+                    target
+                        .0
+                        .add(G * name as usize + k)
+                        .write(MaybeUninit::new(v))
+                };
             }
         }
     });

@@ -441,7 +441,9 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
                 // Dual -> primal: the fine vertices from the fine faces around them.
                 let f: &[Value<T, N>] = &faces[..n_faces];
                 initialised(&mut vertices, n_vertices);
-                scatter(&mut vertices[..n_vertices], items, |w| [primal_item(&t, f, w)]);
+                scatter(&mut vertices[..n_vertices], items, |w| {
+                    [primal_item(&t, f, w)]
+                });
                 let curve = self.blend_curves(curves, &mut vertices[..n_vertices]);
                 self.curve = CurveData::Primal(curve);
             } else {
@@ -937,7 +939,10 @@ fn child_face_centroids<T: Scalar, const N: usize>(
 
 /// The nine child points of a coarse quad after replication and the first dual -> primal
 /// average: its old vertices, the edge points of its corners' outgoing edges, its face point.
-trait Nine<T: Scalar, const N: usize>: Fn(usize) -> ([Value<T, N>; 4], [Value<T, N>; 4], Value<T, N>) + Sync {}
+trait Nine<T: Scalar, const N: usize>:
+    Fn(usize) -> ([Value<T, N>; 4], [Value<T, N>; 4], Value<T, N>) + Sync
+{
+}
 
 impl<T: Scalar, const N: usize, F> Nine<T, N> for F where
     F: Fn(usize) -> ([Value<T, N>; 4], [Value<T, N>; 4], Value<T, N>) + Sync
@@ -964,7 +969,11 @@ impl<T: Scalar, const N: usize, F: Nine<T, N>> Children<'_, T, N, F> {
         let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
         let blended = |w: usize, mut p: Value<T, N>| -> Value<T, N> {
             if let Some(i) = self.curves.vertex_index(w as u32) {
-                blend(&mut p, self.curve[i as usize], &self.curves.vertices()[i as usize]);
+                blend(
+                    &mut p,
+                    self.curve[i as usize],
+                    &self.curves.vertices()[i as usize],
+                );
             }
             p
         };

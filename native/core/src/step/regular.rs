@@ -13,10 +13,18 @@
 //! The averages have positive weights, so the support is exactly what the passes would read, and
 //! a partial level on which a child is exact holds its whole support too: a child is classified
 //! the same way on a partial level as on the full one, and the kernel computes it in its parent's
-//! frame on both, so adaptive points stay bitwise the uniform ones. The kernel is measured to pay
-//! from 4 averages on (callgrind, 4k-face sphere, level 3, cached: 4 averages 76M -> 52M
-//! instructions, 8 averages 139M -> 94M; for 2 or 3 the per-face filter costs more than the
-//! passes it saves), so steps of degree 2 and 3 keep the passes.
+//! frame on both, so adaptive points stay bitwise the uniform ones.
+//!
+//! Status (branch `kernel16`, not merged; callgrind, one thread, 4k ico-quad sphere, level 3,
+//! against main at 1b50fd1): cached evaluation 4 averages 76.3M -> 48.2M instructions, 5: 67.8M
+//! -> 67.4M, 6: 107.8M -> 87.2M, 7: 99.3M -> 70.1M, 8: 139.3M -> 91.8M, 9: 130.9M -> 111.3M; but
+//! a new plan pays for the windows (a walk of up to 25 cells per coarse face, then the nets):
+//! fresh 4 averages 164.9M -> 245.0M, 9: 219.5M -> 429.3M, adaptive-flat-4-5 177.9M -> 207.1M.
+//! For 2 or 3 averages the per-face filter cost more than the passes it saves (degree 3 cached
+//! 36M -> 67M in an earlier version), so those keep the passes. What it lacks: a classification
+//! near 100 instructions per face (a twin-corner table per level instead of two lookups per
+//! step of the walk; masks from distances to the irregular items) and rows shared between
+//! neighbouring faces (tiles), without which the filter costs about what the passes do.
 //!
 //! [`Windows`] holds, per step, what the kernel needs (per coarse face, the ids of its net in
 //! its frame and the children it writes) and the zone that the passes must still compute: the
@@ -254,9 +262,15 @@ impl Geometry {
         let shift = if primal { 1 } else { -1 };
         let support: [(i32, i32); 2] = std::array::from_fn(|p| {
             let x = 2 * p as i32 + 1;
-            (ceil_div(x + shift - m - 2, 4), (m + shift + x).div_euclid(4))
+            (
+                ceil_div(x + shift - m - 2, 4),
+                (m + shift + x).div_euclid(4),
+            )
         });
-        let (lo, hi) = (support[0].0.min(support[1].0), support[0].1.max(support[1].1));
+        let (lo, hi) = (
+            support[0].0.min(support[1].0),
+            support[0].1.max(support[1].1),
+        );
         let side = (hi - lo + 1) as usize;
         let cells_side = if primal { side - 1 } else { side };
         let mut g = Geometry {
@@ -356,9 +370,8 @@ fn weights<T: Scalar, const S: usize>(m: u32, primal: bool, lo: i32) -> [[T; S];
     let g = Geometry::of(m, primal);
     let shift = if primal { 1 } else { -1 };
     let m = m as i32;
-    let binom = |k: i32| -> f64 {
-        (0..k).fold(1.0, |b, i| b * f64::from(m + 1 - i) / f64::from(i + 1))
-    };
+    let binom =
+        |k: i32| -> f64 { (0..k).fold(1.0, |b, i| b * f64::from(m + 1 - i) / f64::from(i + 1)) };
     std::array::from_fn(|p| {
         let (s0, s1) = g.support[p];
         std::array::from_fn(|t| {
@@ -583,7 +596,9 @@ mod tests {
         let mut indices = Vec::new();
         let mut seed = 12345u64;
         let mut noise = move || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
         };
         let mut id = |p: [i64; 3], points: &mut Vec<[f64; 3]>| -> u32 {
@@ -661,7 +676,12 @@ mod tests {
 
     /// The data after every step, by the kernel and the passes (`kernel`) or by the passes
     /// alone.
-    fn run(refinement: &Refinement, points: &[[f64; 3]], degree: u32, kernel: bool) -> Vec<[f64; 3]> {
+    fn run(
+        refinement: &Refinement,
+        points: &[[f64; 3]],
+        degree: u32,
+        kernel: bool,
+    ) -> Vec<[f64; 3]> {
         let mut data = LevelData::new(points);
         for j in 0..refinement.curve_networks().len() {
             let step = refinement.step(j);
@@ -705,7 +725,10 @@ mod tests {
                 let worst = (with.iter().zip(&without))
                     .flat_map(|(a, b)| (0..3).map(move |k| (a[k] - b[k]).abs()))
                     .fold(0.0, f64::max);
-                assert!(worst <= 1e-12 * 10.0, "degree {degree}: kernel off by {worst:e}");
+                assert!(
+                    worst <= 1e-12 * 10.0,
+                    "degree {degree}: kernel off by {worst:e}"
+                );
                 assert!(with.iter().flatten().all(|x| x.is_finite()));
             }
         }
