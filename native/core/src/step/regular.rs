@@ -16,14 +16,15 @@
 //! frame on both, so adaptive points stay bitwise the uniform ones.
 //!
 //! Status (branch `kernel16`, not merged; callgrind, one thread, 4k ico-quad sphere, level 3,
-//! against main at 1b50fd1): cached evaluation 4 averages 76.3M -> 48.2M instructions, 5: 67.8M
+//! against main at eeb32a2): cached evaluation 4 averages 76.3M -> 48.1M instructions, 5: 67.8M
 //! -> 67.4M, 6: 107.8M -> 87.2M, 7: 99.3M -> 70.1M, 8: 139.3M -> 91.8M, 9: 130.9M -> 111.3M; but
 //! a new plan pays for the windows (a walk of up to 25 cells per coarse face, then the nets):
-//! fresh 4 averages 164.9M -> 245.0M, 9: 219.5M -> 429.3M, adaptive-flat-4-5 177.9M -> 207.1M.
-//! For 2 or 3 averages the per-face filter cost more than the passes it saves (degree 3 cached
-//! 36M -> 67M in an earlier version), so those keep the passes. What it lacks: a classification
-//! near 100 instructions per face (a twin-corner table per level instead of two lookups per
-//! step of the walk; masks from distances to the irregular items) and rows shared between
+//! fresh degree 4 164.9M -> 221.6M, 6: 196.5M -> 348.7M, 9: 219.5M -> 432.4M; adaptive-flat-4-5
+//! 177.9M -> 200.8M, adaptive-4 565.2M -> 622.4M. For 2 or 3 averages the per-face filter cost
+//! more than the passes it saves (degree 3 cached 36M -> 67M in an earlier version), so those
+//! keep the passes. What it lacks: a classification near 100 instructions per face (masks from
+//! per-face distances to the irregular items, so that the walk runs only where nets are
+//! written; the twin-corner table here already halved the walk) and rows shared between
 //! neighbouring faces (tiles), without which the filter costs about what the passes do.
 //!
 //! [`Windows`] holds, per step, what the kernel needs (per coarse face, the ids of its net in
@@ -248,10 +249,11 @@ struct Geometry {
     /// The walk: each cell after the first with the cell it is placed from and the side of
     /// that cell it lies across (0 below, 1 right, 2 above, 3 left), in placing order.
     walk: Vec<(u8, u8, u8)>,
-    /// Per grid vertex, the cell that names it (the one at it towards the face's own: it lies
-    /// in every support holding the vertex, supports being rectangles around cell (0, 0)) and
-    /// the corner of that cell at it.
-    namer: Vec<(u8, u8)>,
+    /// The grid vertices read (all for primal input, whose net they are; those inside a
+    /// support for dual input), each with the cell that names it (the one at it towards the
+    /// face's own: it lies in every support holding the vertex, supports being rectangles
+    /// around cell (0, 0)) and the corner of that cell at it.
+    namer: Vec<(u8, u8, u8)>,
 }
 
 impl Geometry {
@@ -304,18 +306,6 @@ impl Geometry {
                 step(a, b, (a, b + 1), 0);
             }
         }
-        for j in lo..=hi + 1 {
-            for i in lo..=hi + 1 {
-                let (a, b) = (i - (i > 0) as i32, j - (j > 0) as i32);
-                let k = match (i - a, j - b) {
-                    (0, 0) => 0,
-                    (1, 0) => 1,
-                    (1, 1) => 2,
-                    _ => 3,
-                };
-                g.namer.push((g.cell(a, b) as u8, k));
-            }
-        }
         for (k, (px, py)) in [(0, 0), (1, 0), (1, 1), (0, 1)].into_iter().enumerate() {
             // The cells of the support: for primal input those between its vertices.
             let span = |(s0, s1): (i32, i32)| if primal { (s0, s1 - 1) } else { (s0, s1) };
@@ -329,6 +319,23 @@ impl Geometry {
                 for i in a0 + 1..=a1 {
                     g.inner[k] |= 1 << g.vertex(i, j);
                 }
+            }
+        }
+        let inner = g.inner.iter().fold(0u64, |all, &k| all | k);
+        for j in lo..=hi + 1 {
+            for i in lo..=hi + 1 {
+                let at = g.vertex(i, j);
+                if !primal && inner & (1 << at) == 0 {
+                    continue;
+                }
+                let (a, b) = (i - (i > 0) as i32, j - (j > 0) as i32);
+                let k = match (i - a, j - b) {
+                    (0, 0) => 0,
+                    (1, 0) => 1,
+                    (1, 1) => 2,
+                    _ => 3,
+                };
+                g.namer.push((at as u8, g.cell(a, b) as u8, k));
             }
         }
         g
@@ -392,6 +399,9 @@ fn weights<T: Scalar, const S: usize>(m: u32, primal: bool, lo: i32) -> [[T; S];
 struct Flags {
     grid_vertex: Vec<bool>,
     clean_face: Vec<bool>,
+    /// Per corner, the corner across its outgoing edge (the other face's corner on it), or
+    /// `NONE` on a boundary or non-manifold edge.
+    twin: Vec<u32>,
 }
 
 impl Flags {
@@ -430,9 +440,21 @@ impl Flags {
                         && !marked_vertex[coarse.corner_verts[c] as usize]
                 })
         })?;
+        let twin = gather_hinted(4 * nf, |c| {
+            let e = corner_edges[c] as usize;
+            let [p, q] = edge_corners[e];
+            if q == NONE || (non_manifold && coarse.is_non_manifold_edge(e)) {
+                NONE
+            } else if p as usize == c {
+                q
+            } else {
+                p
+            }
+        })?;
         Ok(Flags {
             grid_vertex,
             clean_face,
+            twin,
         })
     }
 }
@@ -461,11 +483,9 @@ fn after(c: u32, k: u32) -> u32 {
 }
 
 impl Grid {
+    #[inline(always)]
     fn new(level: &Level, g: &Geometry, flags: &Flags, f: usize) -> Grid {
         let mut cells = [NONE; MAX_SIDE * MAX_SIDE];
-        let edge_corners = level.edge_corners();
-        let corner_edges = level.corner_edges();
-        let non_manifold = level.is_non_manifold();
         let own = g.cell(0, 0);
         cells[own] = 4 * f as u32;
         let mut cell_ok = (flags.clean_face[f] as u64) << own;
@@ -475,21 +495,18 @@ impl Grid {
                 continue;
             }
             // The cell across side `side` of the cell `base`.
-            let c = after(base, side as u32);
-            let e = corner_edges[c as usize] as usize;
-            let [p, q] = edge_corners[e];
-            if q == NONE || (non_manifold && level.is_non_manifold_edge(e)) {
+            let d = flags.twin[after(base, side as u32) as usize];
+            if d == NONE {
                 continue;
             }
-            let d = if p == c { q } else { p };
             let placed = after(d, (6 - side as u32) % 4);
             cells[at as usize] = placed;
             cell_ok |= (flags.clean_face[(placed >> 2) as usize] as u64) << at;
         }
         let mut vertex = [NONE; (MAX_SIDE + 1) * (MAX_SIDE + 1)];
         let mut inner_ok = 0u64;
-        for (at, &(cell, k)) in g.namer.iter().enumerate() {
-            let base = cells[cell as usize];
+        for &(at, cell, k) in &g.namer {
+            let (at, base) = (at as usize, cells[cell as usize]);
             if base != NONE {
                 let v = level.corner_verts[after(base, k as u32) as usize];
                 vertex[at] = v;
