@@ -1285,7 +1285,7 @@ impl PartStep {
             Some((data, curve)) => LevelData::on_level(cage, odd, data, curve),
         }
         .with_scratch_for(scratch, &step)?;
-        run.step(&step);
+        run.step(&step)?;
         Ok(run)
     }
 
@@ -1296,6 +1296,7 @@ impl PartStep {
             fine: &self.fine,
             curves: &self.network,
             sharpness: None,
+            windows: None,
         }
     }
 }

@@ -376,7 +376,7 @@ fn step_values<const C: usize>(
     let scratch = Scratch::default();
     let mut data =
         LevelData::on_level(&cage, primal, values, curve).with_scratch_for(&scratch, &step)?;
-    data.step(&step);
+    data.step(&step)?;
     Ok(data.into_parts().0)
 }
 

@@ -51,11 +51,11 @@ fn steps<'a, T: Scalar, const N: usize>(
     let mut data = LevelData::new(cage);
     if steps > 0 {
         let capacity = scratch_capacity(refinement);
-        scratch.provision::<Value<T, N>>(capacity, 2)?;
+        scratch.provision::<Value<T, N>>(capacity, 3)?;
         data = data.with_scratch(scratch, capacity);
     }
     for j in 0..steps {
-        data.step(&refinement.step(j));
+        data.step(&refinement.step(j))?;
     }
     Ok(data)
 }

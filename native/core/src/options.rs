@@ -153,13 +153,21 @@ pub fn estimate(cage: &Cage, options: &Options) -> Result<Estimate> {
     let mut e = c / 2.0 + 1.0;
     let mut bytes = 0.0;
     let level_bytes = |v: f64, e: f64, c: f64| 4.0 * (v + 4.0 * c) + 16.0 * e;
+    // The averaging rules' regular windows (`step::regular`): per coarse face of a step, its
+    // net of up to 4 x 4 (degrees 2-5) or 6 x 6 (6-9) ids and a mask.
+    let net = match options.degree {
+        2..=5 if options.rules == Rules::Averaging => 4.0 * 16.0 + 2.0,
+        6..=9 if options.rules == Rules::Averaging => 4.0 * 36.0 + 2.0,
+        _ => 0.0,
+    };
     bytes += level_bytes(v, e, c);
     for _ in 0..options.levels {
+        bytes += net * f;
         (v, e, f, c) = (v + e + f, 2.0 * e + c, c, 4.0 * c);
         bytes += level_bytes(v, e, c);
     }
-    // Evaluation keeps about three arrays of the larger of vertices and faces (f64 x 3).
-    bytes += 3.0 * 24.0 * v.max(f);
+    // Evaluation keeps about four arrays of the larger of vertices and faces (f64 x 3).
+    bytes += 4.0 * 24.0 * v.max(f);
     Ok(Estimate {
         vertices: v as u64,
         faces: f as u64,

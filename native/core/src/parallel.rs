@@ -270,6 +270,58 @@ pub(crate) fn fill<V: Send, F: Fn(usize) -> V + Sync + Send>(out: &mut [MaybeUni
         });
 }
 
+/// `out[G * at[i] + k] = value(at[i])[k]` for every `i` (the groups named by `at`, the others
+/// untouched), in parallel chunks of [`CHUNK`] names, so the result does not depend on the
+/// number of threads. `at` must be strictly increasing (checked: a repeated name would be two
+/// threads writing one item).
+pub(crate) fn scatter_uninit<V: Send, const G: usize>(
+    out: &mut [MaybeUninit<V>],
+    at: &[u32],
+    value: impl Fn(usize) -> [V; G] + Sync + Send,
+) {
+    assert!(
+        at.windows(2).all(|w| w[0] < w[1]),
+        "scatter: names not strictly increasing"
+    );
+    if let Some(&last) = at.last() {
+        assert!(
+            G * (last as usize + 1) <= out.len(),
+            "scatter: name out of range"
+        );
+    }
+    struct Out<V>(*mut MaybeUninit<V>);
+    // SAFETY: the tasks write disjoint groups (the names are distinct) and read nothing.
+    unsafe impl<V: Send> Sync for Out<V> {}
+    let target = Out(out.as_mut_ptr());
+    at.par_chunks(CHUNK).for_each(|names| {
+        let target = &target;
+        for &name in names {
+            let group = value(name as usize);
+            for (k, v) in group.into_iter().enumerate() {
+                // SAFETY: in range (checked above) and written by this task only.
+                unsafe {
+                    target
+                        .0
+                        .add(G * name as usize + k)
+                        .write(MaybeUninit::new(v))
+                };
+            }
+        }
+    });
+}
+
+/// [`scatter_uninit`] into initialised items (which stay initialised: only values are written).
+pub(crate) fn scatter<V: Send, const G: usize>(
+    out: &mut [V],
+    at: &[u32],
+    value: impl Fn(usize) -> [V; G] + Sync + Send,
+) {
+    // SAFETY: `MaybeUninit<V>` has the layout of `V`, and `scatter_uninit` writes only
+    // initialised values, so every item of `out` stays initialised.
+    let out = unsafe { &mut *(out as *mut [V] as *mut [MaybeUninit<V>]) };
+    scatter_uninit(out, at, value);
+}
+
 /// Runs `work` on a thread of rayon's pool. A run of many short parallel loops started from
 /// outside the pool hands every loop to the pool and waits for it (two thread wake-ups per
 /// loop); started from inside, the loops split and join there.

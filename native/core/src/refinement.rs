@@ -15,7 +15,7 @@ use crate::mesh::Cage;
 use crate::options::{estimate, Options, OutputKind};
 use crate::parallel::in_pool;
 use crate::scheme::Scheme;
-use crate::step::Step;
+use crate::step::{Step, Windows};
 use crate::topology::{Level, NONE};
 
 /// The refined topology of a cage for one scheme; see the module documentation.
@@ -34,6 +34,9 @@ pub(crate) struct Refinement {
     networks: Vec<CurveNetwork>,
     /// Classic Catmull-Clark: sharpness and rules of `M_0..M_L` (empty otherwise).
     sharpness: Vec<LevelSharpness>,
+    /// The averaging rules: the regular windows of each step (`None` where the kernel has
+    /// nothing to do).
+    windows: Vec<Option<Windows>>,
 }
 
 impl Refinement {
@@ -121,6 +124,16 @@ impl Refinement {
         } else {
             Vec::new()
         };
+        let windows = match scheme {
+            Scheme::Averaging { degree } => (0..networks.len())
+                .map(|j| {
+                    // The cage's points are primal; the steps leave dual data for even degrees.
+                    let primal = j == 0 || degree % 2 == 1;
+                    Windows::build(&levels[j], &levels[j + 1], &networks[j], degree, primal)
+                })
+                .collect::<Result<Vec<_>>>()?,
+            _ => Vec::new(),
+        };
         Ok(Refinement {
             options: *options,
             scheme,
@@ -132,6 +145,7 @@ impl Refinement {
             levels,
             networks,
             sharpness,
+            windows,
         })
     }
 
@@ -220,6 +234,7 @@ impl Refinement {
             curves: &self.networks[j],
             sharpness: (!self.sharpness.is_empty())
                 .then(|| (&self.sharpness[j], &self.sharpness[j + 1])),
+            windows: self.windows.get(j).and_then(Option::as_ref),
         }
     }
 

@@ -24,6 +24,9 @@
 
 pub(crate) mod catmark;
 mod doo_sabin;
+mod regular;
+
+pub(crate) use regular::Windows;
 
 use std::any::Any;
 use std::borrow::Cow;
@@ -35,7 +38,8 @@ use rayon::prelude::*;
 use crate::curves::{CurveNetwork, CurveVertex, LevelSharpness};
 use crate::error::Result;
 use crate::parallel::{
-    fill_zip, gather_sections, gather_zip, hinted_or_abort, with_capacity_hinted, CHUNK,
+    fill_zip, gather_sections, gather_zip, hinted_or_abort, scatter, scatter_uninit,
+    with_capacity_hinted, CHUNK,
 };
 use crate::scalar::{add, reciprocal, scale, zero, Scalar, Value};
 use crate::scheme::Scheme;
@@ -56,6 +60,9 @@ pub(crate) struct Step<'a> {
     pub curves: &'a CurveNetwork,
     /// Classic Catmull-Clark: sharpness and rules of `coarse` and `fine`.
     pub sharpness: Option<(&'a LevelSharpness, &'a LevelSharpness)>,
+    /// The averaging rules: the step's regular windows when a plan keeps them (a step without
+    /// them finds them itself).
+    pub windows: Option<&'a Windows>,
 }
 
 /// The tables of a coarse level that a pass reads, looked up once per pass: the accessors of
@@ -152,7 +159,7 @@ enum CurveData<T: Scalar, const N: usize> {
 pub(crate) struct Scratch(Mutex<Vec<Box<dyn Any + Send>>>);
 
 /// Buffers kept at most (the oldest go first).
-const SCRATCH_BUFFERS: usize = 2;
+const SCRATCH_BUFFERS: usize = 3;
 
 impl Debug for Scratch {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -302,7 +309,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
     pub(crate) fn with_scratch_for(self, scratch: &'a Scratch, step: &Step) -> Result<Self> {
         let fine = step.fine;
         let capacity = fine.num_vertices.max(fine.num_faces());
-        scratch.provision::<Value<T, N>>(capacity, 2)?;
+        scratch.provision::<Value<T, N>>(capacity, 3)?;
         Ok(self.with_scratch(scratch, capacity))
     }
 
@@ -320,17 +327,42 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
     }
 
     /// One step: the next level's data from this level's (see the module documentation).
-    pub(crate) fn step(&mut self, step: &Step) {
+    /// Fails only when the regular windows of a step on a partial level find no memory.
+    pub(crate) fn step(&mut self, step: &Step) -> Result<()> {
         match step.scheme {
-            Scheme::Averaging { degree } => self.average(step, degree),
-            Scheme::Bilinear => self.average(step, 1),
+            Scheme::Averaging { degree } => self.average(step, degree)?,
+            Scheme::Bilinear => self.average_by_passes(step, 1),
             Scheme::DooSabin => self.doo_sabin(step),
             Scheme::CatmullClark { creasing } => self.catmark(step, creasing),
         }
+        Ok(())
     }
 
-    /// The step of the averaging rules of `degree`: replicate, then `degree` averages.
-    fn average(&mut self, step: &Step, degree: u32) {
+    /// The step of the averaging rules of `degree`: the regular items by the kernel, the
+    /// others by the passes ([`regular`]).
+    fn average(&mut self, step: &Step, degree: u32) -> Result<()> {
+        let built;
+        let windows = match step.windows {
+            Some(w) if w.primal() == self.primal => Some(w),
+            _ => {
+                let (coarse, fine, curves) = (step.coarse, step.fine, step.curves);
+                built = Windows::build(coarse, fine, curves, degree, self.primal)?;
+                built.as_ref()
+            }
+        };
+        match windows {
+            Some(w) => {
+                debug_assert_eq!(w.degree(), degree);
+                self.average_windowed(step, w);
+            }
+            None => self.average_by_passes(step, degree),
+        }
+        Ok(())
+    }
+
+    /// The step of the averaging rules of `degree` as replication and `degree` averages over
+    /// every item.
+    fn average_by_passes(&mut self, step: &Step, degree: u32) {
         // The fused first pass needs, on dual data, a buffer of our own for its old vertices.
         let fusable = self.primal || matches!(self.faces, Cow::Owned(_));
         let first = if fusable && degree >= 2 && step.coarse.is_quads() {
@@ -346,6 +378,107 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
             } else {
                 self.average_to_dual(step.fine, step.curves);
             }
+        }
+    }
+
+    /// The step of the averaging rules with `windows` ([`regular`]): the fused first pass, the
+    /// kernel, then the later averages up to the kernel's, each pass over the items of the
+    /// windows' zone only; an odd degree's last average then runs over every vertex. The coarse
+    /// data is read until the kernel has run; its buffer then serves the fine vertices.
+    fn average_windowed(&mut self, step: &Step, windows: &Windows) {
+        let (coarse, fine, curves) = (step.coarse, step.fine, step.curves);
+        let averages = windows.averages() as usize;
+        let zone = windows.zone();
+        let primal = self.primal;
+        self.replicate_curves(curves);
+        let t = Tables::of(coarse);
+        let data = match primal {
+            true => std::mem::replace(&mut self.vertices, Cow::Borrowed(&[])),
+            false => std::mem::replace(&mut self.faces, Cow::Borrowed(&[])),
+        };
+        let x: &[Value<T, N>] = &data;
+        let curve = self.curve_to_primal(curves, |w| first_point(&t, x, primal, w));
+        let touched = touched_faces(&t, curves);
+        let corner_edges = coarse.corner_edges();
+        let children = Children {
+            t,
+            curves,
+            curve: &curve,
+            touched: &touched,
+            nine: |f: usize| match primal {
+                true => primal_nine(&t, x, f),
+                false => {
+                    let p = std::array::from_fn(|k| {
+                        vertex_face_centroid(&t, x, t.corner_verts[4 * f + k] as usize)
+                    });
+                    let m = std::array::from_fn(|k| {
+                        edge_face_mean(&t, x, corner_edges[4 * f + k] as usize)
+                    });
+                    (p, m, x[f])
+                }
+            },
+        };
+        let (n_faces, n_vertices) = (fine.num_faces(), fine.num_vertices);
+        let mut faces = self.take_faces();
+        initialised(&mut faces, n_faces);
+        scatter(&mut faces[..n_faces], &zone.first, |f| children.of(f));
+        // The kernel's output: every child written once, by the kernel or by the last pass.
+        let mut out = self.fresh();
+        out.clear();
+        if out.capacity() < n_faces {
+            out = hinted_or_abort(n_faces);
+        }
+        debug_assert_eq!(windows.primal(), primal);
+        windows.apply(x, &mut out.spare_capacity_mut()[..n_faces]);
+        self.curve = CurveData::Dual(curve_to_dual(curves, &curve));
+        let mut vertices = match data {
+            Cow::Owned(v) => v,
+            Cow::Borrowed(_) => self.take_vertices(),
+        };
+        let quarter = T::from_f64(0.25);
+        for (pass, items) in zone.passes.iter().enumerate() {
+            if pass % 2 == 0 {
+                // Dual -> primal: the fine vertices from the fine faces around them.
+                let f: &[Value<T, N>] = &faces[..n_faces];
+                initialised(&mut vertices, n_vertices);
+                scatter(&mut vertices[..n_vertices], items, |w| {
+                    [primal_item(&t, f, w)]
+                });
+                let curve = self.blend_curves(curves, &mut vertices[..n_vertices]);
+                self.curve = CurveData::Primal(curve);
+            } else {
+                // Primal -> dual: the fine faces from their corners.
+                let v: &[Value<T, N>] = &vertices[..n_vertices];
+                let (quads, _) = fine.corner_verts.as_chunks::<4>();
+                let value = |g: usize| {
+                    let q = quads[g];
+                    let s = add(
+                        add(v[q[0] as usize], v[q[1] as usize]),
+                        add(v[q[2] as usize], v[q[3] as usize]),
+                    );
+                    [scale(s, quarter)]
+                };
+                if pass + 3 == averages {
+                    scatter_uninit(&mut out.spare_capacity_mut()[..n_faces], items, value);
+                } else {
+                    scatter(&mut faces[..n_faces], items, value);
+                }
+                let CurveData::Primal(curve) = &self.curve else {
+                    unreachable!("1-D data out of step")
+                };
+                self.curve = CurveData::Dual(curve_to_dual(curves, curve));
+            }
+        }
+        // SAFETY: the kernel wrote its children and the last pass every other one (the zone's
+        // last list is the complement of the kernel's children; a panic would have unwound
+        // past here).
+        unsafe { out.set_len(n_faces) };
+        self.faces = Cow::Owned(out);
+        self.vertices = Cow::Owned(vertices);
+        self.spare = faces;
+        self.primal = false;
+        if windows.degree() % 2 == 1 {
+            self.average_to_primal(step);
         }
     }
 
@@ -550,16 +683,17 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         };
         let touched = touched_faces(&t, curves);
         let n = fine.num_faces();
-        let half = T::from_f64(0.5);
         if primal {
             let mut out = self.take_faces();
             let v: &[Value<T, N>] = &self.vertices;
-            child_face_centroids(&t, curves, &curve, &touched, &mut out, n, |f| {
-                let p = t.at_corners(v, f);
-                let centre = scale(p.iter().fold(zero(), |s, &x| add(s, x)), reciprocal(4));
-                let m = std::array::from_fn(|k| scale(add(p[k], p[(k + 1) & 3]), half));
-                (p, m, centre)
-            });
+            let children = Children {
+                t,
+                curves,
+                curve: &curve,
+                touched: &touched,
+                nine: |f: usize| primal_nine(&t, v, f),
+            };
+            child_face_centroids(&children, &mut out, n);
             self.faces = Cow::Owned(out);
         } else {
             let Cow::Owned(mut x) = std::mem::replace(&mut self.faces, Cow::Borrowed(&[])) else {
@@ -579,13 +713,20 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
             let old: &[Value<T, N>] = old;
             let corner_edges = coarse.corner_edges();
             let mut out = self.take_vertices();
-            child_face_centroids(&t, curves, &curve, &touched, &mut out, n, |f| {
-                let p = t.at_corners(old, f);
-                let m = std::array::from_fn(|k| {
-                    edge_face_mean(&t, data, corner_edges[4 * f + k] as usize)
-                });
-                (p, m, data[f])
-            });
+            let children = Children {
+                t,
+                curves,
+                curve: &curve,
+                touched: &touched,
+                nine: |f: usize| {
+                    let p = t.at_corners(old, f);
+                    let m = std::array::from_fn(|k| {
+                        edge_face_mean(&t, data, corner_edges[4 * f + k] as usize)
+                    });
+                    (p, m, data[f])
+                },
+            };
+            child_face_centroids(&children, &mut out, n);
             x.truncate(nf);
             self.vertices = Cow::Owned(x);
             self.faces = Cow::Owned(out);
@@ -701,6 +842,45 @@ fn first_point<T: Scalar, const N: usize>(
     }
 }
 
+/// The nine child points of coarse quad `f` from primal data `v` ([`Nine`]): its corners, the
+/// midpoints of its edges, the centroid of its corners.
+#[inline(always)]
+fn primal_nine<T: Scalar, const N: usize>(
+    t: &Tables,
+    v: &[Value<T, N>],
+    f: usize,
+) -> ([Value<T, N>; 4], [Value<T, N>; 4], Value<T, N>) {
+    let half = T::from_f64(0.5);
+    let p = t.at_corners(v, f);
+    let centre = scale(p.iter().fold(zero(), |s, &x| add(s, x)), reciprocal(4));
+    let m = std::array::from_fn(|k| scale(add(p[k], p[(k + 1) & 3]), half));
+    (p, m, centre)
+}
+
+/// Fine vertex `w` after a dual -> primal average of the fine faces' data `f` (one item of
+/// [`LevelData::gather_primal`] on a quad level: the same sums in the same order).
+#[inline(always)]
+fn primal_item<T: Scalar, const N: usize>(t: &Tables, f: &[Value<T, N>], w: usize) -> Value<T, N> {
+    let (nv, ne) = (t.level.num_vertices, t.edge_verts.len());
+    if w < nv {
+        vertex_corner_mean(t, f, w)
+    } else if w < nv + ne {
+        edge_corner_mean(t, f, t.edge_corners[w - nv])
+    } else {
+        let g = w - nv - ne;
+        let q = &f[4 * g..4 * g + 4];
+        scale(q.iter().fold(zero(), |s, &x| add(s, x)), T::from_f64(0.25))
+    }
+}
+
+/// `buffer` holds at least `n` initialised items (the pass after it writes some of them and
+/// reads only those).
+fn initialised<T: Scalar, const N: usize>(buffer: &mut Vec<Value<T, N>>, n: usize) {
+    if buffer.len() < n {
+        buffer.resize(n, zero());
+    }
+}
+
 /// The coarse faces whose child faces have a curve vertex of `curves` among their corners
 /// (empty when the step has none).
 fn touched_faces(t: &Tables, curves: &CurveNetwork) -> Vec<bool> {
@@ -730,57 +910,89 @@ fn touched_faces(t: &Tables, curves: &CurveNetwork) -> Vec<bool> {
 }
 
 /// The second half of [`LevelData::first_average_to_dual`]: `out` becomes the `n` faces of
-/// the fine level, four per coarse quad `f`, each the centroid of its corners among the nine
-/// child points `nine(f)` = (old vertices, edge points of the corners' outgoing edges, face
-/// point), which take their 1-D values `curve` where `touched`. Each face is written once, in
+/// the fine level, four per coarse quad ([`child_faces`]). Each face is written once, in
 /// parallel chunks (so a new buffer's pages are touched by both threads).
 fn child_face_centroids<T: Scalar, const N: usize>(
-    t: &Tables,
-    curves: &CurveNetwork,
-    curve: &[Value<T, N>],
-    touched: &[bool],
+    children: &Children<'_, T, N, impl Nine<T, N>>,
     out: &mut Vec<Value<T, N>>,
     n: usize,
-    nine: impl Fn(usize) -> ([Value<T, N>; 4], [Value<T, N>; 4], Value<T, N>) + Sync,
 ) {
-    let coarse = t.level;
-    let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
     out.clear();
     if out.capacity() < n {
         *out = hinted_or_abort(n);
     }
-    let quarter = T::from_f64(0.25);
-    let blended = |w: usize, mut p: Value<T, N>| -> Value<T, N> {
-        if let Some(i) = curves.vertex_index(w as u32) {
-            blend(&mut p, curve[i as usize], &curves.vertices()[i as usize]);
-        }
-        p
-    };
     out.spare_capacity_mut()[..n]
         .par_chunks_mut(4 * CHUNK)
         .enumerate()
         .for_each(|(chunk, faces)| {
             for (i, quad) in faces.chunks_exact_mut(4).enumerate() {
-                let f = chunk * CHUNK + i;
-                let (mut p, mut m, mut centre) = nine(f);
-                if touched.get(f).copied().unwrap_or(false) {
-                    let q = &t.corner_verts[4 * f..4 * f + 4];
-                    for k in 0..4 {
-                        p[k] = blended(q[k] as usize, p[k]);
-                        let e = coarse.corner_edges()[4 * f + k] as usize;
-                        m[k] = blended(nv + e, m[k]);
-                    }
-                    centre = blended(nv + ne + f, centre);
-                }
-                for (k, out) in quad.iter_mut().enumerate() {
-                    let s = add(add(p[k], m[k]), add(centre, m[(k + 3) & 3]));
-                    out.write(scale(s, quarter));
+                let children = children.of(chunk * CHUNK + i);
+                for (out, value) in quad.iter_mut().zip(children) {
+                    out.write(value);
                 }
             }
         });
     // SAFETY: the loop above wrote every one of the first `n` items (`n` is four times the
     // coarse faces; a panic would have unwound past here).
     unsafe { out.set_len(n) };
+}
+
+/// The nine child points of a coarse quad after replication and the first dual -> primal
+/// average: its old vertices, the edge points of its corners' outgoing edges, its face point.
+trait Nine<T: Scalar, const N: usize>:
+    Fn(usize) -> ([Value<T, N>; 4], [Value<T, N>; 4], Value<T, N>) + Sync
+{
+}
+
+impl<T: Scalar, const N: usize, F> Nine<T, N> for F where
+    F: Fn(usize) -> ([Value<T, N>; 4], [Value<T, N>; 4], Value<T, N>) + Sync
+{
+}
+
+/// What the fused first pass reads to make the four child faces of a coarse quad: the nine
+/// child points `nine(f)`, which take their 1-D values `curve` where `touched`.
+struct Children<'c, T: Scalar, const N: usize, F> {
+    t: Tables<'c>,
+    curves: &'c CurveNetwork,
+    curve: &'c [Value<T, N>],
+    touched: &'c [bool],
+    nine: F,
+}
+
+impl<T: Scalar, const N: usize, F: Nine<T, N>> Children<'_, T, N, F> {
+    /// The four child faces of coarse quad `f`, each the centroid of its corners among the
+    /// nine child points.
+    #[inline(always)]
+    fn of(&self, f: usize) -> [Value<T, N>; 4] {
+        let t = &self.t;
+        let coarse = t.level;
+        let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
+        let blended = |w: usize, mut p: Value<T, N>| -> Value<T, N> {
+            if let Some(i) = self.curves.vertex_index(w as u32) {
+                blend(
+                    &mut p,
+                    self.curve[i as usize],
+                    &self.curves.vertices()[i as usize],
+                );
+            }
+            p
+        };
+        let (mut p, mut m, mut centre) = (self.nine)(f);
+        if self.touched.get(f).copied().unwrap_or(false) {
+            let q = &t.corner_verts[4 * f..4 * f + 4];
+            for k in 0..4 {
+                p[k] = blended(q[k] as usize, p[k]);
+                let e = coarse.corner_edges()[4 * f + k] as usize;
+                m[k] = blended(nv + e, m[k]);
+            }
+            centre = blended(nv + ne + f, centre);
+        }
+        let quarter = T::from_f64(0.25);
+        std::array::from_fn(|k| {
+            let s = add(add(p[k], m[k]), add(centre, m[(k + 3) & 3]));
+            scale(s, quarter)
+        })
+    }
 }
 
 /// The midpoint of coarse edge `e` from primal data `v` (its edge point after replication and

@@ -1,0 +1,753 @@
+//! Regular windows: where a step of the averaging rules is the tensor-product B-spline.
+//!
+//! On a quad level, replication followed by m centroid averages is, wherever the mesh is a
+//! grid, the tensor product of the 1-D Lane-Riesenfeld step: for even m a fine face (child at
+//! `x` in {1/4, 3/4} of its parent) is `sum a_k c_k` over the coarse faces, with the binomial
+//! mask `a_k = binom(m + 1, k) / 2^m` in each direction (DESIGN.md §1). A child whose whole
+//! support is a grid (every cell a quad placed consistently, every vertex inside the support of
+//! valence 4 and interior, no curve of the step born there) is therefore computed here by one
+//! separable filter of the coarse faces, rows then columns, instead of m passes through the fine
+//! level. A step of odd degree n takes the kernel for its first n - 1 averages and finishes with
+//! its last dual -> primal average over every vertex.
+//!
+//! The averages have positive weights, so the support is exactly what the passes would read, and
+//! a partial level on which a child is exact holds its whole support too: a child is classified
+//! the same way on a partial level as on the full one, and the kernel computes it in its parent's
+//! frame on both, so adaptive points stay bitwise the uniform ones.
+//!
+//! Status (branch `kernel16`, not merged; callgrind, one thread, 4k ico-quad sphere, level 3,
+//! against main at eeb32a2): cached evaluation 4 averages 76.3M -> 48.1M instructions, 5: 67.8M
+//! -> 67.4M, 6: 107.8M -> 87.2M, 7: 99.3M -> 70.1M, 8: 139.3M -> 91.8M, 9: 130.9M -> 111.3M; but
+//! a new plan pays for the windows (a walk of up to 25 cells per coarse face, then the nets):
+//! fresh degree 4 164.9M -> 221.6M, 6: 196.5M -> 348.7M, 9: 219.5M -> 432.4M; adaptive-flat-4-5
+//! 177.9M -> 200.8M, adaptive-4 565.2M -> 622.4M. For 2 or 3 averages the per-face filter cost
+//! more than the passes it saves (degree 3 cached 36M -> 67M in an earlier version), so those
+//! keep the passes. What it lacks: a classification near 100 instructions per face (masks from
+//! per-face distances to the irregular items, so that the walk runs only where nets are
+//! written; the twin-corner table here already halved the walk) and rows shared between
+//! neighbouring faces (tiles), without which the filter costs about what the passes do.
+//!
+//! [`Windows`] holds, per step, what the kernel needs (per coarse face, the ids of its net in
+//! its frame and the children it writes) and the zone that the passes must still compute: the
+//! other children and, pass by pass backwards, what they read. Everything here is topology: a
+//! plan builds it once per step ([`crate::refinement::Refinement`]), a partial level per step it
+//! runs.
+
+use std::mem::MaybeUninit;
+
+use rayon::prelude::*;
+
+use crate::curves::CurveNetwork;
+use crate::error::Result;
+use crate::memory;
+use crate::parallel::{gather_hinted, CHUNK};
+use crate::scalar::{mad, zero, Scalar, Value};
+use crate::topology::{quad_next, Level, NONE};
+
+/// The kernel's view of one step of an averaging rule on a quad level (module documentation).
+#[derive(Debug)]
+pub(crate) struct Windows {
+    /// The step's degree n.
+    degree: u32,
+    /// The averages the kernel makes: n, or n - 1 for odd n.
+    averages: u32,
+    /// Whether the step's input is primal (per coarse vertex; the net is then of vertices).
+    primal: bool,
+    /// Lowest grid coordinate of a face's net (its own cell is `(0, 0)`).
+    lo: i32,
+    /// Side of the net (vertices or cells).
+    side: usize,
+    /// Per coarse face, bit `k` for its child at corner `k` when the kernel writes it.
+    masks: Vec<u8>,
+    /// Per coarse face with kernel children, `side * side` coarse vertices (primal input) or
+    /// faces (dual input) of its net, row after row in its frame (0 where the walk placed none:
+    /// no child weighs it).
+    nets: Vec<u32>,
+    /// What the passes still compute.
+    zone: Zone,
+}
+
+/// The items the passes of a step still compute, in increasing order: the coarse faces whose
+/// children the first (fused) pass makes, then for each later average `a = 3..=m` the fine
+/// items it makes (vertices after a dual -> primal average, faces after a primal -> dual one);
+/// the last list is every child that the kernel does not write.
+#[derive(Debug)]
+pub(super) struct Zone {
+    pub first: Vec<u32>,
+    pub passes: Vec<Vec<u32>>,
+}
+
+/// Fewest averages the kernel makes (see the module documentation).
+const MIN_AVERAGES: u32 = 4;
+/// Most averages the kernel makes: its net fits [`MAX_SIDE`].
+const MAX_AVERAGES: u32 = 8;
+/// Largest net side (8 averages of primal input: vertices `-2..=3`).
+const MAX_SIDE: usize = 6;
+
+impl Windows {
+    /// The windows of a step of the averaging rules of `degree` from `coarse` to `fine` with
+    /// the step's `curves`, for `primal` (per coarse vertex) or dual input; `None` when the
+    /// kernel has nothing to do (not a quad level, a degree without a kernel, or no regular
+    /// child).
+    pub(crate) fn build(
+        coarse: &Level,
+        fine: &Level,
+        curves: &CurveNetwork,
+        degree: u32,
+        primal: bool,
+    ) -> Result<Option<Windows>> {
+        let averages = degree - degree % 2;
+        if !(MIN_AVERAGES..=MAX_AVERAGES).contains(&averages)
+            || !coarse.is_quads()
+            || coarse.num_faces() == 0
+        {
+            return Ok(None);
+        }
+        let g = Geometry::of(averages, primal);
+        let flags = Flags::of(coarse, curves)?;
+        let nf = coarse.num_faces();
+        let side = g.side;
+        let mut masks: Vec<u8> = memory::filled(nf, 0)?;
+        let mut nets: Vec<u32> = memory::filled(nf * side * side, NONE)?;
+        nets.par_chunks_mut(side * side * CHUNK)
+            .zip(masks.par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(chunk, (nets, masks))| {
+                let nets = nets.chunks_exact_mut(side * side);
+                for (i, (net, mask)) in nets.zip(masks.iter_mut()).enumerate() {
+                    let f = chunk * CHUNK + i;
+                    let grid = Grid::new(coarse, &g, &flags, f);
+                    *mask = g.mask(&grid);
+                    if *mask != 0 {
+                        grid.net(&g, net);
+                    }
+                }
+            });
+        if masks.iter().all(|&m| m == 0) {
+            return Ok(None);
+        }
+        let zone = Zone::of(coarse, fine, averages, &masks)?;
+        Ok(Some(Windows {
+            degree,
+            averages,
+            primal,
+            lo: g.lo,
+            side,
+            masks,
+            nets,
+            zone,
+        }))
+    }
+
+    /// The step's degree.
+    pub(crate) fn degree(&self) -> u32 {
+        self.degree
+    }
+
+    /// The averages the kernel makes (the step's degree, or one less for odd degrees).
+    pub(super) fn averages(&self) -> u32 {
+        self.averages
+    }
+
+    /// Whether the windows are for primal input.
+    pub(super) fn primal(&self) -> bool {
+        self.primal
+    }
+
+    /// What the passes still compute.
+    pub(super) fn zone(&self) -> &Zone {
+        &self.zone
+    }
+
+    /// Writes every kernel child into `out` (per fine face) from the coarse data `x` (per
+    /// vertex or per face, as the windows were built for); the other children are left as they
+    /// are.
+    pub(super) fn apply<T: Scalar, const N: usize>(
+        &self,
+        x: &[Value<T, N>],
+        out: &mut [MaybeUninit<Value<T, N>>],
+    ) {
+        match self.side {
+            3 => self.apply_with::<T, N, 3>(x, out),
+            4 => self.apply_with::<T, N, 4>(x, out),
+            5 => self.apply_with::<T, N, 5>(x, out),
+            _ => self.apply_with::<T, N, 6>(x, out),
+        }
+    }
+
+    /// [`Windows::apply`] with the net's side `S` a constant: each face's net is read once,
+    /// filtered along its rows for both child columns, then along its columns for each child.
+    fn apply_with<T: Scalar, const N: usize, const S: usize>(
+        &self,
+        x: &[Value<T, N>],
+        out: &mut [MaybeUninit<Value<T, N>>],
+    ) {
+        debug_assert_eq!(self.side, S);
+        let weights = weights::<T, S>(self.averages, self.primal, self.lo);
+        let nf = self.masks.len();
+        assert!(out.len() >= 4 * nf, "a child per coarse corner");
+        out[..4 * nf]
+            .par_chunks_mut(4 * CHUNK)
+            .enumerate()
+            .for_each(|(chunk, children)| {
+                for (i, children) in children.chunks_exact_mut(4).enumerate() {
+                    let f = chunk * CHUNK + i;
+                    let mask = self.masks[f];
+                    if mask == 0 {
+                        continue;
+                    }
+                    let ids = &self.nets[f * S * S..(f + 1) * S * S];
+                    let mut net = [[zero::<T, N>(); S]; S];
+                    for (row, ids) in net.iter_mut().zip(ids.chunks_exact(S)) {
+                        for (value, &id) in row.iter_mut().zip(ids) {
+                            *value = x[id as usize];
+                        }
+                    }
+                    // rows[p][j]: row j of the net filtered for the child column p.
+                    let mut rows = [[zero::<T, N>(); S]; 2];
+                    for (p, rows) in rows.iter_mut().enumerate() {
+                        for (row, net) in rows.iter_mut().zip(&net) {
+                            let mut sum = zero();
+                            for (&value, &w) in net.iter().zip(&weights[p]) {
+                                sum = mad(sum, w, value);
+                            }
+                            *row = sum;
+                        }
+                    }
+                    // Child k of the face sits at column px, row py of its frame.
+                    for (k, (px, py)) in [(0, 0), (1, 0), (1, 1), (0, 1)].into_iter().enumerate() {
+                        if mask & (1 << k) != 0 {
+                            let mut sum = zero();
+                            for (&value, &w) in rows[px].iter().zip(&weights[py]) {
+                                sum = mad(sum, w, value);
+                            }
+                            children[k].write(sum);
+                        }
+                    }
+                }
+            });
+    }
+}
+
+/// The grid of an even number of averages m on primal or dual input: where a face's net lies
+/// and, per child, what of it must be a grid.
+struct Geometry {
+    primal: bool,
+    /// Lowest coordinate of the net (vertices for primal input, cells for dual).
+    lo: i32,
+    /// Side of the net.
+    side: usize,
+    /// Cells of the walk along a side.
+    cells_side: usize,
+    /// Per child `k`: the cells of its support (bit `cells_side * b + a` for cell `(lo + a,
+    /// lo + b)`) and the grid vertices inside it (bit `(cells_side + 1) * j + i` for vertex
+    /// `(lo + i, lo + j)`).
+    cells: [u64; 4],
+    inner: [u64; 4],
+    /// The support of the child column (or row) p in net coordinates: first and last.
+    support: [(i32, i32); 2],
+    /// The walk: each cell after the first with the cell it is placed from and the side of
+    /// that cell it lies across (0 below, 1 right, 2 above, 3 left), in placing order.
+    walk: Vec<(u8, u8, u8)>,
+    /// The grid vertices read (all for primal input, whose net they are; those inside a
+    /// support for dual input), each with the cell that names it (the one at it towards the
+    /// face's own: it lies in every support holding the vertex, supports being rectangles
+    /// around cell (0, 0)) and the corner of that cell at it.
+    namer: Vec<(u8, u8, u8)>,
+}
+
+impl Geometry {
+    fn of(m: u32, primal: bool) -> Geometry {
+        let m = m as i32;
+        // The child at 4x = X (1 or 3) weighs a_k, k = (m + 1 + X - 4i) / 2 for the vertex at
+        // i (primal input), k = (m - 1 + X - 4i) / 2 for the cell centred at i + 1/2 (dual).
+        let shift = if primal { 1 } else { -1 };
+        let support: [(i32, i32); 2] = std::array::from_fn(|p| {
+            let x = 2 * p as i32 + 1;
+            (
+                ceil_div(x + shift - m - 2, 4),
+                (m + shift + x).div_euclid(4),
+            )
+        });
+        let (lo, hi) = (
+            support[0].0.min(support[1].0),
+            support[0].1.max(support[1].1),
+        );
+        let side = (hi - lo + 1) as usize;
+        let cells_side = if primal { side - 1 } else { side };
+        let mut g = Geometry {
+            primal,
+            lo,
+            side,
+            cells_side,
+            cells: [0; 4],
+            inner: [0; 4],
+            support,
+            walk: Vec::new(),
+            namer: Vec::new(),
+        };
+        // Along the face's row, then along each column.
+        let hi = lo + cells_side as i32 - 1;
+        let mut step = |a: i32, b: i32, from: (i32, i32), side: u8| {
+            let (at, from) = (g.cell(a, b) as u8, g.cell(from.0, from.1) as u8);
+            g.walk.push((at, from, side));
+        };
+        for a in 1..=hi {
+            step(a, 0, (a - 1, 0), 1);
+        }
+        for a in (lo..0).rev() {
+            step(a, 0, (a + 1, 0), 3);
+        }
+        for a in lo..=hi {
+            for b in 1..=hi {
+                step(a, b, (a, b - 1), 2);
+            }
+            for b in (lo..0).rev() {
+                step(a, b, (a, b + 1), 0);
+            }
+        }
+        for (k, (px, py)) in [(0, 0), (1, 0), (1, 1), (0, 1)].into_iter().enumerate() {
+            // The cells of the support: for primal input those between its vertices.
+            let span = |(s0, s1): (i32, i32)| if primal { (s0, s1 - 1) } else { (s0, s1) };
+            let ((a0, a1), (b0, b1)) = (span(support[px]), span(support[py]));
+            for b in b0..=b1 {
+                for a in a0..=a1 {
+                    g.cells[k] |= 1 << g.cell(a, b);
+                }
+            }
+            for j in b0 + 1..=b1 {
+                for i in a0 + 1..=a1 {
+                    g.inner[k] |= 1 << g.vertex(i, j);
+                }
+            }
+        }
+        let inner = g.inner.iter().fold(0u64, |all, &k| all | k);
+        for j in lo..=hi + 1 {
+            for i in lo..=hi + 1 {
+                let at = g.vertex(i, j);
+                if !primal && inner & (1 << at) == 0 {
+                    continue;
+                }
+                let (a, b) = (i - (i > 0) as i32, j - (j > 0) as i32);
+                let k = match (i - a, j - b) {
+                    (0, 0) => 0,
+                    (1, 0) => 1,
+                    (1, 1) => 2,
+                    _ => 3,
+                };
+                g.namer.push((at as u8, g.cell(a, b) as u8, k));
+            }
+        }
+        g
+    }
+
+    /// Bit of cell `(a, b)`.
+    fn cell(&self, a: i32, b: i32) -> usize {
+        (b - self.lo) as usize * self.cells_side + (a - self.lo) as usize
+    }
+
+    /// Bit of grid vertex `(i, j)`.
+    fn vertex(&self, i: i32, j: i32) -> usize {
+        (j - self.lo) as usize * (self.cells_side + 1) + (i - self.lo) as usize
+    }
+
+    /// The children of a face whose support is a grid ([`Windows::masks`]).
+    fn mask(&self, grid: &Grid) -> u8 {
+        let mut mask = 0;
+        for k in 0..4 {
+            if grid.cell_ok & self.cells[k] == self.cells[k]
+                && grid.inner_ok & self.inner[k] == self.inner[k]
+            {
+                mask |= 1 << k;
+            }
+        }
+        mask
+    }
+}
+
+/// `ceil(a / b)` for `b > 0`.
+fn ceil_div(a: i32, b: i32) -> i32 {
+    -((-a).div_euclid(b))
+}
+
+/// The 1-D weights of the kernel for the two child columns over the net's `S` coordinates
+/// (zero outside a column's support): `a_k = binom(m + 1, k) / 2^m`, exact in f32 for m <= 8
+/// (numerators below 2^24).
+fn weights<T: Scalar, const S: usize>(m: u32, primal: bool, lo: i32) -> [[T; S]; 2] {
+    let g = Geometry::of(m, primal);
+    let shift = if primal { 1 } else { -1 };
+    let m = m as i32;
+    let binom =
+        |k: i32| -> f64 { (0..k).fold(1.0, |b, i| b * f64::from(m + 1 - i) / f64::from(i + 1)) };
+    std::array::from_fn(|p| {
+        let (s0, s1) = g.support[p];
+        std::array::from_fn(|t| {
+            let i = lo + t as i32;
+            if i < s0 || i > s1 {
+                return T::from_f64(0.0);
+            }
+            let k = (m + shift + 2 * p as i32 + 1 - 4 * i) / 2;
+            T::from_f64(binom(k) / 2f64.powi(m))
+        })
+    })
+}
+
+/// What the classification reads of a level, once per step: the vertices that can be inside
+/// a grid (interior, manifold, of valence 4) and the faces that no curve vertex of the step is
+/// born from (their face point, the edge points of their edges, their corners' old vertices:
+/// the 1-D scheme's blend is no tensor product).
+struct Flags {
+    grid_vertex: Vec<bool>,
+    clean_face: Vec<bool>,
+    /// Per corner, the corner across its outgoing edge (the other face's corner on it), or
+    /// `NONE` on a boundary or non-manifold edge.
+    twin: Vec<u32>,
+}
+
+impl Flags {
+    fn of(coarse: &Level, curves: &CurveNetwork) -> Result<Flags> {
+        let (nv, ne, nf) = (coarse.num_vertices, coarse.num_edges(), coarse.num_faces());
+        let mut marked_vertex: Vec<bool> = memory::filled(nv, false)?;
+        let mut marked_edge: Vec<bool> = memory::filled(ne, false)?;
+        let mut marked_face: Vec<bool> = memory::filled(nf, false)?;
+        for cv in curves.vertices() {
+            let w = cv.vertex as usize;
+            if w < nv {
+                marked_vertex[w] = true;
+            } else if w < nv + ne {
+                marked_edge[w - nv] = true;
+            } else {
+                marked_face[w - nv - ne] = true;
+            }
+        }
+        let edge_corners = coarse.edge_corners();
+        let corner_edges = coarse.corner_edges();
+        let non_manifold = coarse.is_non_manifold();
+        let interior = |c: u32| {
+            let e = corner_edges[c as usize] as usize;
+            edge_corners[e][1] != NONE && !(non_manifold && coarse.is_non_manifold_edge(e))
+        };
+        let grid_vertex = gather_hinted(nv, |v| {
+            let corners = coarse.corners_of_vertex(v);
+            corners.len() == 4
+                && !(non_manifold && coarse.is_non_manifold_vertex(v))
+                && corners.iter().all(|&c| interior(c))
+        })?;
+        let clean_face = gather_hinted(nf, |f| {
+            !marked_face[f]
+                && (4 * f..4 * f + 4).all(|c| {
+                    !marked_edge[corner_edges[c] as usize]
+                        && !marked_vertex[coarse.corner_verts[c] as usize]
+                })
+        })?;
+        let twin = gather_hinted(4 * nf, |c| {
+            let e = corner_edges[c] as usize;
+            let [p, q] = edge_corners[e];
+            if q == NONE || (non_manifold && coarse.is_non_manifold_edge(e)) {
+                NONE
+            } else if p as usize == c {
+                q
+            } else {
+                p
+            }
+        })?;
+        Ok(Flags {
+            grid_vertex,
+            clean_face,
+            twin,
+        })
+    }
+}
+
+/// A face's net as a walk across edges places it (its own cell at `(0, 0)` with its corner 0
+/// at the cell's lower left; along its row, then along each column), with what the
+/// classification needs (bits as [`Geometry`] numbers them). A rectangle of placed cells whose
+/// inner vertices are all interior, manifold and of valence 4 is a grid (the walk's placement
+/// does not depend on the path inside it), so that is all a child's support is checked for.
+struct Grid {
+    /// Per cell, its face's corner at the cell's lower left (`NONE` where the walk met a
+    /// boundary or a non-manifold edge).
+    cells: [u32; MAX_SIDE * MAX_SIDE],
+    /// Per grid vertex, the vertex at it (`NONE` where the cell that names it is not placed).
+    vertex: [u32; (MAX_SIDE + 1) * (MAX_SIDE + 1)],
+    /// Cells placed, of a clean face.
+    cell_ok: u64,
+    /// Grid vertices that can be inside a grid.
+    inner_ok: u64,
+}
+
+/// The corner `k` steps after `c` in its quad.
+#[inline(always)]
+fn after(c: u32, k: u32) -> u32 {
+    (c & !3) | ((c + k) & 3)
+}
+
+impl Grid {
+    #[inline(always)]
+    fn new(level: &Level, g: &Geometry, flags: &Flags, f: usize) -> Grid {
+        let mut cells = [NONE; MAX_SIDE * MAX_SIDE];
+        let own = g.cell(0, 0);
+        cells[own] = 4 * f as u32;
+        let mut cell_ok = (flags.clean_face[f] as u64) << own;
+        for &(at, from, side) in &g.walk {
+            let base = cells[from as usize];
+            if base == NONE {
+                continue;
+            }
+            // The cell across side `side` of the cell `base`.
+            let d = flags.twin[after(base, side as u32) as usize];
+            if d == NONE {
+                continue;
+            }
+            let placed = after(d, (6 - side as u32) % 4);
+            cells[at as usize] = placed;
+            cell_ok |= (flags.clean_face[(placed >> 2) as usize] as u64) << at;
+        }
+        let mut vertex = [NONE; (MAX_SIDE + 1) * (MAX_SIDE + 1)];
+        let mut inner_ok = 0u64;
+        for &(at, cell, k) in &g.namer {
+            let (at, base) = (at as usize, cells[cell as usize]);
+            if base != NONE {
+                let v = level.corner_verts[after(base, k as u32) as usize];
+                vertex[at] = v;
+                inner_ok |= (flags.grid_vertex[v as usize] as u64) << at;
+            }
+        }
+        Grid {
+            cells,
+            vertex,
+            cell_ok,
+            inner_ok,
+        }
+    }
+
+    /// The ids of the net, row after row: grid vertices (primal input) or the faces of the
+    /// cells (dual), 0 where none is placed.
+    fn net(&self, g: &Geometry, net: &mut [u32]) {
+        let ids: &[u32] = if g.primal { &self.vertex } else { &self.cells };
+        for (id, &x) in net.iter_mut().zip(&ids[..g.side * g.side]) {
+            *id = match x {
+                NONE => 0,
+                x if g.primal => x,
+                base => base >> 2,
+            };
+        }
+    }
+}
+
+impl Zone {
+    /// The zone of a step whose kernel makes `averages` (even) and writes the children of
+    /// `masks` (module documentation of [`Windows`]).
+    fn of(coarse: &Level, fine: &Level, averages: u32, masks: &[u8]) -> Result<Zone> {
+        let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
+        let mut last = Vec::new();
+        for (f, &mask) in masks.iter().enumerate() {
+            for k in 0..4 {
+                if mask & (1 << k) == 0 {
+                    last.push((4 * f + k) as u32);
+                }
+            }
+        }
+        let mut passes = vec![last];
+        // Backwards through the averages a = m..3: what each reads of the one before.
+        for a in (3..=averages).rev() {
+            let items = passes.last().expect("the last pass");
+            let read = if a % 2 == 1 {
+                // Dual -> primal on the fine vertices: they read the fine faces around them,
+                // which are coarse corners.
+                let mut read = memory::filled(fine.num_faces(), false)?;
+                let edge_corners = coarse.edge_corners();
+                for &w in items {
+                    let w = w as usize;
+                    if w < nv {
+                        for &c in coarse.corners_of_vertex(w) {
+                            read[c as usize] = true;
+                        }
+                    } else if w < nv + ne {
+                        for c in edge_corners[w - nv] {
+                            if c != NONE {
+                                read[c as usize] = true;
+                                read[quad_next(c as usize)] = true;
+                            }
+                        }
+                    } else {
+                        let g = w - nv - ne;
+                        read[4 * g..4 * g + 4].fill(true);
+                    }
+                }
+                read
+            } else {
+                // Primal -> dual on the fine faces: they read their corners.
+                let mut read = memory::filled(fine.num_vertices, false)?;
+                for &f in items {
+                    for &v in &fine.corner_verts[4 * f as usize..4 * f as usize + 4] {
+                        read[v as usize] = true;
+                    }
+                }
+                read
+            };
+            let mut list = memory::with_capacity(read.iter().filter(|&&b| b).count())?;
+            list.extend((0..read.len() as u32).filter(|&i| read[i as usize]));
+            passes.push(list);
+        }
+        // The first pass makes the children of whole coarse faces.
+        let children = passes.pop().expect("the first pass's output");
+        let mut first: Vec<u32> = children.iter().map(|&c| c >> 2).collect();
+        first.dedup();
+        passes.reverse();
+        Ok(Zone { first, passes })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::refinement::Refinement;
+    use crate::step::LevelData;
+    use crate::{Cage, Options, Rules};
+
+    /// A cube whose faces are `k x k` grids (eight vertices of valence 3), with points pushed
+    /// off the cube by a fixed pseudo-random amount.
+    fn cube_grid(k: usize) -> (Cage, Vec<[f64; 3]>) {
+        let mut index = std::collections::HashMap::new();
+        let mut points: Vec<[f64; 3]> = Vec::new();
+        let mut indices = Vec::new();
+        let mut seed = 12345u64;
+        let mut noise = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut id = |p: [i64; 3], points: &mut Vec<[f64; 3]>| -> u32 {
+            *index.entry(p).or_insert_with(|| {
+                let r = 0.1 * noise();
+                points.push(p.map(|x| x as f64 * (1.0 + r)));
+                points.len() as u32 - 1
+            })
+        };
+        let k = k as i64;
+        for axis in 0..3 {
+            for sign in [-k, k] {
+                for i in 0..k {
+                    for j in 0..k {
+                        let at = |a: i64, b: i64| {
+                            let mut p = [0i64; 3];
+                            p[axis] = sign;
+                            p[(axis + 1) % 3] = 2 * a - k;
+                            p[(axis + 2) % 3] = 2 * b - k;
+                            p
+                        };
+                        let mut quad = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)];
+                        if sign < 0 {
+                            quad.reverse();
+                        }
+                        for p in quad {
+                            indices.push(id(p, &mut points));
+                        }
+                    }
+                }
+            }
+        }
+        let sizes = vec![4i64; indices.len() / 4];
+        let indices: Vec<i64> = indices.iter().map(|&i| i as i64).collect();
+        let cage = Cage::from_indices(points.len(), &sizes, &indices).unwrap();
+        (cage, points)
+    }
+
+    /// An open `m x n` grid of quads with a crease across it and a pentagon and triangles in a
+    /// corner: boundaries, a crease, corners and non-quad faces at level 0.
+    fn open_grid(m: usize, n: usize, sharpness: f32) -> (Cage, Vec<[f64; 3]>) {
+        let at = |i: usize, j: usize| (j * (m + 1) + i) as u32;
+        let mut sizes: Vec<i64> = Vec::new();
+        let mut indices = Vec::new();
+        for j in 0..n {
+            for i in 0..m {
+                if (i, j) == (0, 0) {
+                    continue;
+                }
+                sizes.push(4);
+                indices.extend([at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]);
+            }
+        }
+        // Cell (0, 0) as two triangles.
+        sizes.extend([3, 3]);
+        indices.extend([at(0, 0), at(1, 0), at(1, 1), at(0, 0), at(1, 1), at(0, 1)]);
+        let points: Vec<[f64; 3]> = (0..=n)
+            .flat_map(|j| {
+                (0..=m).map(move |i| {
+                    let (x, y) = (i as f64, j as f64);
+                    [x, y, (0.7 * x).sin() * (0.3 * y + 0.2).cos()]
+                })
+            })
+            .collect();
+        let crease: Vec<(i64, i64, f32)> = (2..m)
+            .map(|i| (at(i, n / 2) as i64, at(i + 1, n / 2) as i64, sharpness))
+            .collect();
+        let indices: Vec<i64> = indices.iter().map(|&i| i as i64).collect();
+        let cage = Cage::from_indices(points.len(), &sizes, &indices)
+            .unwrap()
+            .with_creases(&crease)
+            .unwrap();
+        (cage, points)
+    }
+
+    /// The data after every step, by the kernel and the passes (`kernel`) or by the passes
+    /// alone.
+    fn run(
+        refinement: &Refinement,
+        points: &[[f64; 3]],
+        degree: u32,
+        kernel: bool,
+    ) -> Vec<[f64; 3]> {
+        let mut data = LevelData::new(points);
+        for j in 0..refinement.curve_networks().len() {
+            let step = refinement.step(j);
+            if kernel {
+                data.step(&step).unwrap();
+            } else {
+                data.average_by_passes(&step, degree);
+            }
+        }
+        data.finish_parts().0
+    }
+
+    /// The kernel computes what the passes compute (f64, to 1e-12 of the cage's size) on
+    /// closed and open cages, with irregular vertices, creases (sharp and semi-sharp), corners
+    /// and non-quad faces, for every degree (those from 4 on do have kernel children, on
+    /// primal and dual input).
+    #[test]
+    fn kernel_matches_the_passes() {
+        let cages = [cube_grid(3), open_grid(7, 6, 10.0), open_grid(6, 7, 1.5)];
+        for (cage, points) in &cages {
+            for degree in 2..=9 {
+                let options = Options {
+                    degree,
+                    levels: 3,
+                    rules: Rules::Averaging,
+                    ..Options::default()
+                };
+                let refinement = Refinement::new(cage, &options).unwrap();
+                let steps = refinement.curve_networks().len();
+                let kernel_steps = (0..steps)
+                    .filter(|&j| refinement.step(j).windows.is_some())
+                    .count();
+                assert_eq!(
+                    kernel_steps > 0,
+                    degree >= 4,
+                    "degree {degree}: the kernel from 4 averages on"
+                );
+                let with = run(&refinement, points, degree, true);
+                let without = run(&refinement, points, degree, false);
+                assert_eq!(with.len(), without.len());
+                let worst = (with.iter().zip(&without))
+                    .flat_map(|(a, b)| (0..3).map(move |k| (a[k] - b[k]).abs()))
+                    .fold(0.0, f64::max);
+                assert!(
+                    worst <= 1e-12 * 10.0,
+                    "degree {degree}: kernel off by {worst:e}"
+                );
+                assert!(with.iter().flatten().all(|x| x.is_finite()));
+            }
+        }
+    }
+}
