@@ -15,17 +15,16 @@
 //! the same way on a partial level as on the full one, and the kernel computes it in its parent's
 //! frame on both, so adaptive points stay bitwise the uniform ones.
 //!
-//! Status (branch `kernel16`, not merged; callgrind, one thread, 4k ico-quad sphere, level 3,
-//! against main at eeb32a2): cached evaluation 4 averages 76.3M -> 48.1M instructions, 5: 67.8M
-//! -> 67.4M, 6: 107.8M -> 87.2M, 7: 99.3M -> 70.1M, 8: 139.3M -> 91.8M, 9: 130.9M -> 111.3M; but
-//! a new plan pays for the windows (a walk of up to 25 cells per coarse face, then the nets):
-//! fresh degree 4 164.9M -> 221.6M, 6: 196.5M -> 348.7M, 9: 219.5M -> 432.4M; adaptive-flat-4-5
-//! 177.9M -> 200.8M, adaptive-4 565.2M -> 622.4M. For 2 or 3 averages the per-face filter cost
-//! more than the passes it saves (degree 3 cached 36M -> 67M in an earlier version), so those
-//! keep the passes. What it lacks: a classification near 100 instructions per face (masks from
-//! per-face distances to the irregular items, so that the walk runs only where nets are
-//! written; the twin-corner table here already halved the walk) and rows shared between
-//! neighbouring faces (tiles), without which the filter costs about what the passes do.
+//! Measured (2026-12-03, 4k ico-quad sphere of the OpenSubdiv bench, levels 2-4, against the
+//! passes alone; `docs/research/regular-window-kernel.md`): cached evaluation of degree 4 is
+//! 1.9-2.1x faster with one thread (2-3.7x with two), degree 9 1.1-1.2x (1.1-2.2x); building
+//! the windows makes a new plan dearer, fresh degree 4 by 5-29 % and degree 9 by 21-52 %. In
+//! instructions (one thread, level 3) cached degree 4 76.3M -> 48.1M, 9 130.9M -> 111.3M, fresh
+//! 4 164.9M -> 221.6M, 9 219.5M -> 432.4M. For 2 or 3 averages the per-face filter cost more
+//! than the passes it saves (degree 3 cached 36M -> 67M instructions in a first version), so those
+//! keep the passes. Left to do: a classification near 100 instructions per face (masks from
+//! per-face distances to the irregular items, the walk only where a net is written) and rows
+//! shared between neighbouring faces (tiles).
 //!
 //! [`Windows`] holds, per step, what the kernel needs (per coarse face, the ids of its net in
 //! its frame and the children it writes) and the zone that the passes must still compute: the
