@@ -9,6 +9,9 @@
 //! dual -> primal and primal -> dual (DESIGN.md §1), with the 1-D scheme run in lockstep on the
 //! step's [`CurveNetwork`] (§2); classic Doo-Sabin adds its original weights
 //! ([`doo_sabin`]), classic Catmull-Clark is one pass of OpenSubdiv's masks ([`catmark`]).
+//! From 4 averages on, on a quad level, the fine faces whose support is a grid come from the
+//! tensor B-spline of the whole step ([`regular`]: the regular windows), and the passes run only
+//! over the zone around the others.
 //! Every pass is a parallel gather in a fixed order, so the output is bitwise the same whatever
 //! the number of threads, and the same on a partial level as on the full one wherever the
 //! inputs of a value are present.
