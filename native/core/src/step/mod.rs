@@ -63,9 +63,9 @@ pub(crate) struct Step<'a> {
     pub curves: &'a CurveNetwork,
     /// Classic Catmull-Clark: sharpness and rules of `coarse` and `fine`.
     pub sharpness: Option<(&'a LevelSharpness, &'a LevelSharpness)>,
-    /// The averaging rules: the step's regular windows when a plan keeps them (a step without
-    /// them finds them itself).
-    pub windows: Option<&'a Windows>,
+    /// The averaging rules: `Some` when a plan keeps the step's regular windows (`Some(None)`:
+    /// the step has no kernel child); `None` when the step finds them itself (partial levels).
+    pub windows: Option<Option<&'a Windows>>,
 }
 
 /// The tables of a coarse level that a pass reads, looked up once per pass: the accessors of
@@ -346,7 +346,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
     fn average(&mut self, step: &Step, degree: u32) -> Result<()> {
         let built;
         let windows = match step.windows {
-            Some(w) if w.primal() == self.primal => Some(w),
+            Some(kept) if kept.is_none_or(|w| w.primal() == self.primal) => kept,
             _ => {
                 let (coarse, fine, curves) = (step.coarse, step.fine, step.curves);
                 built = Windows::build(coarse, fine, curves, degree, self.primal)?;

@@ -728,7 +728,7 @@ mod tests {
                 let refinement = Refinement::new(cage, &options).unwrap();
                 let steps = refinement.curve_networks().len();
                 let kernel_steps = (0..steps)
-                    .filter(|&j| refinement.step(j).windows.is_some())
+                    .filter(|&j| refinement.step(j).windows.flatten().is_some())
                     .count();
                 assert_eq!(
                     kernel_steps > 0,
