@@ -309,7 +309,7 @@ fn build_stencils(
     let walk = match quads {
         true => Some(QuadWalk {
             level: last,
-            twins: twin_corners(last)?,
+            twins: last.twin_corners()?,
             regular: gather_hinted(last.num_vertices, |w| {
                 last.corners_of_vertex(w).len() == 4 && curve_of(w).is_none()
             })?,
@@ -583,23 +583,11 @@ struct ChunkStencils {
     items: Vec<u32>,
 }
 
-/// Per corner of a quad level, the corner across its outgoing edge in the neighbouring face
-/// ([`Level::opposite`]), `NONE` at a boundary or a non-manifold edge: one load per step of
-/// the neighbourhood walks.
-fn twin_corners(level: &Level) -> Result<Vec<u32>> {
-    let edges = level.corner_edges();
-    gather_hinted(level.num_corners(), |c| {
-        level
-            .opposite(edges[c] as usize, c)
-            .map_or(NONE, |o| o as u32)
-    })
-}
-
 /// The interior stencils of a quad level: the walk of [`sector_frames`] and the checks of
 /// [`build_stencils`] on tables made once per level.
 struct QuadWalk<'a> {
     level: &'a Level,
-    /// [`twin_corners`] of the level.
+    /// [`Level::twin_corners`] of the level.
     twins: Vec<u32>,
     /// Per vertex: interior of valence 4 and on no curve.
     regular: Vec<bool>,

@@ -394,6 +394,17 @@ impl Level {
         (other != NONE).then_some(other as usize)
     }
 
+    /// Per corner, the corner across its outgoing edge in the neighbouring face
+    /// ([`Level::opposite`]), `NONE` at a boundary or a non-manifold edge: one load per step of
+    /// the neighbourhood walks (limit stencils, regular windows).
+    pub(crate) fn twin_corners(&self) -> Result<Vec<u32>> {
+        let edges = self.corner_edges();
+        gather_hinted(self.num_corners(), |c| {
+            self.opposite(edges[c] as usize, c)
+                .map_or(NONE, |o| o as u32)
+        })
+    }
+
     /// The corner at the same vertex in the next face around it, across the incoming edge of
     /// `c`; `None` at a boundary.
     #[inline]

@@ -17,14 +17,14 @@
 //!
 //! Measured (2026-12-03, 4k ico-quad sphere of the OpenSubdiv bench, levels 2-4, against the
 //! passes alone; `docs/research/regular-window-kernel.md`): cached evaluation of degree 4 is
-//! 1.9-2.1x faster with one thread (2-3.7x with two), degree 9 1.1-1.2x (1.1-2.2x); building
-//! the windows makes a new plan dearer, fresh degree 4 by 5-29 % and degree 9 by 21-52 %. In
-//! instructions (one thread, level 3) cached degree 4 76.3M -> 48.1M, 9 130.9M -> 111.3M, fresh
-//! 4 164.9M -> 221.6M, 9 219.5M -> 432.4M. For 2 or 3 averages the per-face filter cost more
-//! than the passes it saves (degree 3 cached 36M -> 67M instructions in a first version), so those
-//! keep the passes. Left to do: a classification near 100 instructions per face (masks from
-//! per-face distances to the irregular items, the walk only where a net is written) and rows
-//! shared between neighbouring faces (tiles).
+//! 1.9-2.1x faster with one thread (2.0-3.8x with two), degree 9 1.1-1.2x (1.1-2.2x); building
+//! the windows makes a new plan dearer, fresh degree 4 by up to 28 % (one row 5 % faster) and
+//! degree 9 by 21-52 %. In instructions (one thread, level 3) cached degree 4 76.3M -> 48.1M, 9
+//! 130.9M -> 111.3M, fresh 4 164.9M -> 221.6M, 9 219.5M -> 432.4M. For 2 or 3 averages the
+//! per-face filter cost more than the passes it saves (degree 3 cached 36M -> 67M instructions in
+//! a first version), so those keep the passes. Left to do: a classification near 100
+//! instructions per face (masks from per-face distances to the irregular items, the walk only
+//! where a net is written) and rows shared between neighbouring faces (tiles).
 //!
 //! [`Windows`] holds, per step, what the kernel needs (per coarse face, the ids of its net in
 //! its frame and the children it writes) and the zone that the passes must still compute: the
@@ -419,18 +419,14 @@ impl Flags {
                 marked_face[w - nv - ne] = true;
             }
         }
-        let edge_corners = coarse.edge_corners();
         let corner_edges = coarse.corner_edges();
         let non_manifold = coarse.is_non_manifold();
-        let interior = |c: u32| {
-            let e = corner_edges[c as usize] as usize;
-            edge_corners[e][1] != NONE && !(non_manifold && coarse.is_non_manifold_edge(e))
-        };
+        let twin = coarse.twin_corners()?;
         let grid_vertex = gather_hinted(nv, |v| {
             let corners = coarse.corners_of_vertex(v);
             corners.len() == 4
                 && !(non_manifold && coarse.is_non_manifold_vertex(v))
-                && corners.iter().all(|&c| interior(c))
+                && corners.iter().all(|&c| twin[c as usize] != NONE)
         })?;
         let clean_face = gather_hinted(nf, |f| {
             !marked_face[f]
@@ -438,17 +434,6 @@ impl Flags {
                     !marked_edge[corner_edges[c] as usize]
                         && !marked_vertex[coarse.corner_verts[c] as usize]
                 })
-        })?;
-        let twin = gather_hinted(4 * nf, |c| {
-            let e = corner_edges[c] as usize;
-            let [p, q] = edge_corners[e];
-            if q == NONE || (non_manifold && coarse.is_non_manifold_edge(e)) {
-                NONE
-            } else if p as usize == c {
-                q
-            } else {
-                p
-            }
         })?;
         Ok(Flags {
             grid_vertex,
