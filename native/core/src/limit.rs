@@ -79,7 +79,7 @@ use crate::error::{Error, Result};
 use crate::evaluate::{in_groups_of_four, run, run_parts};
 use crate::memory;
 use crate::options::{Options, OutputKind};
-use crate::parallel::{gather_hinted, gather_indexed, CHUNK};
+use crate::parallel::{gather_hinted, gather_indexed, gather_pairs_hinted, CHUNK};
 use crate::refinement::Refinement;
 use crate::scalar::{add, mad, scale, zero, Scalar, Value};
 use crate::scheme::catmark::{
@@ -1303,7 +1303,7 @@ impl Limit<'_> {
         let corners = &last.corner_verts;
         let resolved = |c: usize| {
             let mut i = corners[c];
-            let mut n = DVec3::ZERO;
+            let mut n = [T::default(); 3];
             for (stage, fans) in stages.iter().zip(&fans) {
                 let st = stage.stencils;
                 if st.masks_of[i as usize] == LimitMask::Local {
@@ -1313,20 +1313,17 @@ impl Limit<'_> {
                 }
                 n = match st.corner_fan[c] {
                     NONE => stage.normals[i as usize],
-                    f => fans[f as usize],
+                    f => fans[f as usize].to_array().map(T::from_f64),
                 };
                 break;
             }
-            n.to_array().map(T::from_f64)
+            n
         };
         // Most corners take the plan's own stencil's normal at their vertex (a gather by the
         // corner table); the corners at the vertices of the local extension and of the fans
         // are then put right.
         let own = &stages[0];
-        let plain = gather_hinted(own.normals.len(), |i| {
-            own.normals[i].to_array().map(T::from_f64)
-        })?;
-        let mut out = gather_indexed(&plain, corners)?;
+        let mut out = gather_indexed(&own.normals, corners)?;
         let st = own.stencils;
         for &v in st.local_vertices.iter().chain(&st.fan_vertex) {
             for &c in last.corners_of_vertex(v as usize) {
@@ -1343,17 +1340,17 @@ struct StencilValues<'a, T, const N: usize> {
     stencils: &'a Stencils,
     data: Vec<[T; N]>,
     positions: Vec<[T; N]>,
-    normals: Vec<DVec3>,
+    normals: Vec<[T; 3]>,
 }
 
 /// Limit positions of every stencil of `st` from `data` (zero for [`LimitMask::Local`]) and,
-/// with `normals`, the unit normals at its interior vertices (zero elsewhere): position and
-/// tangents in one walk over each stencil's data.
+/// with `normals`, the unit normals at its interior vertices in `T` (zero elsewhere): position
+/// and tangents in one walk over each stencil's data.
 fn stencil_values<T: Scalar, const N: usize>(
     st: &Stencils,
     data: &[[T; N]],
     normals: bool,
-) -> Result<(Vec<[T; N]>, Vec<DVec3>)> {
+) -> Result<(Vec<[T; N]>, Vec<[T; 3]>)> {
     if !normals {
         return Ok((stencil_positions(st, data)?, Vec::new()));
     }
@@ -1362,18 +1359,15 @@ fn stencil_values<T: Scalar, const N: usize>(
         let x = x.map(|c| T::from_f64(c).to_f64());
         DVec3::new(x[0], x[1], x[2])
     };
-    let both = gather_hinted(st.masks_of.len(), |v| match st.masks_of[v] {
+    gather_pairs_hinted(st.masks_of.len(), |v| match st.masks_of[v] {
         LimitMask::Interior(m) if !st.joint[m as usize].is_empty() => {
             let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
             let [p, a, b] = combine_joint(data, items, &st.joint[m as usize]);
             let normal = at(&a).cross(at(&b)).normalize_or_zero();
-            (p.map(T::from_f64), normal)
+            (p.map(T::from_f64), normal.to_array().map(T::from_f64))
         }
-        _ => (stencil_position(st, data, v), DVec3::ZERO),
-    })?;
-    let positions = memory::collect(both.iter().map(|&(p, _)| p))?;
-    let normals = memory::collect(both.iter().map(|&(_, n)| n))?;
-    Ok((positions, normals))
+        _ => (stencil_position(st, data, v), [T::default(); 3]),
+    })
 }
 
 /// Limit positions of every stencil of `st` from `data` (zero for [`LimitMask::Local`]).

@@ -71,6 +71,33 @@ pub(crate) fn gather_hinted<V: Send>(
     Ok(v)
 }
 
+/// `(a[i], b[i]) = f(i)` for `i < n`, in parallel chunks, into two hinted allocations: one walk
+/// for two results without a vector of pairs to split afterwards.
+pub(crate) fn gather_pairs_hinted<A: Send, B: Send>(
+    n: usize,
+    f: impl Fn(usize) -> (A, B) + Sync + Send,
+) -> Result<(Vec<A>, Vec<B>)> {
+    let mut a = with_capacity_hinted(n)?;
+    let mut b = with_capacity_hinted(n)?;
+    (a.spare_capacity_mut()[..n].par_chunks_mut(CHUNK))
+        .zip(b.spare_capacity_mut()[..n].par_chunks_mut(CHUNK))
+        .enumerate()
+        .for_each(|(chunk, (a, b))| {
+            let start = chunk * CHUNK;
+            for (i, (a, b)) in a.iter_mut().zip(b).enumerate() {
+                let (x, y) = f(start + i);
+                a.write(x);
+                b.write(y);
+            }
+        });
+    // SAFETY: the chunks cover the first `n` items of both (a panic would have unwound past here).
+    unsafe {
+        a.set_len(n);
+        b.set_len(n);
+    }
+    Ok((a, b))
+}
+
 /// `out[i] = source[index[i]]` for every `i`, in parallel chunks, into a hinted allocation:
 /// the gathers of rows by a table (values at corners from values at vertices). The index is
 /// walked in step with the output (one bounds check per item, on `source`), about a third of
