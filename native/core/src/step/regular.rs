@@ -40,7 +40,7 @@ use std::mem::MaybeUninit;
 use rayon::prelude::*;
 
 use crate::curves::CurveNetwork;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::memory;
 use crate::parallel::{gather_hinted, CHUNK};
 use crate::scalar::{mad, zero, Scalar, Value};
@@ -427,9 +427,17 @@ impl Flags {
         let mut verts = memory::with_capacity(4 * nf + 4)?;
         verts.extend_from_slice(&coarse.corner_verts);
         verts.extend([0; 4]);
-        // What lets the walk read its tables unchecked ([`Tables`]).
-        assert!(twin.iter().all(|&d| d <= dead) && verts.len() == twin.len());
-        assert!(verts.iter().all(|&v| (v as usize) < nv) && clean_face.len() == nf + 1);
+        // What lets the walk read its tables unchecked ([`Tables`]); a level's tables always
+        // hold it, so a failure is a bug, reported rather than read out of bounds.
+        let in_bounds = twin.iter().all(|&d| d <= dead)
+            && verts.len() == twin.len()
+            && verts.iter().all(|&v| (v as usize) < nv)
+            && clean_face.len() == nf + 1;
+        if !in_bounds {
+            return Err(Error::Internal(
+                "regular windows: a level's corner tables out of range".into(),
+            ));
+        }
         Ok(Flags {
             grid_vertex,
             clean_face,
