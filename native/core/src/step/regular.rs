@@ -17,14 +17,17 @@
 //!
 //! Measured (2026-12-03, 4k ico-quad sphere of the OpenSubdiv bench, levels 2-4, against the
 //! passes alone; `docs/research/regular-window-kernel.md`): cached evaluation of degree 4 is
-//! 1.9-2.1x faster with one thread (2.0-3.8x with two), degree 9 1.1-1.2x (1.1-2.2x); building
-//! the windows makes a new plan dearer, fresh degree 4 by up to 28 % (one row 5 % faster) and
-//! degree 9 by 21-52 %. In instructions (one thread, level 3) cached degree 4 76.3M -> 48.1M, 9
-//! 130.9M -> 111.3M, fresh 4 164.9M -> 221.6M, 9 219.5M -> 432.4M. For 2 or 3 averages the
-//! per-face filter cost more than the passes it saves (degree 3 cached 36M -> 67M instructions in
-//! a first version), so those keep the passes. Left to do: a classification near 100
-//! instructions per face (masks from per-face distances to the irregular items, the walk only
-//! where a net is written) and rows shared between neighbouring faces (tiles).
+//! 1.9-2.1x faster with one thread (2.0-3.8x with two), degree 9 1.1-1.2x (1.1-2.2x); the first
+//! classification (a walk per face over tables of steps) made a new plan dearer, fresh degree 4
+//! by up to 28 % (one row 5 % faster) and degree 9 by 21-52 %. In instructions (one thread,
+//! level 3) cached degree 4 76.3M -> 48.1M, 9 130.9M -> 111.3M. Building the windows costs 337
+//! instructions per coarse face for degree 4 and 743 for degree 9 (the first walk about 2,400
+//! for 9); a new plan: degree 4 164.9M (passes alone) -> 219.5M (first walk) -> 162.5M, 6
+//! 346.5M (first walk) -> 225.2M, 9 219.5M -> 430.2M -> 256.9M; adaptive 177.9M -> 200.2M ->
+//! 188.5M (flat cage, degree 4, level 5) and 565.2M -> 620.2M -> 563.2M (degree 4). For 2 or 3
+//! averages the per-face filter cost more than the passes it saves (degree 3 cached 36M -> 67M
+//! instructions in a first version), so those keep the passes. Left to do: rows shared between
+//! neighbouring faces (tiles), for the walk of degrees 8 and 9 (25 cells, 36 vertices a face).
 //!
 //! [`Windows`] holds, per step, what the kernel needs (per coarse face, the ids of its net in
 //! its frame and the children it writes) and the zone that the passes must still compute: the
@@ -37,7 +40,7 @@ use std::mem::MaybeUninit;
 use rayon::prelude::*;
 
 use crate::curves::CurveNetwork;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::memory;
 use crate::parallel::{gather_hinted, CHUNK};
 use crate::scalar::{mad, zero, Scalar, Value};
@@ -58,9 +61,9 @@ pub(crate) struct Windows {
     side: usize,
     /// Per coarse face, bit `k` for its child at corner `k` when the kernel writes it.
     masks: Vec<u8>,
-    /// Per coarse face with kernel children, `side * side` coarse vertices (primal input) or
-    /// faces (dual input) of its net, row after row in its frame (0 where the walk placed none:
-    /// no child weighs it).
+    /// Per coarse face, `side * side` coarse vertices (primal input) or faces (dual input) of
+    /// its net, row after row in its frame (0 where the walk placed none: no child weighs it);
+    /// read only for faces with kernel children.
     nets: Vec<u32>,
     /// What the passes still compute.
     zone: Zone,
@@ -80,7 +83,7 @@ pub(super) struct Zone {
 const MIN_AVERAGES: u32 = 4;
 /// Most averages the kernel makes: its net fits [`MAX_SIDE`].
 const MAX_AVERAGES: u32 = 8;
-/// Largest net side (8 averages of primal input: vertices `-2..=3`).
+/// Largest net side (8 averages of primal input: vertices `-2..=3`, cells `-2..=2`).
 const MAX_SIDE: usize = 6;
 
 impl Windows {
@@ -106,22 +109,16 @@ impl Windows {
         let flags = Flags::of(coarse, curves)?;
         let nf = coarse.num_faces();
         let side = g.side;
-        let mut masks: Vec<u8> = memory::filled(nf, 0)?;
-        let mut nets: Vec<u32> = memory::filled(nf * side * side, NONE)?;
-        nets.par_chunks_mut(side * side * CHUNK)
-            .zip(masks.par_chunks_mut(CHUNK))
-            .enumerate()
-            .for_each(|(chunk, (nets, masks))| {
-                let nets = nets.chunks_exact_mut(side * side);
-                for (i, (net, mask)) in nets.zip(masks.iter_mut()).enumerate() {
-                    let f = chunk * CHUNK + i;
-                    let grid = Grid::new(coarse, &g, &flags, f);
-                    *mask = g.mask(&grid);
-                    if *mask != 0 {
-                        grid.net(&g, net);
-                    }
-                }
-            });
+        // Every face's net is written (a face without kernel children is never read), so the
+        // tables start as untouched zero pages.
+        let mut masks: Vec<u8> = memory::zeroed(nf)?;
+        let mut nets: Vec<u32> = memory::zeroed(nf * side * side)?;
+        match (g.cells_side, primal) {
+            (3, true) => classify::<3, true, 16>(&g, &flags, &mut masks, &mut nets),
+            (3, false) => classify::<3, false, 9>(&g, &flags, &mut masks, &mut nets),
+            (5, true) => classify::<5, true, 36>(&g, &flags, &mut masks, &mut nets),
+            _ => classify::<5, false, 25>(&g, &flags, &mut masks, &mut nets),
+        }
         if masks.iter().all(|&m| m == 0) {
             return Ok(None);
         }
@@ -231,12 +228,11 @@ impl Windows {
 /// The grid of an even number of averages m on primal or dual input: where a face's net lies
 /// and, per child, what of it must be a grid.
 struct Geometry {
-    primal: bool,
     /// Lowest coordinate of the net (vertices for primal input, cells for dual).
     lo: i32,
     /// Side of the net.
     side: usize,
-    /// Cells of the walk along a side.
+    /// Cells of the walk along a side (3 or 5: cells `lo..=-lo` around the face's own).
     cells_side: usize,
     /// Per child `k`: the cells of its support (bit `cells_side * b + a` for cell `(lo + a,
     /// lo + b)`) and the grid vertices inside it (bit `(cells_side + 1) * j + i` for vertex
@@ -245,14 +241,6 @@ struct Geometry {
     inner: [u64; 4],
     /// The support of the child column (or row) p in net coordinates: first and last.
     support: [(i32, i32); 2],
-    /// The walk: each cell after the first with the cell it is placed from and the side of
-    /// that cell it lies across (0 below, 1 right, 2 above, 3 left), in placing order.
-    walk: Vec<(u8, u8, u8)>,
-    /// The grid vertices read (all for primal input, whose net they are; those inside a
-    /// support for dual input), each with the cell that names it (the one at it towards the
-    /// face's own: it lies in every support holding the vertex, supports being rectangles
-    /// around cell (0, 0)) and the corner of that cell at it.
-    namer: Vec<(u8, u8, u8)>,
 }
 
 impl Geometry {
@@ -274,37 +262,19 @@ impl Geometry {
         );
         let side = (hi - lo + 1) as usize;
         let cells_side = if primal { side - 1 } else { side };
+        debug_assert_eq!(
+            cells_side as i32,
+            1 - 2 * lo,
+            "cells centred on the face's own"
+        );
         let mut g = Geometry {
-            primal,
             lo,
             side,
             cells_side,
             cells: [0; 4],
             inner: [0; 4],
             support,
-            walk: Vec::new(),
-            namer: Vec::new(),
         };
-        // Along the face's row, then along each column.
-        let hi = lo + cells_side as i32 - 1;
-        let mut step = |a: i32, b: i32, from: (i32, i32), side: u8| {
-            let (at, from) = (g.cell(a, b) as u8, g.cell(from.0, from.1) as u8);
-            g.walk.push((at, from, side));
-        };
-        for a in 1..=hi {
-            step(a, 0, (a - 1, 0), 1);
-        }
-        for a in (lo..0).rev() {
-            step(a, 0, (a + 1, 0), 3);
-        }
-        for a in lo..=hi {
-            for b in 1..=hi {
-                step(a, b, (a, b - 1), 2);
-            }
-            for b in (lo..0).rev() {
-                step(a, b, (a, b + 1), 0);
-            }
-        }
         for (k, (px, py)) in [(0, 0), (1, 0), (1, 1), (0, 1)].into_iter().enumerate() {
             // The cells of the support: for primal input those between its vertices.
             let span = |(s0, s1): (i32, i32)| if primal { (s0, s1 - 1) } else { (s0, s1) };
@@ -320,23 +290,6 @@ impl Geometry {
                 }
             }
         }
-        let inner = g.inner.iter().fold(0u64, |all, &k| all | k);
-        for j in lo..=hi + 1 {
-            for i in lo..=hi + 1 {
-                let at = g.vertex(i, j);
-                if !primal && inner & (1 << at) == 0 {
-                    continue;
-                }
-                let (a, b) = (i - (i > 0) as i32, j - (j > 0) as i32);
-                let k = match (i - a, j - b) {
-                    (0, 0) => 0,
-                    (1, 0) => 1,
-                    (1, 1) => 2,
-                    _ => 3,
-                };
-                g.namer.push((at as u8, g.cell(a, b) as u8, k));
-            }
-        }
         g
     }
 
@@ -350,12 +303,12 @@ impl Geometry {
         (j - self.lo) as usize * (self.cells_side + 1) + (i - self.lo) as usize
     }
 
-    /// The children of a face whose support is a grid ([`Windows::masks`]).
-    fn mask(&self, grid: &Grid) -> u8 {
+    /// The children of a face whose support is a grid ([`Windows::masks`]), from the bits of
+    /// its cells that are placed and clean and of its grid vertices that can be inside a grid.
+    fn mask(&self, cell_ok: u64, inner_ok: u64) -> u8 {
         let mut mask = 0;
         for k in 0..4 {
-            if grid.cell_ok & self.cells[k] == self.cells[k]
-                && grid.inner_ok & self.inner[k] == self.inner[k]
+            if cell_ok & self.cells[k] == self.cells[k] && inner_ok & self.inner[k] == self.inner[k]
             {
                 mask |= 1 << k;
             }
@@ -391,132 +344,358 @@ fn weights<T: Scalar, const S: usize>(m: u32, primal: bool, lo: i32) -> [[T; S];
     })
 }
 
-/// What the classification reads of a level, once per step: the vertices that can be inside
-/// a grid (interior, manifold, of valence 4) and the faces that no curve vertex of the step is
-/// born from (their face point, the edge points of their edges, their corners' old vertices:
-/// the 1-D scheme's blend is no tensor product).
+/// What the classification reads of a level, once per step, over the faces and a dead face
+/// `nf` after them, which stands for "no cell": a step across any of its sides lands on it
+/// again, it is never clean and its corners are at vertex 0 (the id a net holds where no cell
+/// is placed, which no child weighs), so placing a face's cells needs no test for a missing one.
 struct Flags {
+    /// Per vertex, whether it can be inside a grid (interior, manifold, of valence 4).
     grid_vertex: Vec<bool>,
+    /// Per face (and the dead one, false), whether no curve vertex of the step is born from it
+    /// (its face point, the edge points of its edges, its corners' old vertices: the 1-D
+    /// scheme's blend is no tensor product).
     clean_face: Vec<bool>,
-    /// Per corner, the corner across its outgoing edge (the other face's corner on it), or
-    /// `NONE` on a boundary or non-manifold edge.
+    /// Per corner, the corner across its outgoing edge ([`Level::twin_corners`]), the dead
+    /// face's first corner on a boundary or non-manifold edge and for the dead face's corners.
     twin: Vec<u32>,
+    /// The level's corner vertices, then vertex 0 for the dead face's corners.
+    verts: Vec<u32>,
+    /// The dead face's first corner, `4 nf`.
+    dead: u32,
 }
 
 impl Flags {
     fn of(coarse: &Level, curves: &CurveNetwork) -> Result<Flags> {
         let (nv, ne, nf) = (coarse.num_vertices, coarse.num_edges(), coarse.num_faces());
-        let mut marked_vertex: Vec<bool> = memory::filled(nv, false)?;
-        let mut marked_edge: Vec<bool> = memory::filled(ne, false)?;
-        let mut marked_face: Vec<bool> = memory::filled(nf, false)?;
-        for cv in curves.vertices() {
-            let w = cv.vertex as usize;
-            if w < nv {
-                marked_vertex[w] = true;
-            } else if w < nv + ne {
-                marked_edge[w - nv] = true;
-            } else {
-                marked_face[w - nv - ne] = true;
+        let dead = 4 * nf as u32;
+        let (corner_edges, edge_corners) = (coarse.corner_edges(), coarse.edge_corners());
+        let twin = if coarse.nm_edges.is_empty() {
+            // `Level::opposite` edge by edge: the two slots of an interior edge are each
+            // other's twins.
+            let mut twin = memory::filled(4 * nf + 4, dead)?;
+            for &[a, b] in edge_corners {
+                if b != NONE {
+                    twin[a as usize] = b;
+                    twin[b as usize] = a;
+                }
             }
-        }
-        let corner_edges = coarse.corner_edges();
+            twin
+        } else {
+            gather_hinted(4 * nf + 4, |c| {
+                if c >= 4 * nf {
+                    return dead;
+                }
+                let e = corner_edges[c] as usize;
+                coarse.opposite(e, c).map_or(dead, |d| d as u32)
+            })?
+        };
+        let (offsets, vertex_corners) = coarse.vertex_corner_table();
         let non_manifold = coarse.is_non_manifold();
-        let twin = coarse.twin_corners()?;
         let grid_vertex = gather_hinted(nv, |v| {
-            let corners = coarse.corners_of_vertex(v);
+            let corners = &vertex_corners[offsets[v] as usize..offsets[v + 1] as usize];
             corners.len() == 4
                 && !(non_manifold && coarse.is_non_manifold_vertex(v))
-                && corners.iter().all(|&c| twin[c as usize] != NONE)
+                && corners.iter().all(|&c| twin[c as usize] != dead)
         })?;
-        let clean_face = gather_hinted(nf, |f| {
-            !marked_face[f]
-                && (4 * f..4 * f + 4).all(|c| {
-                    !marked_edge[corner_edges[c] as usize]
-                        && !marked_vertex[coarse.corner_verts[c] as usize]
-                })
-        })?;
+        let clean_face = if curves.vertices().is_empty() {
+            let mut clean = memory::filled(nf + 1, true)?;
+            clean[nf] = false;
+            clean
+        } else {
+            let mut marked_vertex: Vec<bool> = memory::filled(nv, false)?;
+            let mut marked_edge: Vec<bool> = memory::filled(ne, false)?;
+            let mut marked_face: Vec<bool> = memory::filled(nf, false)?;
+            for cv in curves.vertices() {
+                let w = cv.vertex as usize;
+                if w < nv {
+                    marked_vertex[w] = true;
+                } else if w < nv + ne {
+                    marked_edge[w - nv] = true;
+                } else {
+                    marked_face[w - nv - ne] = true;
+                }
+            }
+            gather_hinted(nf + 1, |f| {
+                f < nf
+                    && !marked_face[f]
+                    && (4 * f..4 * f + 4).all(|c| {
+                        !marked_edge[corner_edges[c] as usize]
+                            && !marked_vertex[coarse.corner_verts[c] as usize]
+                    })
+            })?
+        };
+        let mut verts = memory::with_capacity(4 * nf + 4)?;
+        verts.extend_from_slice(&coarse.corner_verts);
+        verts.extend([0; 4]);
+        // What lets the walk read its tables unchecked ([`Tables`]); a level's tables always
+        // hold it, so a failure is a bug, reported rather than read out of bounds.
+        let in_bounds = twin.iter().all(|&d| d <= dead)
+            && verts.len() == twin.len()
+            && verts.iter().all(|&v| (v as usize) < nv)
+            && clean_face.len() == nf + 1;
+        if !in_bounds {
+            return Err(Error::Internal(
+                "regular windows: a level's corner tables out of range".into(),
+            ));
+        }
         Ok(Flags {
             grid_vertex,
             clean_face,
             twin,
+            verts,
+            dead,
         })
     }
 }
 
-/// A face's net as a walk across edges places it (its own cell at `(0, 0)` with its corner 0
-/// at the cell's lower left; along its row, then along each column), with what the
-/// classification needs (bits as [`Geometry`] numbers them). A rectangle of placed cells whose
-/// inner vertices are all interior, manifold and of valence 4 is a grid (the walk's placement
-/// does not depend on the path inside it), so that is all a child's support is checked for.
-struct Grid {
-    /// Per cell, its face's corner at the cell's lower left (`NONE` where the walk met a
-    /// boundary or a non-manifold edge).
-    cells: [u32; MAX_SIDE * MAX_SIDE],
-    /// Per grid vertex, the vertex at it (`NONE` where the cell that names it is not placed).
-    vertex: [u32; (MAX_SIDE + 1) * (MAX_SIDE + 1)],
-    /// Cells placed, of a clean face.
-    cell_ok: u64,
-    /// Grid vertices that can be inside a grid.
-    inner_ok: u64,
+impl Flags {
+    /// The tables as slices, which a walk holds in registers (read through `&Flags` they are
+    /// loaded again after every store into a net).
+    fn tables(&self) -> Tables<'_> {
+        Tables {
+            twin: &self.twin,
+            clean_face: &self.clean_face,
+            verts: &self.verts,
+            grid_vertex: &self.grid_vertex,
+            dead: self.dead,
+        }
+    }
 }
 
-/// The corner `k` steps after `c` in its quad.
+/// [`Flags`] borrowed, read unchecked by corners below `4 nf + 4`: a walk holds only such
+/// corners (a face's first corner, entries of `twin`, which [`Flags::of`] checks are, and other
+/// corners of their quads), and [`Flags::of`] checks that the vertices of `verts` are the
+/// level's; unchecked reads halve the instructions of a walk.
+#[derive(Clone, Copy)]
+struct Tables<'a> {
+    twin: &'a [u32],
+    clean_face: &'a [bool],
+    verts: &'a [u32],
+    grid_vertex: &'a [bool],
+    dead: u32,
+}
+
+impl Tables<'_> {
+    /// The twin of corner `c`.
+    #[inline(always)]
+    fn twin(self, c: u32) -> u32 {
+        debug_assert!((c as usize) < self.twin.len());
+        // SAFETY: `c < 4 nf + 4 = twin.len()` (above).
+        unsafe { *self.twin.get_unchecked(c as usize) }
+    }
+
+    /// Whether the face of corner `c` is clean.
+    #[inline(always)]
+    fn clean(self, c: u32) -> bool {
+        debug_assert!(((c >> 2) as usize) < self.clean_face.len());
+        // SAFETY: `c >> 2 < nf + 1 = clean_face.len()` (above).
+        unsafe { *self.clean_face.get_unchecked((c >> 2) as usize) }
+    }
+
+    /// The vertex of corner `c`.
+    #[inline(always)]
+    fn vertex(self, c: u32) -> u32 {
+        debug_assert!((c as usize) < self.verts.len());
+        // SAFETY: `c < 4 nf + 4 = verts.len()` (above).
+        unsafe { *self.verts.get_unchecked(c as usize) }
+    }
+
+    /// Whether vertex `v` of `verts` can be inside a grid.
+    #[inline(always)]
+    fn grid(self, v: u32) -> bool {
+        debug_assert!((v as usize) < self.grid_vertex.len());
+        // SAFETY: the vertices of `verts` are below `nv = grid_vertex.len()` (above).
+        unsafe { *self.grid_vertex.get_unchecked(v as usize) }
+    }
+}
+
+/// The corner `k` steps after `c` in its quad (`c ^ 2` for two steps).
 #[inline(always)]
 fn after(c: u32, k: u32) -> u32 {
-    (c & !3) | ((c + k) & 3)
+    match k & 3 {
+        0 => c,
+        2 => c ^ 2,
+        _ => (c & !3) | ((c + k) & 3),
+    }
 }
 
-impl Grid {
-    #[inline(always)]
-    fn new(level: &Level, g: &Geometry, flags: &Flags, f: usize) -> Grid {
-        let mut cells = [NONE; MAX_SIDE * MAX_SIDE];
-        let own = g.cell(0, 0);
-        cells[own] = 4 * f as u32;
-        let mut cell_ok = (flags.clean_face[f] as u64) << own;
-        for &(at, from, side) in &g.walk {
-            let base = cells[from as usize];
-            if base == NONE {
-                continue;
+/// The masks and nets of every face for `C` cells along a side of the walk, primal or dual
+/// input and nets of `N` ids ([`Windows::build`]).
+fn classify<const C: usize, const PRIMAL: bool, const N: usize>(
+    g: &Geometry,
+    flags: &Flags,
+    masks: &mut [u8],
+    nets: &mut [u32],
+) {
+    debug_assert_eq!(g.side * g.side, N);
+    nets.par_chunks_mut(N * CHUNK)
+        .zip(masks.par_chunks_mut(CHUNK))
+        .enumerate()
+        .for_each(|(chunk, (nets, masks))| {
+            let tables = flags.tables();
+            for (i, (net, mask)) in nets.chunks_exact_mut(N).zip(masks.iter_mut()).enumerate() {
+                let net = net.try_into().expect("a net of N ids");
+                let (cell_ok, inner_ok) = place::<C, PRIMAL, N>(tables, chunk * CHUNK + i, net);
+                *mask = g.mask(cell_ok, inner_ok);
             }
-            // The cell across side `side` of the cell `base`.
-            let d = flags.twin[after(base, side as u32) as usize];
-            if d == NONE {
-                continue;
-            }
-            let placed = after(d, (6 - side as u32) % 4);
-            cells[at as usize] = placed;
-            cell_ok |= (flags.clean_face[(placed >> 2) as usize] as u64) << at;
-        }
-        let mut vertex = [NONE; (MAX_SIDE + 1) * (MAX_SIDE + 1)];
-        let mut inner_ok = 0u64;
-        for &(at, cell, k) in &g.namer {
-            let (at, base) = (at as usize, cells[cell as usize]);
-            if base != NONE {
-                let v = level.corner_verts[after(base, k as u32) as usize];
-                vertex[at] = v;
-                inner_ok |= (flags.grid_vertex[v as usize] as u64) << at;
-            }
-        }
-        Grid {
-            cells,
-            vertex,
-            cell_ok,
-            inner_ok,
-        }
-    }
+        });
+}
 
-    /// The ids of the net, row after row: grid vertices (primal input) or the faces of the
-    /// cells (dual), 0 where none is placed.
-    fn net(&self, g: &Geometry, net: &mut [u32]) {
-        let ids: &[u32] = if g.primal { &self.vertex } else { &self.cells };
-        for (id, &x) in net.iter_mut().zip(&ids[..g.side * g.side]) {
-            *id = match x {
-                NONE => 0,
-                x if g.primal => x,
-                base => base >> 2,
-            };
+/// `$body(i)` for each `i` in `0..$n` (`$n` at most 36), written out one call after the
+/// other: with the walk's tables constant, each call compiles to a few instructions, with no
+/// loop and no table read (LLVM does not unroll the loops of the larger walks).
+macro_rules! unrolled {
+    ($n:expr, $body:expr) => {{
+        let mut body = $body;
+        unrolled!(@ $n, body; 0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24 25
+            26 27 28 29 30 31 32 33 34 35);
+    }};
+    (@ $n:expr, $body:ident; $($i:literal)*) => {
+        $(
+            if $i < $n {
+                $body($i);
+            }
+        )*
+    };
+}
+
+/// The walk of [`place`] for `C` cells along a side as constant tables (so that the loops
+/// over them unroll into straight code): cell `(a, b)`, `a` and `b` in `0..C`, is cell
+/// `(a - C / 2, b - C / 2)` of the face's frame, at index `C * b + a`; grid vertex `(i, j)`,
+/// `i` and `j` in `0..=C`, at index `(C + 1) * j + i` (the bits of [`Geometry`]).
+struct Walk<const C: usize, const PRIMAL: bool>;
+
+impl<const C: usize, const PRIMAL: bool> Walk<C, PRIMAL> {
+    /// Each cell after the face's own with the cell it is placed from and the side of that
+    /// cell it lies across (0 below, 1 right, 2 above, 3 left): along the face's row, then
+    /// along each column.
+    const STEPS: [(u8, u8, u8); 24] = {
+        let h = C / 2;
+        let mut steps = [(0, 0, 0); 24];
+        let mut n = 0;
+        let mut a = h + 1;
+        while a < C {
+            steps[n] = ((C * h + a) as u8, (C * h + a - 1) as u8, 1);
+            (n, a) = (n + 1, a + 1);
         }
-    }
+        let mut a = h;
+        while a > 0 {
+            a -= 1;
+            steps[n] = ((C * h + a) as u8, (C * h + a + 1) as u8, 3);
+            n += 1;
+        }
+        let mut a = 0;
+        while a < C {
+            let mut b = h + 1;
+            while b < C {
+                steps[n] = ((C * b + a) as u8, (C * (b - 1) + a) as u8, 2);
+                (n, b) = (n + 1, b + 1);
+            }
+            let mut b = h;
+            while b > 0 {
+                b -= 1;
+                steps[n] = ((C * b + a) as u8, (C * (b + 1) + a) as u8, 0);
+                n += 1;
+            }
+            a += 1;
+        }
+        steps
+    };
+
+    /// The grid vertices read (all for primal input, whose net they are; the inner ones for
+    /// dual input), each with the cell that names it and the corner of that cell at it: the
+    /// cell at it towards the face's own, which lies in every support holding the vertex
+    /// (supports are rectangles around the face's cell), so a vertex of an unplaced cell is
+    /// in no support that can pass; and whether it is inside a support.
+    const VERTICES: [(u8, u8, u8, bool); 36] = {
+        let h = C / 2;
+        let mut vertices = [(0, 0, 0, false); 36];
+        let mut n = 0;
+        let mut j = 0;
+        while j <= C {
+            let mut i = 0;
+            while i <= C {
+                let inner = i >= 1 && i < C && j >= 1 && j < C;
+                if PRIMAL || inner {
+                    let (x, y) = ((i > h) as usize, (j > h) as usize);
+                    let k = match (x, y) {
+                        (0, 0) => 0,
+                        (1, 0) => 1,
+                        (1, 1) => 2,
+                        _ => 3,
+                    };
+                    let (at, cell) = ((C + 1) * j + i, C * (j - y) + i - x);
+                    vertices[n] = (at as u8, cell as u8, k, inner);
+                    n += 1;
+                }
+                i += 1;
+            }
+            j += 1;
+        }
+        vertices
+    };
+
+    /// Number of vertices read.
+    const READ: usize = if PRIMAL {
+        (C + 1) * (C + 1)
+    } else {
+        (C - 1) * (C - 1)
+    };
+}
+
+/// Places the cells of face `f`'s net as a walk across edges does (its own cell at `(0, 0)`
+/// with its corner 0 at the cell's lower left; along its row, then along each column), writes
+/// its net (grid vertices for primal input, the faces of the cells for dual, 0 where no cell is
+/// placed) and returns what the classification needs, as [`Geometry`] numbers the bits: the
+/// cells placed, of a clean face, and the inner grid vertices that can be inside a grid. A
+/// rectangle of placed cells whose inner vertices are all interior, manifold and of valence 4
+/// is a grid (the walk's placement does not depend on the path inside it), so that is all a
+/// child's support is checked for.
+///
+/// This is the first version's walk (kept in the tests as the reference, which every mask, net
+/// and zone is checked against) with the same paths and the same rule for each step, so the
+/// same cells, masks and nets: a missing cell is the dead face instead of `NONE` (a step from
+/// it stays on it, as a step from `NONE` placed nothing; it is unclean, as an unplaced cell's
+/// bit was 0; its face is 0 in a dual net, as `NONE` was), and a grid vertex of a dead cell is
+/// vertex 0, whose bit may then be set where `NONE` left it clear, but only in supports that
+/// hold the dead cell, whose cell bit fails them anyway.
+#[inline(always)]
+fn place<const C: usize, const PRIMAL: bool, const N: usize>(
+    tables: Tables,
+    f: usize,
+    net: &mut [u32; N],
+) -> (u64, u64) {
+    // Cells are held as their corner at the lower left. The cell across side s of a cell with
+    // corner c is across the edge of corner `after(c, s)`, whose twin is the new cell's corner
+    // at its upper left for s = 1 (right), lower right for s = 3 (left), lower left for s = 2
+    // (above) and upper right for s = 0 (below).
+    let mut cells = [0u32; (MAX_SIDE - 1) * (MAX_SIDE - 1)];
+    cells[C * (C / 2) + C / 2] = 4 * f as u32;
+    unrolled!(C * C - 1, |n: usize| {
+        let (at, from, side) = Walk::<C, PRIMAL>::STEPS[n];
+        let d = tables.twin(after(cells[from as usize], side as u32));
+        cells[at as usize] = after(d, 6 - side as u32);
+    });
+    let mut cell_ok = 0u64;
+    unrolled!(C * C, |k: usize| {
+        let c = cells[k];
+        cell_ok |= (tables.clean(c) as u64) << k;
+        if !PRIMAL {
+            net[k] = if c >= tables.dead { 0 } else { c >> 2 };
+        }
+    });
+    let mut inner_ok = 0u64;
+    unrolled!(Walk::<C, PRIMAL>::READ, |n: usize| {
+        let (at, cell, k, inner) = Walk::<C, PRIMAL>::VERTICES[n];
+        let v = tables.vertex(after(cells[cell as usize], k as u32));
+        if PRIMAL {
+            net[at as usize] = v;
+        }
+        if inner {
+            inner_ok |= (tables.grid(v) as u64) << at;
+        }
+    });
+    (cell_ok, inner_ok)
 }
 
 impl Zone {
@@ -526,6 +705,9 @@ impl Zone {
         let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
         let mut last = Vec::new();
         for (f, &mask) in masks.iter().enumerate() {
+            if mask == 0xf {
+                continue;
+            }
             for k in 0..4 {
                 if mask & (1 << k) == 0 {
                     last.push((4 * f + k) as u32);
@@ -533,46 +715,46 @@ impl Zone {
             }
         }
         let mut passes = vec![last];
-        // Backwards through the averages a = m..3: what each reads of the one before.
+        // Backwards through the averages a = m..3: what each reads of the one before, marked
+        // in a bitset (the lists are short next to the level on a mostly regular mesh).
         for a in (3..=averages).rev() {
             let items = passes.last().expect("the last pass");
             let read = if a % 2 == 1 {
                 // Dual -> primal on the fine vertices: they read the fine faces around them,
                 // which are coarse corners.
-                let mut read = memory::filled(fine.num_faces(), false)?;
+                let mut read = Bits::new(fine.num_faces())?;
+                let (offsets, vertex_corners) = coarse.vertex_corner_table();
                 let edge_corners = coarse.edge_corners();
                 for &w in items {
                     let w = w as usize;
                     if w < nv {
-                        for &c in coarse.corners_of_vertex(w) {
-                            read[c as usize] = true;
+                        let corners = offsets[w] as usize..offsets[w + 1] as usize;
+                        for &c in &vertex_corners[corners] {
+                            read.set(c as usize);
                         }
                     } else if w < nv + ne {
                         for c in edge_corners[w - nv] {
                             if c != NONE {
-                                read[c as usize] = true;
-                                read[quad_next(c as usize)] = true;
+                                read.set(c as usize);
+                                read.set(quad_next(c as usize));
                             }
                         }
                     } else {
-                        let g = w - nv - ne;
-                        read[4 * g..4 * g + 4].fill(true);
+                        read.set_quad(w - nv - ne);
                     }
                 }
                 read
             } else {
                 // Primal -> dual on the fine faces: they read their corners.
-                let mut read = memory::filled(fine.num_vertices, false)?;
+                let mut read = Bits::new(fine.num_vertices)?;
                 for &f in items {
                     for &v in &fine.corner_verts[4 * f as usize..4 * f as usize + 4] {
-                        read[v as usize] = true;
+                        read.set(v as usize);
                     }
                 }
                 read
             };
-            let mut list = memory::with_capacity(read.iter().filter(|&&b| b).count())?;
-            list.extend((0..read.len() as u32).filter(|&i| read[i as usize]));
-            passes.push(list);
+            passes.push(read.list()?);
         }
         // The first pass makes the children of whole coarse faces.
         let children = passes.pop().expect("the first pass's output");
@@ -583,8 +765,43 @@ impl Zone {
     }
 }
 
+/// A set of items of a level as bits: the list of those set comes out in increasing order
+/// without a sort, for a pass over a word per 64 items.
+struct Bits(Vec<u64>);
+
+impl Bits {
+    fn new(n: usize) -> Result<Bits> {
+        Ok(Bits(memory::zeroed(n.div_ceil(64))?))
+    }
+
+    #[inline(always)]
+    fn set(&mut self, i: usize) {
+        self.0[i / 64] |= 1 << (i % 64);
+    }
+
+    /// Items `4q..4q + 4` (never across a word).
+    #[inline(always)]
+    fn set_quad(&mut self, q: usize) {
+        self.0[q / 16] |= 0xf << (4 * q % 64);
+    }
+
+    fn list(&self) -> Result<Vec<u32>> {
+        let n = self.0.iter().map(|w| w.count_ones() as usize).sum();
+        let mut list = memory::with_capacity(n)?;
+        for (i, &word) in self.0.iter().enumerate() {
+            let mut word = word;
+            while word != 0 {
+                list.push(64 * i as u32 + word.trailing_zeros());
+                word &= word - 1;
+            }
+        }
+        Ok(list)
+    }
+}
+
 #[cfg(test)]
 mod tests {
+    use super::Windows;
     use crate::refinement::Refinement;
     use crate::step::LevelData;
     use crate::{Cage, Options, Rules};
@@ -673,6 +890,279 @@ mod tests {
             .with_creases(&crease)
             .unwrap();
         (cage, points)
+    }
+
+    /// The classification as first written (a walk per face over tables of steps, with
+    /// `NONE` for a missing cell, and the zone from sorted boolean tables): the reference that
+    /// the tables of [`Windows::build`] must equal.
+    mod reference {
+        use super::super::{after, Geometry, Zone, MAX_SIDE};
+        use crate::curves::CurveNetwork;
+        use crate::topology::{quad_next, Level, NONE};
+
+        /// Per face, its mask and its net (`None` without kernel children), and the zone.
+        pub(super) type Classified = (Vec<(u8, Option<Vec<u32>>)>, Option<Zone>);
+
+        pub(super) fn classify(
+            coarse: &Level,
+            fine: &Level,
+            curves: &CurveNetwork,
+            averages: u32,
+            primal: bool,
+        ) -> Classified {
+            let g = Geometry::of(averages, primal);
+            let (walk, namer) = walk_and_namer(&g, primal);
+            let (nv, ne, nf) = (coarse.num_vertices, coarse.num_edges(), coarse.num_faces());
+            let mut marked_vertex = vec![false; nv];
+            let mut marked_edge = vec![false; ne];
+            let mut marked_face = vec![false; nf];
+            for cv in curves.vertices() {
+                let w = cv.vertex as usize;
+                if w < nv {
+                    marked_vertex[w] = true;
+                } else if w < nv + ne {
+                    marked_edge[w - nv] = true;
+                } else {
+                    marked_face[w - nv - ne] = true;
+                }
+            }
+            let corner_edges = coarse.corner_edges();
+            let twin = coarse.twin_corners().unwrap();
+            let grid_vertex: Vec<bool> = (0..nv)
+                .map(|v| {
+                    let corners = coarse.corners_of_vertex(v);
+                    corners.len() == 4
+                        && !coarse.is_non_manifold_vertex(v)
+                        && corners.iter().all(|&c| twin[c as usize] != NONE)
+                })
+                .collect();
+            let clean_face: Vec<bool> = (0..nf)
+                .map(|f| {
+                    !marked_face[f]
+                        && (4 * f..4 * f + 4).all(|c| {
+                            !marked_edge[corner_edges[c] as usize]
+                                && !marked_vertex[coarse.corner_verts[c] as usize]
+                        })
+                })
+                .collect();
+            let mut faces = Vec::new();
+            let mut masks = Vec::new();
+            for f in 0..nf {
+                let mut cells = [NONE; MAX_SIDE * MAX_SIDE];
+                let own = g.cell(0, 0);
+                cells[own] = 4 * f as u32;
+                let mut cell_ok = (clean_face[f] as u64) << own;
+                for &(at, from, side) in &walk {
+                    let base = cells[from as usize];
+                    if base == NONE {
+                        continue;
+                    }
+                    let d = twin[after(base, side as u32) as usize];
+                    if d == NONE {
+                        continue;
+                    }
+                    let placed = after(d, (6 - side as u32) % 4);
+                    cells[at as usize] = placed;
+                    cell_ok |= (clean_face[(placed >> 2) as usize] as u64) << at;
+                }
+                let mut vertex = [NONE; (MAX_SIDE + 1) * (MAX_SIDE + 1)];
+                let mut inner_ok = 0u64;
+                for &(at, cell, k) in &namer {
+                    let (at, base) = (at as usize, cells[cell as usize]);
+                    if base != NONE {
+                        let v = coarse.corner_verts[after(base, k as u32) as usize];
+                        vertex[at] = v;
+                        inner_ok |= (grid_vertex[v as usize] as u64) << at;
+                    }
+                }
+                let mask = g.mask(cell_ok, inner_ok);
+                let net = (mask != 0).then(|| {
+                    let ids: &[u32] = if primal { &vertex } else { &cells };
+                    ids[..g.side * g.side]
+                        .iter()
+                        .map(|&x| match x {
+                            NONE => 0,
+                            x if primal => x,
+                            base => base >> 2,
+                        })
+                        .collect()
+                });
+                masks.push(mask);
+                faces.push((mask, net));
+            }
+            let zone = masks
+                .iter()
+                .any(|&m| m != 0)
+                .then(|| zone(coarse, fine, averages, &masks));
+            (faces, zone)
+        }
+
+        /// The walk (each cell after the first with the cell it is placed from and the side of
+        /// that cell it lies across) and the namer of each grid vertex read (the cell at it
+        /// towards the face's own, and that cell's corner at it).
+        #[allow(clippy::type_complexity)]
+        fn walk_and_namer(g: &Geometry, primal: bool) -> (Vec<(u8, u8, u8)>, Vec<(u8, u8, u8)>) {
+            let lo = g.lo;
+            let hi = lo + g.cells_side as i32 - 1;
+            let mut walk = Vec::new();
+            let mut step = |a: i32, b: i32, from: (i32, i32), side: u8| {
+                walk.push((g.cell(a, b) as u8, g.cell(from.0, from.1) as u8, side));
+            };
+            for a in 1..=hi {
+                step(a, 0, (a - 1, 0), 1);
+            }
+            for a in (lo..0).rev() {
+                step(a, 0, (a + 1, 0), 3);
+            }
+            for a in lo..=hi {
+                for b in 1..=hi {
+                    step(a, b, (a, b - 1), 2);
+                }
+                for b in (lo..0).rev() {
+                    step(a, b, (a, b + 1), 0);
+                }
+            }
+            let inner = g.inner.iter().fold(0u64, |all, &k| all | k);
+            let mut namer = Vec::new();
+            for j in lo..=hi + 1 {
+                for i in lo..=hi + 1 {
+                    let at = g.vertex(i, j);
+                    if !primal && inner & (1 << at) == 0 {
+                        continue;
+                    }
+                    let (a, b) = (i - (i > 0) as i32, j - (j > 0) as i32);
+                    let k = match (i - a, j - b) {
+                        (0, 0) => 0,
+                        (1, 0) => 1,
+                        (1, 1) => 2,
+                        _ => 3,
+                    };
+                    namer.push((at as u8, g.cell(a, b) as u8, k));
+                }
+            }
+            (walk, namer)
+        }
+
+        fn zone(coarse: &Level, fine: &Level, averages: u32, masks: &[u8]) -> Zone {
+            let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
+            let mut last = Vec::new();
+            for (f, &mask) in masks.iter().enumerate() {
+                for k in 0..4 {
+                    if mask & (1 << k) == 0 {
+                        last.push((4 * f + k) as u32);
+                    }
+                }
+            }
+            let mut passes = vec![last];
+            for a in (3..=averages).rev() {
+                let items = passes.last().unwrap();
+                let read = if a % 2 == 1 {
+                    let mut read = vec![false; fine.num_faces()];
+                    let edge_corners = coarse.edge_corners();
+                    for &w in items {
+                        let w = w as usize;
+                        if w < nv {
+                            for &c in coarse.corners_of_vertex(w) {
+                                read[c as usize] = true;
+                            }
+                        } else if w < nv + ne {
+                            for c in edge_corners[w - nv] {
+                                if c != NONE {
+                                    read[c as usize] = true;
+                                    read[quad_next(c as usize)] = true;
+                                }
+                            }
+                        } else {
+                            let g = w - nv - ne;
+                            read[4 * g..4 * g + 4].fill(true);
+                        }
+                    }
+                    read
+                } else {
+                    let mut read = vec![false; fine.num_vertices];
+                    for &f in items {
+                        for &v in &fine.corner_verts[4 * f as usize..4 * f as usize + 4] {
+                            read[v as usize] = true;
+                        }
+                    }
+                    read
+                };
+                passes.push(
+                    (0..read.len() as u32)
+                        .filter(|&i| read[i as usize])
+                        .collect(),
+                );
+            }
+            let children = passes.pop().unwrap();
+            let mut first: Vec<u32> = children.iter().map(|&c| c >> 2).collect();
+            first.dedup();
+            passes.reverse();
+            Zone { first, passes }
+        }
+    }
+
+    /// [`Windows::build`] classifies every face as the reference does (the same kernel
+    /// children, nets and zone) on every step of the test cages, for every number of averages
+    /// the kernel makes and both kinds of input.
+    #[test]
+    fn classification_matches_the_reference() {
+        let cages = [
+            cube_grid(3),
+            cube_grid(5),
+            open_grid(7, 6, 10.0),
+            open_grid(6, 7, 1.5),
+        ];
+        let mut kernel_faces = 0;
+        for (cage, _) in &cages {
+            let options = Options {
+                degree: 4,
+                levels: 3,
+                rules: Rules::Averaging,
+                ..Options::default()
+            };
+            let refinement = Refinement::new(cage, &options).unwrap();
+            for j in 0..refinement.curve_networks().len() {
+                let step = refinement.step(j);
+                for degree in 4..=9 {
+                    for primal in [true, false] {
+                        let built =
+                            Windows::build(step.coarse, step.fine, step.curves, degree, primal)
+                                .unwrap();
+                        if !step.coarse.is_quads() {
+                            assert!(built.is_none(), "no kernel on a level with other faces");
+                            continue;
+                        }
+                        let averages = degree - degree % 2;
+                        let (faces, zone) = reference::classify(
+                            step.coarse,
+                            step.fine,
+                            step.curves,
+                            averages,
+                            primal,
+                        );
+                        let Some(w) = built else {
+                            assert!(zone.is_none(), "step {j} degree {degree}: no kernel child");
+                            continue;
+                        };
+                        let zone = zone.expect("kernel children in both");
+                        let n = w.side * w.side;
+                        for (f, (mask, net)) in faces.iter().enumerate() {
+                            assert_eq!(w.masks[f], *mask, "step {j} degree {degree} face {f}");
+                            if let Some(net) = net {
+                                assert_eq!(&w.nets[f * n..(f + 1) * n], &net[..]);
+                                kernel_faces += 1;
+                            }
+                        }
+                        assert_eq!(w.zone.first, zone.first);
+                        assert_eq!(w.zone.passes, zone.passes);
+                    }
+                }
+            }
+        }
+        assert!(
+            kernel_faces > 1000,
+            "{kernel_faces} faces with kernel children"
+        );
     }
 
     /// The data after every step, by the kernel and the passes (`kernel`) or by the passes
