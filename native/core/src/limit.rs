@@ -1343,6 +1343,9 @@ struct StencilValues<'a, T, const N: usize> {
     normals: Vec<[T; 3]>,
 }
 
+/// Per stencil: its limit position and its unit normal in `T`.
+type PositionsNormals<T, const N: usize> = (Vec<[T; N]>, Vec<[T; 3]>);
+
 /// Limit positions of every stencil of `st` from `data` (zero for [`LimitMask::Local`]) and,
 /// with `normals`, the unit normals at its interior vertices in `T` (zero elsewhere): position
 /// and tangents in one walk over each stencil's data.
@@ -1350,7 +1353,7 @@ fn stencil_values<T: Scalar, const N: usize>(
     st: &Stencils,
     data: &[[T; N]],
     normals: bool,
-) -> Result<(Vec<[T; N]>, Vec<[T; 3]>)> {
+) -> Result<PositionsNormals<T, N>> {
     if !normals {
         return Ok((stencil_positions(st, data)?, Vec::new()));
     }
