@@ -1300,7 +1300,7 @@ impl PartStep {
             fine: &self.fine,
             curves: &self.network,
             sharpness: None,
-            windows: Some(self.windows.as_ref()),
+            windows: self.windows.as_ref(),
         }
     }
 }

@@ -234,7 +234,7 @@ impl Refinement {
             curves: &self.networks[j],
             sharpness: (!self.sharpness.is_empty())
                 .then(|| (&self.sharpness[j], &self.sharpness[j + 1])),
-            windows: (!self.windows.is_empty()).then(|| self.windows[j].as_ref()),
+            windows: self.windows.get(j).and_then(Option::as_ref),
         }
     }
 

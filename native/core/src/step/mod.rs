@@ -63,9 +63,10 @@ pub(crate) struct Step<'a> {
     pub curves: &'a CurveNetwork,
     /// Classic Catmull-Clark: sharpness and rules of `coarse` and `fine`.
     pub sharpness: Option<(&'a LevelSharpness, &'a LevelSharpness)>,
-    /// The averaging rules: `Some` when a plan keeps the step's regular windows (`Some(None)`:
-    /// the step has no kernel child); `None` when the step finds them itself (partial levels).
-    pub windows: Option<Option<&'a Windows>>,
+    /// The averaging rules: the step's regular windows, made with its topology (`None`: no
+    /// kernel child). Windows made for the other kind of data (primal or dual) are made again
+    /// for the data at hand.
+    pub windows: Option<&'a Windows>,
 }
 
 /// The tables of a coarse level that a pass reads, looked up once per pass: the accessors of
@@ -330,7 +331,8 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
     }
 
     /// One step: the next level's data from this level's (see the module documentation).
-    /// Fails only when the regular windows of a step on a partial level find no memory.
+    /// Fails only when regular windows made again for the other kind of data (see
+    /// [`Step::windows`]) find no memory.
     pub(crate) fn step(&mut self, step: &Step) -> Result<()> {
         match step.scheme {
             Scheme::Averaging { degree } => self.average(step, degree)?,
@@ -346,12 +348,12 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
     fn average(&mut self, step: &Step, degree: u32) -> Result<()> {
         let built;
         let windows = match step.windows {
-            Some(kept) if kept.is_none_or(|w| w.primal() == self.primal) => kept,
-            _ => {
+            Some(w) if w.primal() != self.primal => {
                 let (coarse, fine, curves) = (step.coarse, step.fine, step.curves);
                 built = Windows::build(coarse, fine, curves, degree, self.primal)?;
                 built.as_ref()
             }
+            kept => kept,
         };
         match windows {
             Some(w) => {

@@ -479,34 +479,37 @@ impl Tables<'_> {
     /// The twin of corner `c`.
     #[inline(always)]
     fn twin(self, c: u32) -> u32 {
-        debug_assert!((c as usize) < self.twin.len());
-        // SAFETY: `c < 4 nf + 4 = twin.len()` (above).
-        unsafe { *self.twin.get_unchecked(c as usize) }
+        read(self.twin, c as usize)
     }
 
     /// Whether the face of corner `c` is clean.
     #[inline(always)]
     fn clean(self, c: u32) -> bool {
-        debug_assert!(((c >> 2) as usize) < self.clean_face.len());
-        // SAFETY: `c >> 2 < nf + 1 = clean_face.len()` (above).
-        unsafe { *self.clean_face.get_unchecked((c >> 2) as usize) }
+        read(self.clean_face, (c >> 2) as usize)
     }
 
     /// The vertex of corner `c`.
     #[inline(always)]
     fn vertex(self, c: u32) -> u32 {
-        debug_assert!((c as usize) < self.verts.len());
-        // SAFETY: `c < 4 nf + 4 = verts.len()` (above).
-        unsafe { *self.verts.get_unchecked(c as usize) }
+        read(self.verts, c as usize)
     }
 
     /// Whether vertex `v` of `verts` can be inside a grid.
     #[inline(always)]
     fn grid(self, v: u32) -> bool {
-        debug_assert!((v as usize) < self.grid_vertex.len());
-        // SAFETY: the vertices of `verts` are below `nv = grid_vertex.len()` (above).
-        unsafe { *self.grid_vertex.get_unchecked(v as usize) }
+        read(self.grid_vertex, v as usize)
     }
+}
+
+/// `table[i]` without a bound check, for the walk's reads ([`Tables`]): every corner it reaches
+/// is below `4 nf + 4 = twin.len() = verts.len()` (twins point at most at the dead face), every
+/// face below `nf + 1 = clean_face.len()`, every vertex of `verts` below `nv =
+/// grid_vertex.len()`, as `Flags::of` checked once.
+#[inline(always)]
+fn read<T: Copy>(table: &[T], i: usize) -> T {
+    debug_assert!(i < table.len());
+    // SAFETY: the bounds above, checked by `Flags::of` before any walk.
+    unsafe { *table.get_unchecked(i) }
 }
 
 /// The corner `k` steps after `c` in its quad (`c ^ 2` for two steps).
@@ -1203,7 +1206,7 @@ mod tests {
                 let refinement = Refinement::new(cage, &options).unwrap();
                 let steps = refinement.curve_networks().len();
                 let kernel_steps = (0..steps)
-                    .filter(|&j| refinement.step(j).windows.flatten().is_some())
+                    .filter(|&j| refinement.step(j).windows.is_some())
                     .count();
                 assert_eq!(
                     kernel_steps > 0,
