@@ -416,10 +416,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
                     let p = std::array::from_fn(|k| {
                         vertex_face_centroid(&t, x, t.corner_verts[4 * f + k] as usize)
                     });
-                    let m = std::array::from_fn(|k| {
-                        edge_face_mean(&t, x, corner_edges[4 * f + k] as usize)
-                    });
-                    (p, m, x[f])
+                    (p, edge_face_means(&t, x, corner_edges, f), x[f])
                 }
             },
         };
@@ -455,14 +452,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
                 // Primal -> dual: the fine faces from their corners.
                 let v: &[Value<T, N>] = &vertices[..n_vertices];
                 let (quads, _) = fine.corner_verts.as_chunks::<4>();
-                let value = |g: usize| {
-                    let q = quads[g];
-                    let s = add(
-                        add(v[q[0] as usize], v[q[1] as usize]),
-                        add(v[q[2] as usize], v[q[3] as usize]),
-                    );
-                    [scale(s, quarter)]
-                };
+                let value = |g: usize| [corner_centroid(v, &quads[g], quarter)];
                 if pass + 3 == averages {
                     scatter_uninit(&mut out.spare_capacity_mut()[..n_faces], items, value);
                 } else {
@@ -725,12 +715,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
                 touched: &touched,
                 nine: |f: usize| {
                     let p = t.at_corners(old, f);
-                    // The four means written out: through `array::from_fn` LLVM left the closure
-                    // out of line, a call per mean (cached averaging 2: 54.1M instructions, 44.8M
-                    // written out).
-                    let mean =
-                        |k: usize| edge_face_mean(&t, data, corner_edges[4 * f + k] as usize);
-                    (p, [mean(0), mean(1), mean(2), mean(3)], data[f])
+                    (p, edge_face_means(&t, data, corner_edges, f), data[f])
                 },
             };
             child_face_centroids(&children, &mut out, n);
@@ -784,9 +769,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         });
         let (quads, _) = f.as_chunks::<4>();
         let quarter = T::from_f64(0.25);
-        fill_zip(faces, &quads[..faces.len()], |_, q| {
-            scale(q.iter().fold(zero(), |s, &x| add(s, x)), quarter)
-        });
+        fill_zip(faces, &quads[..faces.len()], |_, q| quad_mean(q, quarter));
         // SAFETY: the three fills initialised the first `n` items (a panic would have unwound
         // past here).
         unsafe { out.set_len(n) };
@@ -807,11 +790,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         let v: &[Value<T, N>] = &self.vertices;
         let (quads, _) = fine.corner_verts.as_chunks::<4>();
         gather_zip(&mut out, &quads[..fine.num_faces()], |_, q| {
-            let s = add(
-                add(v[q[0] as usize], v[q[1] as usize]),
-                add(v[q[2] as usize], v[q[3] as usize]),
-            );
-            scale(s, quarter)
+            corner_centroid(v, q, quarter)
         });
         self.faces = Cow::Owned(out);
         let dual = match &self.curve {
@@ -875,9 +854,30 @@ fn primal_item<T: Scalar, const N: usize>(t: &Tables, f: &[Value<T, N>], w: usiz
         edge_corner_mean(t, f, t.edge_corners[w - nv])
     } else {
         let g = w - nv - ne;
-        let q = &f[4 * g..4 * g + 4];
-        scale(q.iter().fold(zero(), |s, &x| add(s, x)), T::from_f64(0.25))
+        quad_mean(&f[4 * g..4 * g + 4], T::from_f64(0.25))
     }
+}
+
+/// The centroid of a fine quad from the primal data `v` at its corners `q` (a primal -> dual
+/// average; `quarter` is 1/4 in `T`).
+#[inline(always)]
+fn corner_centroid<T: Scalar, const N: usize>(
+    v: &[Value<T, N>],
+    q: &[u32; 4],
+    quarter: T,
+) -> Value<T, N> {
+    let s = add(
+        add(v[q[0] as usize], v[q[1] as usize]),
+        add(v[q[2] as usize], v[q[3] as usize]),
+    );
+    scale(s, quarter)
+}
+
+/// The mean of the four fine faces `q` of a coarse quad, at its face point (a dual -> primal
+/// average; `quarter` is 1/4 in `T`).
+#[inline(always)]
+fn quad_mean<T: Scalar, const N: usize>(q: &[Value<T, N>], quarter: T) -> Value<T, N> {
+    scale(q.iter().fold(zero(), |s, &x| add(s, x)), quarter)
 }
 
 /// `buffer` holds at least `n` initialised items (the pass after it writes some of them and
@@ -1058,6 +1058,20 @@ fn edge_face_mean<T: Scalar, const N: usize>(
             T::from_f64(0.5),
         ),
     }
+}
+
+/// [`edge_face_mean`] of the edges of coarse quad `f`'s corners, written out: through
+/// `array::from_fn` LLVM left the closure out of line, a call per mean (cached averaging 2:
+/// 54.1M instructions, 44.8M written out).
+#[inline(always)]
+fn edge_face_means<T: Scalar, const N: usize>(
+    t: &Tables,
+    x: &[Value<T, N>],
+    corner_edges: &[u32],
+    f: usize,
+) -> [Value<T, N>; 4] {
+    let mean = |k: usize| edge_face_mean(t, x, corner_edges[4 * f + k] as usize);
+    [mean(0), mean(1), mean(2), mean(3)]
 }
 
 /// The centroid of the fine faces at old vertex `w` (they are its coarse corners: unlike
