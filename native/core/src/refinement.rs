@@ -126,11 +126,7 @@ impl Refinement {
         };
         let windows = match scheme {
             Scheme::Averaging { degree } => (0..networks.len())
-                .map(|j| {
-                    // The cage's points are primal; the steps leave dual data for even degrees.
-                    let primal = j == 0 || degree % 2 == 1;
-                    Windows::build(&levels[j], &levels[j + 1], &networks[j], degree, primal)
-                })
+                .map(|j| Windows::of_step(&levels[j], &levels[j + 1], &networks[j], degree, j))
                 .collect::<Result<Vec<_>>>()?,
             _ => Vec::new(),
         };

@@ -87,6 +87,19 @@ const MAX_AVERAGES: u32 = 8;
 const MAX_SIDE: usize = 6;
 
 impl Windows {
+    /// [`Windows::build`] for step `j` of a run from the cage: the cage's points are primal,
+    /// and the steps leave dual data for even degrees.
+    pub(crate) fn of_step(
+        coarse: &Level,
+        fine: &Level,
+        curves: &CurveNetwork,
+        degree: u32,
+        j: usize,
+    ) -> Result<Option<Windows>> {
+        let primal = j == 0 || degree % 2 == 1;
+        Windows::build(coarse, fine, curves, degree, primal)
+    }
+
     /// The windows of a step of the averaging rules of `degree` from `coarse` to `fine` with
     /// the step's `curves`, for `primal` (per coarse vertex) or dual input; `None` when the
     /// kernel has nothing to do (not a quad level, a degree without a kernel, or no regular
