@@ -8,7 +8,7 @@ use std::mem::MaybeUninit;
 
 use rayon::prelude::*;
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::memory;
 
 /// Items per parallel task in the gathers (large enough to amortise scheduling).
@@ -299,22 +299,24 @@ pub(crate) fn fill<V: Send, F: Fn(usize) -> V + Sync + Send>(out: &mut [MaybeUni
 
 /// `out[G * at[i] + k] = value(at[i])[k]` for every `i` (the groups named by `at`, the others
 /// untouched), in parallel chunks of [`CHUNK`] names, so the result does not depend on the
-/// number of threads. `at` must be strictly increasing (checked: a repeated name would be two
-/// threads writing one item).
+/// number of threads. `at` must be strictly increasing and in range: checked before anything
+/// is written (a repeated name would be two threads writing one item), an
+/// [`Error::Internal`] otherwise, since the lists come from the crate, never from the user.
 pub(crate) fn scatter_uninit<V: Send, const G: usize>(
     out: &mut [MaybeUninit<V>],
     at: &[u32],
     value: impl Fn(usize) -> [V; G] + Sync + Send,
-) {
-    assert!(
-        at.windows(2).all(|w| w[0] < w[1]),
-        "scatter: names not strictly increasing"
-    );
-    if let Some(&last) = at.last() {
-        assert!(
-            G * (last as usize + 1) <= out.len(),
-            "scatter: name out of range"
-        );
+) -> Result<()> {
+    if !at.windows(2).all(|w| w[0] < w[1]) {
+        return Err(Error::Internal(
+            "scatter: names not strictly increasing".into(),
+        ));
+    }
+    if at
+        .last()
+        .is_some_and(|&last| G * (last as usize + 1) > out.len())
+    {
+        return Err(Error::Internal("scatter: name out of range".into()));
     }
     struct Out<V>(*mut MaybeUninit<V>);
     // SAFETY: the tasks write disjoint groups (the names are distinct) and read nothing.
@@ -335,6 +337,7 @@ pub(crate) fn scatter_uninit<V: Send, const G: usize>(
             }
         }
     });
+    Ok(())
 }
 
 /// [`scatter_uninit`] into initialised items (which stay initialised: only values are written).
@@ -342,11 +345,11 @@ pub(crate) fn scatter<V: Send, const G: usize>(
     out: &mut [V],
     at: &[u32],
     value: impl Fn(usize) -> [V; G] + Sync + Send,
-) {
+) -> Result<()> {
     // SAFETY: `MaybeUninit<V>` has the layout of `V`, and `scatter_uninit` writes only
     // initialised values, so every item of `out` stays initialised.
     let out = unsafe { &mut *(out as *mut [V] as *mut [MaybeUninit<V>]) };
-    scatter_uninit(out, at, value);
+    scatter_uninit(out, at, value)
 }
 
 /// Runs `work` on a thread of rayon's pool. A run of many short parallel loops started from

@@ -358,7 +358,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         match windows {
             Some(w) => {
                 debug_assert_eq!(w.degree(), degree);
-                self.average_windowed(step, w);
+                self.average_windowed(step, w)?;
             }
             None => self.average_by_passes(step, degree),
         }
@@ -390,7 +390,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
     /// kernel, then the later averages up to the kernel's, each pass over the items of the
     /// windows' zone only; an odd degree's last average then runs over every vertex. The coarse
     /// data is read until the kernel has run; its buffer then serves the fine vertices.
-    fn average_windowed(&mut self, step: &Step, windows: &Windows) {
+    fn average_windowed(&mut self, step: &Step, windows: &Windows) -> Result<()> {
         let (coarse, fine, curves) = (step.coarse, step.fine, step.curves);
         let averages = windows.averages() as usize;
         let zone = windows.zone();
@@ -423,7 +423,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         let (n_faces, n_vertices) = (fine.num_faces(), fine.num_vertices);
         let mut faces = self.take_faces();
         initialised(&mut faces, n_faces);
-        scatter(&mut faces[..n_faces], &zone.first, |f| children.of(f));
+        scatter(&mut faces[..n_faces], &zone.first, |f| children.of(f))?;
         // The kernel's output: every child written once, by the kernel or by the last pass.
         let mut out = self.fresh();
         out.clear();
@@ -445,7 +445,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
                 initialised(&mut vertices, n_vertices);
                 scatter(&mut vertices[..n_vertices], items, |w| {
                     [primal_item(&t, f, w)]
-                });
+                })?;
                 let curve = self.blend_curves(curves, &mut vertices[..n_vertices]);
                 self.curve = CurveData::Primal(curve);
             } else {
@@ -454,9 +454,9 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
                 let (quads, _) = fine.corner_verts.as_chunks::<4>();
                 let value = |g: usize| [corner_centroid(v, &quads[g], quarter)];
                 if pass + 3 == averages {
-                    scatter_uninit(&mut out.spare_capacity_mut()[..n_faces], items, value);
+                    scatter_uninit(&mut out.spare_capacity_mut()[..n_faces], items, value)?;
                 } else {
-                    scatter(&mut faces[..n_faces], items, value);
+                    scatter(&mut faces[..n_faces], items, value)?;
                 }
                 let CurveData::Primal(curve) = &self.curve else {
                     unreachable!("1-D data out of step")
@@ -475,6 +475,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         if windows.degree() % 2 == 1 {
             self.average_to_primal(step);
         }
+        Ok(())
     }
 
     /// Ends a run on the last step's levels: `want_dual` selects the kind (the drawing mesh

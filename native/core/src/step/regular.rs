@@ -719,7 +719,11 @@ impl Zone {
     /// `masks` (module documentation of [`Windows`]).
     fn of(coarse: &Level, fine: &Level, averages: u32, masks: &[u8]) -> Result<Zone> {
         let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
-        let mut last = Vec::new();
+        // The children the kernel leaves, counted first: the list is made fallibly at its size.
+        let left: usize = (masks.iter())
+            .map(|&m| 4 - (m & 0xf).count_ones() as usize)
+            .sum();
+        let mut last = memory::with_capacity(left)?;
         for (f, &mask) in masks.iter().enumerate() {
             if mask == 0xf {
                 continue;
@@ -774,7 +778,7 @@ impl Zone {
         }
         // The first pass makes the children of whole coarse faces.
         let children = passes.pop().expect("the first pass's output");
-        let mut first: Vec<u32> = children.iter().map(|&c| c >> 2).collect();
+        let mut first: Vec<u32> = memory::collect(children.iter().map(|&c| c >> 2))?;
         first.dedup();
         passes.reverse();
         Ok(Zone { first, passes })
