@@ -35,6 +35,12 @@
 //! call costs 5.0x (degree 3), 6.0x (4) and 14x (9) a fresh evaluation (10.5x, 13.1x and 27x
 //! before the chunked stencil walk), the cached one 4.3x, 2.7x and 6.9x a cached evaluation (5.5x,
 //! 3.2x and 7.4x before); see the README's limit paragraph.
+//!
+//! Hard limit rows ([`hard_limit_rows`]): the issue's other limit targets in wall time, the
+//! cages of the callgrind driver's `limit-*` cases at level 2: a 12 x 12 grid with one crease
+//! of sharpness 7.5 against the same crease infinitely sharp ("semi/sharp", target <= 1, cached
+//! and first call), and the first call of a valence-400 triangle fan and of a single 1000-gon at
+//! degree 9 (target under 1 s).
 
 use std::collections::HashMap;
 use std::hint::black_box;
@@ -46,7 +52,7 @@ use std::time::Instant;
 use bidegree::{estimate, Options, Plan, Rules};
 
 mod cages;
-use cages::ico_quad_sphere;
+use cages::{creased_grid, ico_quad_sphere, polygon, triangle_fan};
 
 /// Writes the cage in the driver's format (see `bench/opensubdiv/driver.cpp`).
 fn write_cage(path: &Path, sizes: &[u32], indices: &[u32], points: &[f32]) {
@@ -338,6 +344,7 @@ fn main() {
     }
     if std::env::var("BIDEGREE_BENCH_LIMIT").as_deref() != Ok("0") {
         limit_rows(&levels, seconds);
+        hard_limit_rows(seconds);
     }
     println!("\nload average at the end: {}", load_average());
 }
@@ -399,5 +406,64 @@ fn limit_rows(levels: &[u32], seconds: f64) {
             );
             std::io::stdout().flush().ok();
         }
+    }
+}
+
+/// The hard limit rows of the module documentation.
+fn hard_limit_rows(seconds: f64) {
+    println!(
+        "\nlimit surface, hard cases at level 2 (load average {}): semi/sharp = the 12 x 12 grid \
+         with a crease of sharpness 7.5 / the same crease infinitely sharp (target <= 1); \
+         first = Plan::new + limit_surface",
+        load_average()
+    );
+    println!(
+        "{:>6} {:>14} {:>14} {:>10} {:>14} {:>14} {:>10}",
+        "degree",
+        "semi ms",
+        "sharp ms",
+        "semi/sharp",
+        "semi first ms",
+        "sharp first ms",
+        "semi/sharp"
+    );
+    let options = |degree| Options {
+        degree,
+        levels: 2,
+        ..Options::default()
+    };
+    // Cached and first-call limit times of one cage.
+    let times = |(cage, points): &(bidegree::Cage, Vec<f32>), degree: u32| {
+        let plan = Plan::new(cage, &options(degree)).unwrap();
+        let moved: Vec<f32> = points.iter().map(|x| x * 1.01).collect();
+        plan.limit_surface(points).unwrap();
+        let cached = median_ms(seconds, || plan.limit_surface(&moved).unwrap());
+        let first = median_ms(seconds, || {
+            let plan = Plan::new(cage, &options(degree)).unwrap();
+            let out = plan.limit_surface(points).unwrap();
+            (plan, out)
+        });
+        (cached, first)
+    };
+    let (semi, sharp) = (creased_grid(12, 7.5), creased_grid(12, 10.0));
+    for degree in [3, 4, 9] {
+        let (semi_cached, semi_first) = times(&semi, degree);
+        let (sharp_cached, sharp_first) = times(&sharp, degree);
+        println!(
+            "{degree:>6} {semi_cached:>14.2} {sharp_cached:>14.2} {:>10.2} {semi_first:>14.2} \
+             {sharp_first:>14.2} {:>10.2}",
+            semi_cached / sharp_cached,
+            semi_first / sharp_first
+        );
+        std::io::stdout().flush().ok();
+    }
+    println!(
+        "{:>16} {:>10} {:>10}",
+        "cage, degree 9", "first ms", "cached ms"
+    );
+    for (name, cage) in [("fan 400", triangle_fan(400)), ("1000-gon", polygon(1000))] {
+        let (cached, first) = times(&cage, 9);
+        println!("{name:>16} {first:>10.2} {cached:>10.2}");
+        std::io::stdout().flush().ok();
     }
 }

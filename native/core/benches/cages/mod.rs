@@ -151,7 +151,7 @@ pub fn ico_patch_uvs(n: usize, indices: &[u32], points: &[f32]) -> Vec<f32> {
         .collect()
 }
 
-#[allow(dead_code)] // a case of the callgrind driver only; each bench uses some of these cages
+#[allow(dead_code)] // the callgrind driver and the OpenSubdiv bench only (each bench uses some cages)
 pub fn triangle_fan(valence: usize) -> (Cage, Vec<f32>) {
     let mut points = vec![0.0f32, 0.0, 0.0];
     let mut indices = Vec::with_capacity(3 * valence);
@@ -165,7 +165,7 @@ pub fn triangle_fan(valence: usize) -> (Cage, Vec<f32>) {
 }
 
 /// A single `k`-gon on the unit circle.
-#[allow(dead_code)] // a case of the callgrind driver only; each bench uses some of these cages
+#[allow(dead_code)] // the callgrind driver and the OpenSubdiv bench only (each bench uses some cages)
 pub fn polygon(k: usize) -> (Cage, Vec<f32>) {
     let mut points = Vec::with_capacity(3 * k);
     for i in 0..k {
@@ -178,7 +178,7 @@ pub fn polygon(k: usize) -> (Cage, Vec<f32>) {
 }
 
 /// A `n x n` quad grid, bumped, with one crease of `sharpness` along its middle row of edges.
-#[allow(dead_code)] // a case of the callgrind driver only; each bench uses some of these cages
+#[allow(dead_code)] // the callgrind driver and the OpenSubdiv bench only (each bench uses some cages)
 pub fn creased_grid(n: usize, sharpness: f32) -> (Cage, Vec<f32>) {
     let id = |i: usize, j: usize| (i * (n + 1) + j) as i64;
     let mut points = Vec::new();
