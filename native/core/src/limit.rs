@@ -143,6 +143,8 @@ pub(crate) struct Stencils {
     /// (empty where there are no tangents): one walk over a stencil's data gives all three,
     /// in two-lane vector operations.
     joint: Vec<Vec<[f64; 4]>>,
+    /// The masks of valence 4 folded over the sectors (`None` at other valences).
+    folded: Vec<Option<Folded>>,
     /// The 1-D position mask along curves (symmetric, centred).
     curve_mask: Vec<f64>,
     /// Fan of each output face corner at a curve vertex or corner (index into `fan_offsets`),
@@ -435,6 +437,7 @@ fn build_stencils(
             _ => Vec::new(),
         })
         .collect();
+    let folded = masks.iter().map(|m| Folded::of(m, primal)).collect();
 
     // Fans at curve vertices and corners, one per output corner there: (level corner, stencil).
     let output_corners = targets.output.num_corners();
@@ -565,6 +568,7 @@ fn build_stencils(
         items,
         masks,
         joint,
+        folded,
         curve_mask,
         corner_fan,
         fan_offsets,
@@ -1365,7 +1369,10 @@ fn stencil_values<T: Scalar, const N: usize>(
     gather_pairs_hinted(st.masks_of.len(), |v| match st.masks_of[v] {
         LimitMask::Interior(m) if !st.joint[m as usize].is_empty() => {
             let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
-            let [p, a, b] = combine_joint(data, items, &st.joint[m as usize]);
+            let [p, a, b] = match &st.folded[m as usize] {
+                Some(fold) => fold.joint(data, items),
+                None => combine_joint(data, items, &st.joint[m as usize]),
+            };
             let normal = at(&a).cross(at(&b)).normalize_or_zero();
             (p.map(T::from_f64), normal.to_array().map(T::from_f64))
         }
@@ -1385,7 +1392,11 @@ fn stencil_positions<T: Scalar, const N: usize>(
 fn stencil_position<T: Scalar, const N: usize>(st: &Stencils, data: &[[T; N]], v: usize) -> [T; N] {
     let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
     let weights: &[f64] = match st.masks_of[v] {
-        LimitMask::Interior(m) | LimitMask::Valence2(m) => &st.masks[m as usize].position,
+        LimitMask::Interior(m) => match &st.folded[m as usize] {
+            Some(fold) => return fold.position(data, items).map(T::from_f64),
+            None => &st.masks[m as usize].position,
+        },
+        LimitMask::Valence2(m) => &st.masks[m as usize].position,
         LimitMask::Curve => &st.curve_mask,
         LimitMask::Corner => return data[items[0] as usize],
         LimitMask::Local => return zero(),
@@ -1545,6 +1556,105 @@ fn combine<T: Scalar, const N: usize>(data: &[[T; N]], items: &[u32], weights: &
         }
     }
     acc.map(T::from_f64)
+}
+
+/// The masks of valence 4 folded over the four sectors: there the position weights are the
+/// same in every sector and each tangent's weights in sectors 2 and 3 are those of sectors 0
+/// and 1 negated (mode 1 of the rotation), so each item's four sector copies are summed first
+/// and opposite ones subtracted, about half the products of [`combine_joint`].
+#[derive(Debug)]
+struct Folded {
+    /// The centre's position weight (odd degrees; even ones have no centre item).
+    centre: Option<f64>,
+    /// Per item of a sector: its position weight and the tangents' weights `[a, b]` in sectors
+    /// 0 and 1.
+    groups: Vec<(f64, [[f64; 2]; 2])>,
+}
+
+impl Folded {
+    /// The folded masks of `m` (`primal`: with a centre item), if its valence is 4, it has
+    /// tangents and its weights have the symmetry (to rounding: the modes' phases are rounded).
+    fn of(m: &VertexMasks, primal: bool) -> Option<Folded> {
+        let [a, b] = &m.tangents;
+        let off = usize::from(primal);
+        let len = m.position.len();
+        if m.valence != 4 || a.len() != len || b.len() != len || len < off + 4 {
+            return None;
+        }
+        let p = (len - off) / 4;
+        let largest = (m.position.iter().chain(a).chain(b)).fold(0.0f64, |x, &w| x.max(w.abs()));
+        let close = |x: f64, y: f64| (x - y).abs() <= 1e-12 * largest;
+        let at = |mask: &[f64], s: usize, i: usize| mask[off + s * p + i];
+        let symmetric = 4 * p + off == len
+            && (!primal || (close(a[0], 0.0) && close(b[0], 0.0)))
+            && (0..p).all(|i| {
+                (1..4).all(|s| at(&m.position, s, i) == at(&m.position, 0, i))
+                    && [a, b].iter().all(|t| {
+                        close(at(t, 2, i), -at(t, 0, i)) && close(at(t, 3, i), -at(t, 1, i))
+                    })
+            });
+        symmetric.then(|| Folded {
+            centre: primal.then(|| m.position[0]),
+            groups: (0..p)
+                .map(|i| {
+                    let pair = |s: usize| [at(a, s, i), at(b, s, i)];
+                    (at(&m.position, 0, i), [pair(0), pair(1)])
+                })
+                .collect(),
+        })
+    }
+
+    /// The limit position of a stencil's `items` (in the order of [`frame_items`]) from `data`.
+    fn position<T: Scalar, const N: usize>(&self, data: &[[T; N]], items: &[u32]) -> [f64; N] {
+        self.sums::<T, N, false>(data, items).0
+    }
+
+    /// The position and the two tangents, as [`combine_joint`] gives them.
+    fn joint<T: Scalar, const N: usize>(&self, data: &[[T; N]], items: &[u32]) -> [[f64; N]; 3] {
+        let (p, t) = self.sums::<T, N, true>(data, items);
+        [p, t.map(|t| t[0]), t.map(|t| t[1])]
+    }
+
+    /// The position and (with `TANGENTS`) the tangents `[a, b]` per channel; the position's
+    /// sums are the same either way, so positions alone equal those given with normals.
+    #[inline(always)]
+    fn sums<T: Scalar, const N: usize, const TANGENTS: bool>(
+        &self,
+        data: &[[T; N]],
+        items: &[u32],
+    ) -> ([f64; N], [[f64; 2]; N]) {
+        let at = |i: u32| data[i as usize].map(T::to_f64);
+        let mut position = [0.0f64; N];
+        let mut tangents = [[0.0f64; 2]; N];
+        let mut rest = items;
+        if let (Some(w), Some((&c, tail))) = (self.centre, items.split_first()) {
+            let x = at(c);
+            for k in 0..N {
+                position[k] += w * x[k];
+            }
+            rest = tail;
+        }
+        let p = self.groups.len();
+        let sector = |s: usize| rest.get(s * p..(s + 1) * p).unwrap_or_default();
+        let rows = (self.groups.iter())
+            .zip(sector(0))
+            .zip(sector(1))
+            .zip(sector(2))
+            .zip(sector(3));
+        for ((((&(w, [t0, t1]), &i0), &i1), &i2), &i3) in rows {
+            let (x0, x1, x2, x3) = (at(i0), at(i1), at(i2), at(i3));
+            for k in 0..N {
+                position[k] += w * ((x0[k] + x1[k]) + (x2[k] + x3[k]));
+                if TANGENTS {
+                    let (d02, d13) = (x0[k] - x2[k], x1[k] - x3[k]);
+                    for j in 0..2 {
+                        tangents[k][j] += t0[j] * d02 + t1[j] * d13;
+                    }
+                }
+            }
+        }
+        (position, tangents)
+    }
 }
 
 /// The three sums `sum w_i[j] data[items_i]` (`j` = position, the two tangents) in one walk,
@@ -1757,6 +1867,33 @@ mod tests {
             }
         }
         assert!(staged >= 20, "{staged} of 112 cases in two stages");
+    }
+
+    /// The masks of valence 4 fold for every degree, and the folded sums are those of the
+    /// plain masks to rounding.
+    #[test]
+    fn valence_four_masks_fold() {
+        for degree in 2..=9 {
+            let m = cached_vertex_masks(degree, 4).unwrap();
+            let fold = Folded::of(&m, degree % 2 == 1).expect("a folded mask");
+            let joint: Vec<[f64; 4]> = (m.position.iter().zip(&m.tangents[0]))
+                .zip(&m.tangents[1])
+                .map(|((&p, &a), &b)| [p, a, b, 0.0])
+                .collect();
+            let data: Vec<[f64; 3]> = (0..joint.len())
+                .map(|i| {
+                    let x = i as f64;
+                    [(0.7 * x).sin() + 3.0, (1.3 * x).cos() - 2.0, 0.1 * x]
+                })
+                .collect();
+            let items: Vec<u32> = (0..joint.len() as u32).rev().collect();
+            let plain = combine_joint(&data, &items, &joint);
+            let folded = fold.joint(&data, &items);
+            assert_eq!(folded[0], fold.position(&data, &items));
+            for (x, y) in plain.iter().flatten().zip(folded.iter().flatten()) {
+                assert!((x - y).abs() <= 1e-13 * x.abs().max(1.0), "degree {degree}");
+            }
+        }
     }
 
     /// On a mesh whose unclean vertices are a small part (a large grid: its boundary and
