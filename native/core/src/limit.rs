@@ -312,17 +312,19 @@ fn build_stencils(
         true => Some(QuadWalk {
             level: last,
             twins: last.twin_corners()?,
-            regular: gather_hinted(last.num_vertices, |w| {
-                last.corners_of_vertex(w).len() == 4 && curve_of(w).is_none()
+            marks: gather_hinted(last.num_vertices, |w| {
+                match last.corners_of_vertex(w).len() == 4 && curve_of(w).is_none() {
+                    true => 0,
+                    false => Stamps::IRREGULAR,
+                }
             })?,
             n,
             primal,
         }),
         false => None,
     };
-    let chunk_stencils = |range: std::ops::Range<usize>| -> Result<ChunkStencils> {
+    let chunk_stencils = |stamps: &mut Stamps, range: std::ops::Range<usize>| -> Result<_> {
         let mut chunk = ChunkStencils::default();
-        let mut seen = Seen::default();
         for t in range {
             let v = (targets.vertex)(t);
             let at = chunk.items.len();
@@ -335,7 +337,7 @@ fn build_stencils(
             };
             let mask = match &walk {
                 Some(walk) if curve_of(v).is_none() => {
-                    match walk.interior(v, &mut seen, &mut chunk.items) {
+                    match walk.interior(v, stamps, &mut chunk.items) {
                         Walked::Clean(mask) => Some(mask),
                         Walked::NotClean => None,
                         Walked::Other => general(&mut chunk.items),
@@ -360,13 +362,23 @@ fn build_stencils(
     let mut items: Vec<u32> = Vec::new();
     let mut local = Vec::new();
     offsets.push(0u32);
+    let pool = Mutex::new(Vec::new());
+    let marks = walk.as_ref().map_or(&[][..], |w| &w.marks[..]);
     for start in (0..outputs).step_by(BLOCK) {
         let end = (start + BLOCK).min(outputs);
         let chunks: Vec<ChunkStencils> = (start..end)
             .step_by(CHUNK)
             .collect::<Vec<_>>()
             .into_par_iter()
-            .map(|from| chunk_stencils(from..(from + CHUNK).min(end)))
+            // Each task takes stamps (a table per level vertex) from the pool for all its
+            // chunks and puts them back: as many tables as tasks run at once, not one per task.
+            .map_init(
+                || Pooled::take(&pool, marks),
+                |stamps, from| {
+                    let stamps = stamps.stamps.as_mut().map_err(|e| e.clone())?;
+                    chunk_stencils(stamps, from..(from + CHUNK).min(end))
+                },
+            )
             .collect::<Result<_>>()?;
         if !allow_local && chunks.iter().any(|c| c.masks.contains(&None)) {
             return Ok(None);
@@ -593,8 +605,9 @@ struct QuadWalk<'a> {
     level: &'a Level,
     /// [`Level::twin_corners`] of the level.
     twins: Vec<u32>,
-    /// Per vertex: interior of valence 4 and on no curve.
-    regular: Vec<bool>,
+    /// Per vertex: 0 if interior of valence 4 and on no curve (regular), else
+    /// [`Stamps::IRREGULAR`]: the table each task's [`Stamps`] starts from.
+    marks: Vec<u32>,
     /// The neighbourhood size `N`.
     n: usize,
     primal: bool,
@@ -614,10 +627,10 @@ enum Walked {
 impl QuadWalk<'_> {
     /// The stencil of interior vertex `v`, its items appended to `items` in the order of
     /// [`frame_items`] (past their length on entry they are garbage unless it is clean): the
-    /// frames of [`sector_frames`], each read as it is walked. `seen` is kept between calls.
-    fn interior(&self, v: usize, seen: &mut Seen, items: &mut Vec<u32>) -> Walked {
+    /// frames of [`sector_frames`], each read as it is walked. `stamps` is kept between calls.
+    fn interior(&self, v: usize, stamps: &mut Stamps, items: &mut Vec<u32>) -> Walked {
         let l = self.level;
-        let (twins, verts, regular) = (&self.twins[..], &l.corner_verts[..], &self.regular[..]);
+        let (twins, verts) = (&self.twins[..], &l.corner_verts[..]);
         // On a quad, next(c) and prev(c) turn within the face's four corners; next(next(c))
         // is c ^ 2.
         let (next, prev) = (quad_next, quad_prev);
@@ -632,13 +645,15 @@ impl QuadWalk<'_> {
         };
         let first = first as usize;
         let centre = verts[first];
-        seen.start(1 + k * n * side);
-        seen.insert(centre);
+        stamps.start();
+        // An irregular centre keeps its mark (and fails a walk back to it, as a regular one
+        // then fails as seen).
+        stamps.insert(centre);
         items.reserve(1 + k * n * side);
         if primal {
             items.push(centre);
         }
-        let walk = |seen: &mut Seen, items: &mut Vec<u32>| -> Option<Option<usize>> {
+        let walk = |stamps: &mut Stamps, items: &mut Vec<u32>| -> Option<Option<usize>> {
             // Sector by sector counter-clockwise, as `SectorGrid`: the next sector lies across
             // the incoming edge of this one's corner at the centre.
             let mut start = first;
@@ -670,7 +685,7 @@ impl QuadWalk<'_> {
                             o = twin(o ^ 2)?;
                         }
                         let w = verts[o];
-                        if !regular[w as usize] || !seen.insert(w) {
+                        if !stamps.insert(w) {
                             return None;
                         }
                         if primal {
@@ -683,7 +698,7 @@ impl QuadWalk<'_> {
             }
             Some((twin(prev(start))? == first).then_some(k))
         };
-        match walk(seen, items) {
+        match walk(stamps, items) {
             None => Walked::NotClean,
             Some(None) => Walked::Other,
             Some(Some(2)) => Walked::Clean(LimitMask::Valence2(2)),
@@ -692,42 +707,75 @@ impl QuadWalk<'_> {
     }
 }
 
-/// A set of vertex ids for one neighbourhood at a time, kept between neighbourhoods: open
-/// addressing, each entry stamped with its neighbourhood's number, so a new neighbourhood
-/// starts without clearing the table.
+/// The vertices of one neighbourhood at a time, and the level's vertices that are not regular,
+/// in one table per level vertex: each neighbourhood has its own stamp, so a new one starts
+/// without clearing the table, and one read per vertex tells both whether it is regular and
+/// whether the walk has met it (the neighbourhood is a disc).
 #[derive(Default)]
-struct Seen {
-    slots: Vec<u64>,
-    bits: u32,
-    stamp: u64,
+struct Stamps {
+    table: Vec<u32>,
+    stamp: u32,
 }
 
-impl Seen {
-    /// Starts the (empty) set of a new neighbourhood of at most `len` vertices.
-    fn start(&mut self, len: usize) {
-        let need = (2 * len).next_power_of_two().max(64);
-        if self.slots.len() < need {
-            self.slots = vec![0; need];
-            self.bits = need.trailing_zeros();
-        }
-        self.stamp += 1;
+impl Stamps {
+    /// The mark of a vertex that is not regular (never a neighbourhood's stamp).
+    const IRREGULAR: u32 = u32::MAX;
+
+    /// Stamps over `marks` (0 for a regular vertex, else [`Stamps::IRREGULAR`]), copied
+    /// fallibly.
+    fn new(marks: &[u32]) -> Result<Stamps> {
+        let mut table = memory::with_capacity(marks.len())?;
+        table.extend_from_slice(marks);
+        Ok(Stamps { table, stamp: 0 })
     }
 
-    /// Adds `w`; false if it was there.
+    /// Starts the (empty) set of a new neighbourhood.
+    fn start(&mut self) {
+        self.stamp += 1;
+        if self.stamp == Self::IRREGULAR {
+            // Every stamp used: the table forgets the neighbourhoods, not the marks.
+            for e in self.table.iter_mut().filter(|e| **e != Self::IRREGULAR) {
+                *e = 0;
+            }
+            self.stamp = 1;
+        }
+    }
+
+    /// Adds vertex `w`; false if it is not regular or was there.
     fn insert(&mut self, w: u32) -> bool {
-        let mask = self.slots.len() - 1;
-        let key = self.stamp << 32 | u64::from(w);
-        let mut h = (u64::from(w).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - self.bits)) as usize;
-        loop {
-            let e = self.slots[h];
-            if e >> 32 != self.stamp {
-                self.slots[h] = key;
-                return true;
+        match self.table.get_mut(w as usize) {
+            Some(e) if *e != self.stamp && *e != Self::IRREGULAR => {
+                *e = self.stamp;
+                true
             }
-            if e == key {
-                return false;
-            }
-            h = (h + 1) & mask;
+            _ => false,
+        }
+    }
+}
+
+/// Stamps taken from a pool for one parallel task, put back when it ends.
+struct Pooled<'a> {
+    stamps: Result<Stamps>,
+    pool: &'a Mutex<Vec<Stamps>>,
+}
+
+impl<'a> Pooled<'a> {
+    /// Stamps from `pool`, or new ones over `marks` when it is empty.
+    fn take(pool: &'a Mutex<Vec<Stamps>>, marks: &[u32]) -> Pooled<'a> {
+        let kept = pool.lock().unwrap_or_else(|e| e.into_inner()).pop();
+        let stamps = kept.map_or_else(|| Stamps::new(marks), Ok);
+        Pooled { stamps, pool }
+    }
+}
+
+impl Drop for Pooled<'_> {
+    fn drop(&mut self) {
+        let stamps = std::mem::replace(&mut self.stamps, Ok(Stamps::default()));
+        if let Ok(stamps) = stamps {
+            self.pool
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .push(stamps);
         }
     }
 }
