@@ -147,6 +147,8 @@ pub(crate) struct Stencils {
     /// (empty where there are no tangents): one walk over a stencil's data gives all three,
     /// in two-lane vector operations.
     joint: Vec<Vec<[f64; 4]>>,
+    /// The masks of valence 4 folded over the sectors (`None` at other valences).
+    folded: Vec<Option<Folded>>,
     /// The 1-D position mask along curves (symmetric, centred).
     curve_mask: Vec<f64>,
     /// Fan of each output face corner at a curve vertex or corner (index into `fan_offsets`),
@@ -328,17 +330,19 @@ fn build_stencils(
         true => Some(QuadWalk {
             level: last,
             twins: last.twin_corners()?,
-            regular: gather_hinted(last.num_vertices, |w| {
-                last.corners_of_vertex(w).len() == 4 && curve_of(w).is_none()
+            marks: gather_hinted(last.num_vertices, |w| {
+                match last.corners_of_vertex(w).len() == 4 && curve_of(w).is_none() {
+                    true => 0,
+                    false => Stamps::IRREGULAR,
+                }
             })?,
             n,
             primal,
         }),
         false => None,
     };
-    let chunk_stencils = |range: std::ops::Range<usize>| -> Result<ChunkStencils> {
+    let chunk_stencils = |stamps: &mut Stamps, range: std::ops::Range<usize>| -> Result<_> {
         let mut chunk = ChunkStencils::default();
-        let mut seen = Seen::default();
         for t in range {
             let v = (targets.vertex)(t);
             let at = chunk.items.len();
@@ -351,7 +355,7 @@ fn build_stencils(
             };
             let mask = match &walk {
                 Some(walk) if curve_of(v).is_none() => {
-                    match walk.interior(v, &mut seen, &mut chunk.items) {
+                    match walk.interior(v, stamps, &mut chunk.items) {
                         Walked::Clean(mask) => Some(mask),
                         Walked::NotClean => None,
                         Walked::Other => general(&mut chunk.items),
@@ -376,13 +380,23 @@ fn build_stencils(
     let mut items: Vec<u32> = Vec::new();
     let mut local = Vec::new();
     offsets.push(0u32);
+    let pool = Mutex::new(Vec::new());
+    let marks = walk.as_ref().map_or(&[][..], |w| &w.marks[..]);
     for start in (0..outputs).step_by(BLOCK) {
         let end = (start + BLOCK).min(outputs);
         let chunks: Vec<ChunkStencils> = (start..end)
             .step_by(CHUNK)
             .collect::<Vec<_>>()
             .into_par_iter()
-            .map(|from| chunk_stencils(from..(from + CHUNK).min(end)))
+            // Each task takes stamps (a table per level vertex) from the pool for all its
+            // chunks and puts them back: as many tables as tasks run at once, not one per task.
+            .map_init(
+                || Pooled::take(&pool, marks),
+                |stamps, from| {
+                    let stamps = stamps.stamps.as_mut().map_err(|e| e.clone())?;
+                    chunk_stencils(stamps, from..(from + CHUNK).min(end))
+                },
+            )
             .collect::<Result<_>>()?;
         if unclean == Unclean::Refuse && chunks.iter().any(|c| c.masks.contains(&None)) {
             return Ok(None);
@@ -451,6 +465,7 @@ fn build_stencils(
             _ => Vec::new(),
         })
         .collect();
+    let folded = masks.iter().map(|m| Folded::of(m, primal)).collect();
 
     // Fans at curve vertices and corners, one per output corner there: (level corner, stencil).
     let output_corners = targets.output.num_corners();
@@ -581,6 +596,7 @@ fn build_stencils(
         items,
         masks,
         joint,
+        folded,
         curve_mask,
         corner_fan,
         fan_offsets,
@@ -605,8 +621,9 @@ struct QuadWalk<'a> {
     level: &'a Level,
     /// [`Level::twin_corners`] of the level.
     twins: Vec<u32>,
-    /// Per vertex: interior of valence 4 and on no curve.
-    regular: Vec<bool>,
+    /// Per vertex: 0 if interior of valence 4 and on no curve (regular), else
+    /// [`Stamps::IRREGULAR`]: the table each task's [`Stamps`] starts from.
+    marks: Vec<u32>,
     /// The neighbourhood size `N`.
     n: usize,
     primal: bool,
@@ -626,10 +643,10 @@ enum Walked {
 impl QuadWalk<'_> {
     /// The stencil of interior vertex `v`, its items appended to `items` in the order of
     /// [`frame_items`] (past their length on entry they are garbage unless it is clean): the
-    /// frames of [`sector_frames`], each read as it is walked. `seen` is kept between calls.
-    fn interior(&self, v: usize, seen: &mut Seen, items: &mut Vec<u32>) -> Walked {
+    /// frames of [`sector_frames`], each read as it is walked. `stamps` is kept between calls.
+    fn interior(&self, v: usize, stamps: &mut Stamps, items: &mut Vec<u32>) -> Walked {
         let l = self.level;
-        let (twins, verts, regular) = (&self.twins[..], &l.corner_verts[..], &self.regular[..]);
+        let (twins, verts) = (&self.twins[..], &l.corner_verts[..]);
         // On a quad, next(c) and prev(c) turn within the face's four corners; next(next(c))
         // is c ^ 2.
         let (next, prev) = (quad_next, quad_prev);
@@ -644,13 +661,15 @@ impl QuadWalk<'_> {
         };
         let first = first as usize;
         let centre = verts[first];
-        seen.start(1 + k * n * side);
-        seen.insert(centre);
+        stamps.start();
+        // An irregular centre keeps its mark (and fails a walk back to it, as a regular one
+        // then fails as seen).
+        stamps.insert(centre);
         items.reserve(1 + k * n * side);
         if primal {
             items.push(centre);
         }
-        let walk = |seen: &mut Seen, items: &mut Vec<u32>| -> Option<Option<usize>> {
+        let walk = |stamps: &mut Stamps, items: &mut Vec<u32>| -> Option<Option<usize>> {
             // Sector by sector counter-clockwise, as `SectorGrid`: the next sector lies across
             // the incoming edge of this one's corner at the centre.
             let mut start = first;
@@ -682,7 +701,7 @@ impl QuadWalk<'_> {
                             o = twin(o ^ 2)?;
                         }
                         let w = verts[o];
-                        if !regular[w as usize] || !seen.insert(w) {
+                        if !stamps.insert(w) {
                             return None;
                         }
                         if primal {
@@ -695,7 +714,7 @@ impl QuadWalk<'_> {
             }
             Some((twin(prev(start))? == first).then_some(k))
         };
-        match walk(seen, items) {
+        match walk(stamps, items) {
             None => Walked::NotClean,
             Some(None) => Walked::Other,
             Some(Some(2)) => Walked::Clean(LimitMask::Valence2(2)),
@@ -704,42 +723,75 @@ impl QuadWalk<'_> {
     }
 }
 
-/// A set of vertex ids for one neighbourhood at a time, kept between neighbourhoods: open
-/// addressing, each entry stamped with its neighbourhood's number, so a new neighbourhood
-/// starts without clearing the table.
+/// The vertices of one neighbourhood at a time, and the level's vertices that are not regular,
+/// in one table per level vertex: each neighbourhood has its own stamp, so a new one starts
+/// without clearing the table, and one read per vertex tells both whether it is regular and
+/// whether the walk has met it (the neighbourhood is a disc).
 #[derive(Default)]
-struct Seen {
-    slots: Vec<u64>,
-    bits: u32,
-    stamp: u64,
+struct Stamps {
+    table: Vec<u32>,
+    stamp: u32,
 }
 
-impl Seen {
-    /// Starts the (empty) set of a new neighbourhood of at most `len` vertices.
-    fn start(&mut self, len: usize) {
-        let need = (2 * len).next_power_of_two().max(64);
-        if self.slots.len() < need {
-            self.slots = vec![0; need];
-            self.bits = need.trailing_zeros();
-        }
-        self.stamp += 1;
+impl Stamps {
+    /// The mark of a vertex that is not regular (never a neighbourhood's stamp).
+    const IRREGULAR: u32 = u32::MAX;
+
+    /// Stamps over `marks` (0 for a regular vertex, else [`Stamps::IRREGULAR`]), copied
+    /// fallibly.
+    fn new(marks: &[u32]) -> Result<Stamps> {
+        let mut table = memory::with_capacity(marks.len())?;
+        table.extend_from_slice(marks);
+        Ok(Stamps { table, stamp: 0 })
     }
 
-    /// Adds `w`; false if it was there.
+    /// Starts the (empty) set of a new neighbourhood.
+    fn start(&mut self) {
+        self.stamp += 1;
+        if self.stamp == Self::IRREGULAR {
+            // Every stamp used: the table forgets the neighbourhoods, not the marks.
+            for e in self.table.iter_mut().filter(|e| **e != Self::IRREGULAR) {
+                *e = 0;
+            }
+            self.stamp = 1;
+        }
+    }
+
+    /// Adds vertex `w`; false if it is not regular or was there.
     fn insert(&mut self, w: u32) -> bool {
-        let mask = self.slots.len() - 1;
-        let key = self.stamp << 32 | u64::from(w);
-        let mut h = (u64::from(w).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - self.bits)) as usize;
-        loop {
-            let e = self.slots[h];
-            if e >> 32 != self.stamp {
-                self.slots[h] = key;
-                return true;
+        match self.table.get_mut(w as usize) {
+            Some(e) if *e != self.stamp && *e != Self::IRREGULAR => {
+                *e = self.stamp;
+                true
             }
-            if e == key {
-                return false;
-            }
-            h = (h + 1) & mask;
+            _ => false,
+        }
+    }
+}
+
+/// Stamps taken from a pool for one parallel task, put back when it ends.
+struct Pooled<'a> {
+    stamps: Result<Stamps>,
+    pool: &'a Mutex<Vec<Stamps>>,
+}
+
+impl<'a> Pooled<'a> {
+    /// Stamps from `pool`, or new ones over `marks` when it is empty.
+    fn take(pool: &'a Mutex<Vec<Stamps>>, marks: &[u32]) -> Pooled<'a> {
+        let kept = pool.lock().unwrap_or_else(|e| e.into_inner()).pop();
+        let stamps = kept.map_or_else(|| Stamps::new(marks), Ok);
+        Pooled { stamps, pool }
+    }
+}
+
+impl Drop for Pooled<'_> {
+    fn drop(&mut self) {
+        let stamps = std::mem::replace(&mut self.stamps, Ok(Stamps::default()));
+        if let Ok(stamps) = stamps {
+            self.pool
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .push(stamps);
         }
     }
 }
@@ -1404,7 +1456,10 @@ fn stencil_values<T: Scalar, const N: usize>(
     gather_pairs_hinted(st.masks_of.len(), |v| match st.masks_of[v] {
         LimitMask::Interior(m) if !st.joint[m as usize].is_empty() => {
             let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
-            let [p, a, b] = combine_joint(data, items, &st.joint[m as usize]);
+            let [p, a, b] = match &st.folded[m as usize] {
+                Some(fold) => fold.joint(data, items),
+                None => combine_joint(data, items, &st.joint[m as usize]),
+            };
             let normal = at(&a).cross(at(&b)).normalize_or_zero();
             (p.map(T::from_f64), normal.to_array().map(T::from_f64))
         }
@@ -1424,7 +1479,11 @@ fn stencil_positions<T: Scalar, const N: usize>(
 fn stencil_position<T: Scalar, const N: usize>(st: &Stencils, data: &[[T; N]], v: usize) -> [T; N] {
     let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
     let weights: &[f64] = match st.masks_of[v] {
-        LimitMask::Interior(m) | LimitMask::Valence2(m) => &st.masks[m as usize].position,
+        LimitMask::Interior(m) => match &st.folded[m as usize] {
+            Some(fold) => return fold.position(data, items).map(T::from_f64),
+            None => &st.masks[m as usize].position,
+        },
+        LimitMask::Valence2(m) => &st.masks[m as usize].position,
         LimitMask::Curve => &st.curve_mask,
         LimitMask::Corner => return data[items[0] as usize],
         LimitMask::Local => return zero(),
@@ -1584,6 +1643,105 @@ fn combine<T: Scalar, const N: usize>(data: &[[T; N]], items: &[u32], weights: &
         }
     }
     acc.map(T::from_f64)
+}
+
+/// The masks of valence 4 folded over the four sectors: there the position weights are the
+/// same in every sector and each tangent's weights in sectors 2 and 3 are those of sectors 0
+/// and 1 negated (mode 1 of the rotation), so each item's four sector copies are summed first
+/// and opposite ones subtracted, about half the products of [`combine_joint`].
+#[derive(Debug)]
+struct Folded {
+    /// The centre's position weight (odd degrees; even ones have no centre item).
+    centre: Option<f64>,
+    /// Per item of a sector: its position weight and the tangents' weights `[a, b]` in sectors
+    /// 0 and 1.
+    groups: Vec<(f64, [[f64; 2]; 2])>,
+}
+
+impl Folded {
+    /// The folded masks of `m` (`primal`: with a centre item), if its valence is 4, it has
+    /// tangents and its weights have the symmetry (to rounding: the modes' phases are rounded).
+    fn of(m: &VertexMasks, primal: bool) -> Option<Folded> {
+        let [a, b] = &m.tangents;
+        let off = usize::from(primal);
+        let len = m.position.len();
+        if m.valence != 4 || a.len() != len || b.len() != len || len < off + 4 {
+            return None;
+        }
+        let p = (len - off) / 4;
+        let largest = (m.position.iter().chain(a).chain(b)).fold(0.0f64, |x, &w| x.max(w.abs()));
+        let close = |x: f64, y: f64| (x - y).abs() <= 1e-12 * largest;
+        let at = |mask: &[f64], s: usize, i: usize| mask[off + s * p + i];
+        let symmetric = 4 * p + off == len
+            && (!primal || (close(a[0], 0.0) && close(b[0], 0.0)))
+            && (0..p).all(|i| {
+                (1..4).all(|s| at(&m.position, s, i) == at(&m.position, 0, i))
+                    && [a, b].iter().all(|t| {
+                        close(at(t, 2, i), -at(t, 0, i)) && close(at(t, 3, i), -at(t, 1, i))
+                    })
+            });
+        symmetric.then(|| Folded {
+            centre: primal.then(|| m.position[0]),
+            groups: (0..p)
+                .map(|i| {
+                    let pair = |s: usize| [at(a, s, i), at(b, s, i)];
+                    (at(&m.position, 0, i), [pair(0), pair(1)])
+                })
+                .collect(),
+        })
+    }
+
+    /// The limit position of a stencil's `items` (in the order of [`frame_items`]) from `data`.
+    fn position<T: Scalar, const N: usize>(&self, data: &[[T; N]], items: &[u32]) -> [f64; N] {
+        self.sums::<T, N, false>(data, items).0
+    }
+
+    /// The position and the two tangents, as [`combine_joint`] gives them.
+    fn joint<T: Scalar, const N: usize>(&self, data: &[[T; N]], items: &[u32]) -> [[f64; N]; 3] {
+        let (p, t) = self.sums::<T, N, true>(data, items);
+        [p, t.map(|t| t[0]), t.map(|t| t[1])]
+    }
+
+    /// The position and (with `TANGENTS`) the tangents `[a, b]` per channel; the position's
+    /// sums are the same either way, so positions alone equal those given with normals.
+    #[inline(always)]
+    fn sums<T: Scalar, const N: usize, const TANGENTS: bool>(
+        &self,
+        data: &[[T; N]],
+        items: &[u32],
+    ) -> ([f64; N], [[f64; 2]; N]) {
+        let at = |i: u32| data[i as usize].map(T::to_f64);
+        let mut position = [0.0f64; N];
+        let mut tangents = [[0.0f64; 2]; N];
+        let mut rest = items;
+        if let (Some(w), Some((&c, tail))) = (self.centre, items.split_first()) {
+            let x = at(c);
+            for k in 0..N {
+                position[k] += w * x[k];
+            }
+            rest = tail;
+        }
+        let p = self.groups.len();
+        let sector = |s: usize| rest.get(s * p..(s + 1) * p).unwrap_or_default();
+        let rows = (self.groups.iter())
+            .zip(sector(0))
+            .zip(sector(1))
+            .zip(sector(2))
+            .zip(sector(3));
+        for ((((&(w, [t0, t1]), &i0), &i1), &i2), &i3) in rows {
+            let (x0, x1, x2, x3) = (at(i0), at(i1), at(i2), at(i3));
+            for k in 0..N {
+                position[k] += w * ((x0[k] + x1[k]) + (x2[k] + x3[k]));
+                if TANGENTS {
+                    let (d02, d13) = (x0[k] - x2[k], x1[k] - x3[k]);
+                    for j in 0..2 {
+                        tangents[k][j] += t0[j] * d02 + t1[j] * d13;
+                    }
+                }
+            }
+        }
+        (position, tangents)
+    }
 }
 
 /// The three sums `sum w_i[j] data[items_i]` (`j` = position, the two tangents) in one walk,
@@ -1863,6 +2021,33 @@ mod tests {
             }
         }
         assert!(staged >= 20, "{staged} of 112 cases in two stages");
+    }
+
+    /// The masks of valence 4 fold for every degree, and the folded sums are those of the
+    /// plain masks to rounding.
+    #[test]
+    fn valence_four_masks_fold() {
+        for degree in 2..=9 {
+            let m = cached_vertex_masks(degree, 4).unwrap();
+            let fold = Folded::of(&m, degree % 2 == 1).expect("a folded mask");
+            let joint: Vec<[f64; 4]> = (m.position.iter().zip(&m.tangents[0]))
+                .zip(&m.tangents[1])
+                .map(|((&p, &a), &b)| [p, a, b, 0.0])
+                .collect();
+            let data: Vec<[f64; 3]> = (0..joint.len())
+                .map(|i| {
+                    let x = i as f64;
+                    [(0.7 * x).sin() + 3.0, (1.3 * x).cos() - 2.0, 0.1 * x]
+                })
+                .collect();
+            let items: Vec<u32> = (0..joint.len() as u32).rev().collect();
+            let plain = combine_joint(&data, &items, &joint);
+            let folded = fold.joint(&data, &items);
+            assert_eq!(folded[0], fold.position(&data, &items));
+            for (x, y) in plain.iter().flatten().zip(folded.iter().flatten()) {
+                assert!((x - y).abs() <= 1e-13 * x.abs().max(1.0), "degree {degree}");
+            }
+        }
     }
 
     /// On a mesh whose unclean vertices are a small part (a large grid: its boundary and
