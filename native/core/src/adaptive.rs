@@ -441,6 +441,7 @@ fn adaptive_in_pool<T: Scalar>(
 
     let max_level = options.max_level as usize;
     let roots = ctx.level0.num_corners() as u64;
+    let grid = Grid::new::<T>(&ctx);
     // refined[j]: uniform ids of the refined nodes at level j (1 <= j < max_level).
     let mut refined: Vec<IdSet> = vec![IdSet::default(); max_level];
     // Partial levels kept from decision to decision: level j + 1 is made for the children of
@@ -478,12 +479,27 @@ fn adaptive_in_pool<T: Scalar>(
         let mut seeds: Vec<Vec<u64>> = (0..=j)
             .map(|t| nodes_at(&refined, roots, t))
             .collect::<Result<_>>()?;
-        seeds.push(children(&nodes)?);
+        // The nodes that the grid's closed form decides need no children; the others' children
+        // are the next level's seeds (a superset of its nodes), where the undecided ones are
+        // measured.
         extend_pass(&ctx, &mut parts, &seeds, held)?;
-        let errors = measure(&ctx, &parts, j, &nodes)?;
+        let decided = decide(&ctx, &grid, &parts[j], &nodes, options.tolerance)?;
+        let pick = |keep: fn(Option<bool>) -> bool| -> Vec<u64> {
+            (nodes.iter().zip(&decided))
+                .filter(|&(_, &d)| keep(d))
+                .map(|(&u, _)| u)
+                .collect()
+        };
+        seeds.push(children(&pick(|d| d != Some(false)))?);
+        extend_pass(&ctx, &mut parts, &seeds, held)?;
+        let mut errors = measure(&ctx, &parts, j, &pick(|d| d.is_none()))?.into_iter();
         let mut lowest = j;
-        for (&node, &error) in nodes.iter().zip(&errors) {
-            if error > options.tolerance {
+        for (&node, &d) in nodes.iter().zip(&decided) {
+            let above = match d {
+                Some(above) => above,
+                None => errors.next().is_some_and(|e| e > options.tolerance),
+            };
+            if above {
                 lowest = lowest.min(restrict_refine(&parts, &mut refined, j, node)?);
             }
         }
@@ -940,11 +956,88 @@ fn extend_pass<T: Scalar>(
             retained + BYTES_PER_CORNER as f64 * fine_corners as f64,
             fine_corners as f64 / 4.0,
         )?;
-        let next = refine_part(ctx, t, coarse, Keep::Around(&seeds[t + 1]))?;
+        let around = Keep::Around(&seeds[t + 1]);
+        let next = match around_parents(ctx, t, coarse, &seeds[t + 1])? {
+            Some(sub) => refine_part(ctx, t, &sub, around)?,
+            None => refine_part(ctx, t, coarse, around)?,
+        };
         retained += BYTES_PER_CORNER as f64 * next.level.num_corners() as f64;
         parts.push(next);
     }
     Ok(())
+}
+
+/// The faces of `coarse` (level `t >= 1`) that a step needs for its children kept around
+/// `seeds` (sorted uniform ids at level `t + 1`), as a part of its own: the margin rings around
+/// the seeds' parents. The kept children and their data are those of the whole `coarse`
+/// (module documentation: the data of `ring_r(children(Y))` is exact on `ring_(ceil(r/2) + m)(Y)`,
+/// here `r = 2m`), without refining the faces that no seed needs. `None` when that is all of
+/// `coarse` (and on the cage level, where every face is a root's parent).
+fn around_parents<T: Scalar>(
+    ctx: &Context<T>,
+    t: usize,
+    coarse: &Part<T>,
+    seeds: &[u64],
+) -> Result<Option<Part<T>>> {
+    if t == 0 {
+        return Ok(None);
+    }
+    let mut keep = memory::filled(coarse.level.num_faces(), false)?;
+    // Both lists are sorted, and a seed's parent is its id over 4: one merge walk.
+    let mut f = 0;
+    for &s in seeds {
+        let parent = s >> 2;
+        while f < coarse.face_uid.len() && coarse.face_uid[f] < parent {
+            f += 1;
+        }
+        if coarse.face_uid.get(f) != Some(&parent) {
+            return Err(Error::Internal(format!(
+                "adaptive: parent {parent} of seed {s} (level {}) missing",
+                t + 1
+            )));
+        }
+        keep[f] = true;
+    }
+    let keep = grow_rings(&coarse.level, keep, ctx.margin)?;
+    if keep.iter().all(|&k| k) {
+        return Ok(None);
+    }
+    let sub = restrict(&coarse.level, &keep)?;
+    let network = (coarse.network.as_ref()).map(|n| n.restrict(&sub.vertex_map, &sub.edge_map));
+    let odd = ctx.degree % 2 == 1;
+    let pick =
+        |values: &[P<T>], keep: &[u32]| gather_hinted(keep.len(), |i| values[keep[i] as usize]);
+    let pick_ids =
+        |values: &[u64], keep: &[u32]| gather_hinted(keep.len(), |i| values[keep[i] as usize]);
+    let pick_counts =
+        |values: &[u32], keep: &[u32]| gather_hinted(keep.len(), |i| values[keep[i] as usize]);
+    let (network, curve) = match network {
+        Some((network, kept_vertices, kept_edges)) => {
+            let kept = if odd { kept_vertices } else { kept_edges };
+            (Some(network), pick(&coarse.curve, &kept)?)
+        }
+        None => (None, Vec::new()),
+    };
+    let curves = (coarse.curves.iter())
+        .filter_map(|c| {
+            let edge = sub.edge_map[c.edge as usize];
+            (edge != NONE).then_some(Curve { edge, ..*c })
+        })
+        .collect();
+    Ok(Some(Part {
+        face_uid: pick_ids(&coarse.face_uid, &sub.faces)?,
+        vert_uid: pick_ids(&coarse.vert_uid, &sub.vertices)?,
+        edge_uid: pick_ids(&coarse.edge_uid, &sub.edges)?,
+        edge_faces: pick_counts(&coarse.edge_faces, &sub.edges)?,
+        vert_faces: pick_counts(&coarse.vert_faces, &sub.vertices)?,
+        curves,
+        network,
+        data: pick(&coarse.data, if odd { &sub.vertices } else { &sub.faces })?,
+        curve,
+        points: Vec::new(),
+        counts: coarse.counts,
+        level: sub.level,
+    }))
 }
 
 /// `P_0`: the whole cage level with the cage points.
@@ -1664,9 +1757,6 @@ fn measure<T: Scalar>(
         1.0
     };
     let p = |v: u32| -> [f64; 3] { fine.points[v as usize].map(|x| x.to_f64()) };
-    let dist = |a: [f64; 3], b: [f64; 3]| -> f64 {
-        ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-    };
     let errors = gather_hinted(nodes.len(), |i| -> Result<f64> {
         let u = nodes[i];
         let mut corner = [[0.0; 3]; 4];
@@ -1686,20 +1776,295 @@ fn measure<T: Scalar>(
             mid[k] = p(q[1]);
             centre = p(q[2]);
         }
-        let mut error = 0.0f64;
-        let mut mean = [0.0; 3];
-        for k in 0..4 {
-            let (a, b) = (corner[k], corner[(k + 1) & 3]);
-            let m = [0, 1, 2].map(|i| 0.5 * (a[i] + b[i]));
-            error = error.max(dist(mid[k], m));
-            for i in 0..3 {
-                mean[i] += 0.25 * a[i];
-            }
-        }
-        error = error.max(dist(centre, mean));
-        Ok(error * scale_by)
+        Ok(flatness(&corner, &mid, centre) * scale_by)
     })?;
     errors.into_iter().collect()
+}
+
+/// The flatness of a node (module documentation) from its children's points: its `corner`s,
+/// the `mid`points of its edges (edge k from corner k to k + 1) and its `centre`; absolute.
+fn flatness(corner: &[[f64; 3]; 4], mid: &[[f64; 3]; 4], centre: [f64; 3]) -> f64 {
+    let dist = |a: [f64; 3], b: [f64; 3]| -> f64 {
+        ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+    };
+    let mut error = 0.0f64;
+    let mut mean = [0.0; 3];
+    for k in 0..4 {
+        let (a, b) = (corner[k], corner[(k + 1) & 3]);
+        let m = [0, 1, 2].map(|i| 0.5 * (a[i] + b[i]));
+        error = error.max(dist(mid[k], m));
+        for i in 0..3 {
+            mean[i] += 0.25 * a[i];
+        }
+    }
+    error.max(dist(centre, mean))
+}
+
+/// The children's points of a node on a grid in closed form, to decide its refinement without
+/// making its children. Where the faces around a node form a grid (every vertex inside its
+/// window interior, manifold, complete, of valence 4, on no curve of the step and no tagged
+/// corner), a step of the averaging rules and the drawing average are the tensor-product
+/// B-spline (`step::regular`): each of the nine points is `sum W_p(x) W_q(y) d(x, y)` over the
+/// level's data in the node's frame, with the 1-D weights of replication and the averages
+/// below. These sums are not the step's, so they differ from its points by rounding: a node is
+/// decided only when its error is farther from the tolerance than `slack` times the magnitude
+/// of its data (an upper bound of both roundings); the others are measured on their children.
+#[derive(Debug)]
+struct Grid {
+    /// Whether the data are per vertex (odd degrees) or per face.
+    odd: bool,
+    /// Lowest data position (cell or vertex) in the node's frame; the node is cell `(0, 0)`,
+    /// its corner 0 vertex `(0, 0)`.
+    lo: i32,
+    /// Cells placed around the node in each direction.
+    reach: i32,
+    /// Vertices at positions `-inner..=inner + 1` must be regular.
+    inner: i32,
+    /// Per child position p (0, 1/2, 1 of the node's side: p = 0, 1, 2), the weight of each
+    /// data position from `lo` on.
+    weights: [Vec<f64>; 3],
+    /// Bound of the rounding of both computations of the error, per unit of data magnitude
+    /// (relative to the cage diagonal).
+    slack: f64,
+}
+
+impl Grid {
+    /// The closed form of `ctx`'s step, `None` for rules it does not cover (classic ones).
+    fn new<T: Scalar>(ctx: &Context<T>) -> Option<Grid> {
+        let Scheme::Averaging { degree } = ctx.scheme else {
+            return None;
+        };
+        let n = degree as i64;
+        let odd = n % 2 == 1;
+        // The drawing points are n + 1 averages of dual data (even degrees: the step's n and
+        // the drawing one) or n averages of primal data (odd) after replication, whose fine
+        // face m (position m / 2 .. (m + 1) / 2) holds coarse face floor(m / 2) or coarse
+        // vertex ceil(m / 2); fine vertex p averages fine faces p - (a + 1) / 2 .. p + a / 2
+        // with the binomial weights of a averages.
+        let a = if odd { n } else { n + 1 };
+        let first = |p: i64| p - (a + 1) / 2;
+        let source = |m: i64| {
+            if odd {
+                m.div_euclid(2) + m.rem_euclid(2)
+            } else {
+                m.div_euclid(2)
+            }
+        };
+        let lo = source(first(0));
+        let hi = source(first(2) + a);
+        // Row a of Pascal's triangle.
+        let binomial: Vec<f64> = (0..a).fold(vec![1.0f64], |row, _| {
+            let mut next = vec![1.0; row.len() + 1];
+            for i in 1..row.len() {
+                next[i] = row[i - 1] + row[i];
+            }
+            next
+        });
+        let half_a = 0.5f64.powi(a as i32);
+        let weights = [0, 1, 2].map(|p| {
+            let mut w = vec![0.0; (hi - lo + 1) as usize];
+            for i in 0..=a {
+                w[(source(first(p) + i) - lo) as usize] += binomial[i as usize] * half_a;
+            }
+            w
+        });
+        // Vertices where the averages run: old vertices within (n - 1) / 4 (odd) or n / 4
+        // (even) of the node.
+        let inner = if odd { (n - 1) / 4 } else { n / 4 } as i32;
+        let reach = if odd {
+            (-lo).max(hi - 1)
+        } else {
+            (-lo).max(hi)
+        } as i32;
+        // The window must lie in the margin kept around every node, and in the arrays of
+        // [`decide`].
+        let margin = ctx.margin as i32;
+        let side = 2 * reach as usize + 1;
+        if reach > margin || inner + 1 > margin || inner > reach || side > GRID_SIDE {
+            return None;
+        }
+        // Unit roundoff of the input's scalars.
+        let unit = {
+            let mut u = 1.0f64;
+            while T::from_f64(1.0) + T::from_f64(u / 2.0) != T::from_f64(1.0) {
+                u /= 2.0;
+            }
+            u / 2.0
+        };
+        let scale_by = if ctx.diagonal > 0.0 {
+            1.0 / ctx.diagonal
+        } else {
+            1.0
+        };
+        Some(Grid {
+            odd,
+            lo: lo as i32,
+            reach,
+            inner: inner.max(reach - 1),
+            weights,
+            slack: 256.0 * (n as f64 + 2.0) * unit * scale_by,
+        })
+    }
+}
+
+/// Largest side, in cells, of a [`Grid`] window (its data positions are at most one more);
+/// higher degrees measure every node on its children.
+const GRID_SIDE: usize = 15;
+
+/// Per node of level `t` (sorted uniform ids of faces of `part`): whether its error is above
+/// the tolerance (`Some`), decided by `grid`'s closed form, or `None` where its children must
+/// be measured (no grid around it, or its error too near the tolerance).
+fn decide<T: Scalar>(
+    ctx: &Context<T>,
+    grid: &Option<Grid>,
+    part: &Part<T>,
+    nodes: &[u64],
+    tolerance: f64,
+) -> Result<Vec<Option<bool>>> {
+    let Some(grid) = grid else {
+        return memory::filled(nodes.len(), None);
+    };
+    let level = &part.level;
+    // Per vertex: can it be inside a grid?
+    let mut on_curve = memory::filled(level.num_vertices, false)?;
+    let mut curve_edge = memory::filled(level.num_edges(), false)?;
+    for c in &part.curves {
+        curve_edge[c.edge as usize] = true;
+        for v in level.edge_verts()[c.edge as usize] {
+            on_curve[v as usize] = true;
+        }
+    }
+    let nv0 = ctx.level0.num_vertices as u64;
+    let corners = &ctx.features.corners;
+    let (offsets, vertex_corners) = level.vertex_corner_table();
+    let corner_edges = level.corner_edges();
+    let regular = gather_hinted(level.num_vertices, |v| {
+        let at = &vertex_corners[offsets[v] as usize..offsets[v + 1] as usize];
+        let uid = part.vert_uid[v];
+        at.len() == 4
+            && part.vert_faces[v] == 4
+            && !on_curve[v]
+            && !(uid < nv0 && corners.binary_search_by_key(&(uid as u32), |c| c.0).is_ok())
+            && level.nm_vertices.binary_search(&(v as u32)).is_err()
+            && at.iter().all(|&c| {
+                let c = c as usize;
+                let (e, d) = (corner_edges[c], corner_edges[(c & !3) | ((c + 3) & 3)]);
+                part.edge_faces[e as usize] == 2
+                    && part.edge_faces[d as usize] == 2
+                    && !curve_edge[e as usize]
+                    && !curve_edge[d as usize]
+            })
+    })?;
+    let edge_corners = level.edge_corners();
+    let side = 2 * grid.reach as usize + 1;
+    let data = &part.data;
+    let points = gather_hinted(nodes.len(), |i| -> Option<bool> {
+        let f = part.face_of_uid(nodes[i])?;
+        // The frame corner (at the cell's (0, 0), its next along x) of every cell placed:
+        // along the node's column, then along each row.
+        let step = |fc: u32, k: u32| -> Option<u32> {
+            let cross = (fc & !3) | ((fc + k) & 3);
+            let e = corner_edges[cross as usize] as usize;
+            if part.edge_faces[e] != 2 {
+                return None;
+            }
+            let [c0, c1] = edge_corners[e];
+            let d = if c0 == cross { c1 } else { c0 };
+            let ahead = (cross & !3) | ((cross + 1) & 3);
+            if d == NONE || level.corner_verts[d as usize] != level.corner_verts[ahead as usize] {
+                return None;
+            }
+            Some((d & !3) | ((d + 6 - k) & 3))
+        };
+        let r = grid.reach;
+        let mut cells = [0u32; GRID_SIDE * GRID_SIDE];
+        let at = |a: i32, b: i32| ((b + r) as usize) * side + (a + r) as usize;
+        cells[at(0, 0)] = 4 * f as u32;
+        for b in 1..=r {
+            cells[at(0, b)] = step(cells[at(0, b - 1)], 2)?;
+            cells[at(0, -b)] = step(cells[at(0, 1 - b)], 0)?;
+        }
+        for b in -r..=r {
+            for a in 1..=r {
+                cells[at(a, b)] = step(cells[at(a - 1, b)], 1)?;
+                cells[at(-a, b)] = step(cells[at(1 - a, b)], 3)?;
+            }
+        }
+        // Vertex at (x, y), -r <= x, y <= r + 1: a corner of the cell at or below it.
+        let vertex = |x: i32, y: i32| -> usize {
+            let (a, b) = (x.min(r), y.min(r));
+            let k = match (x - a, y - b) {
+                (0, 0) => 0,
+                (1, 0) => 1,
+                (1, 1) => 2,
+                _ => 3,
+            };
+            let fc = cells[at(a, b)];
+            level.corner_verts[((fc & !3) | ((fc + k) & 3)) as usize] as usize
+        };
+        let inner = grid.inner;
+        for y in -inner..=inner + 1 {
+            for x in -inner..=inner + 1 {
+                if !regular[vertex(x, y)] {
+                    return None;
+                }
+            }
+        }
+        let n = grid.weights[0].len() as i32;
+        let value = |x: i32, y: i32| -> [f64; 3] {
+            let item = if grid.odd {
+                vertex(x, y)
+            } else {
+                (cells[at(x, y)] >> 2) as usize
+            };
+            data[item].map(|v| v.to_f64())
+        };
+        // Rows, then columns: s[p][y] = sum_x W_p(x) d(x, y), point(p, q) = sum_y W_q(y) s[p][y].
+        let mut magnitude = 0.0f64;
+        let mut rows = [[[0.0f64; 3]; 3]; GRID_SIDE + 1];
+        for y in 0..n {
+            for x in 0..n {
+                let d = value(grid.lo + x, grid.lo + y);
+                for k in 0..3 {
+                    magnitude = magnitude.max(d[k].abs());
+                    for (p, w) in grid.weights.iter().enumerate() {
+                        rows[y as usize][p][k] += w[x as usize] * d[k];
+                    }
+                }
+            }
+        }
+        let point = |p: usize, q: usize| -> [f64; 3] {
+            let w = &grid.weights[q];
+            let mut s = [0.0; 3];
+            for y in 0..n as usize {
+                for k in 0..3 {
+                    s[k] += w[y] * rows[y][p][k];
+                }
+            }
+            s
+        };
+        let corner = [(0, 0), (2, 0), (2, 2), (0, 2)].map(|(p, q)| point(p, q));
+        let mid = [(1, 0), (2, 1), (1, 2), (0, 1)].map(|(p, q)| point(p, q));
+        let error = flatness(&corner, &mid, point(1, 1)) * scale_of(ctx);
+        let slack = grid.slack * magnitude;
+        if error + slack < tolerance {
+            Some(false)
+        } else if error - slack > tolerance {
+            Some(true)
+        } else {
+            None
+        }
+    })?;
+    Ok(points)
+}
+
+/// The factor that makes an error relative to the cage diagonal.
+fn scale_of<T>(ctx: &Context<T>) -> f64 {
+    if ctx.diagonal > 0.0 {
+        1.0 / ctx.diagonal
+    } else {
+        1.0
+    }
 }
 
 /// Refines node `node` of level `t` and, by the vertex restriction criterion, every leaf parent
