@@ -431,7 +431,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
             out = hinted_or_abort(n_faces);
         }
         debug_assert_eq!(windows.primal(), primal);
-        windows.apply(x, &mut out.spare_capacity_mut()[..n_faces]);
+        windows.apply(x, &mut out.spare_capacity_mut()[..n_faces])?;
         self.curve = CurveData::Dual(curve_to_dual(curves, &curve));
         let mut vertices = match data {
             Cow::Owned(v) => v,

@@ -170,18 +170,25 @@ impl Windows {
 
     /// Writes every kernel child into `out` (per fine face) from the coarse data `x` (per
     /// vertex or per face, as the windows were built for); the other children are left as they
-    /// are.
+    /// are. `out` must have a child per coarse corner (an [`Error::Internal`] otherwise: the
+    /// buffers come from the crate).
     pub(super) fn apply<T: Scalar, const N: usize>(
         &self,
         x: &[Value<T, N>],
         out: &mut [MaybeUninit<Value<T, N>>],
-    ) {
+    ) -> Result<()> {
+        if out.len() < 4 * self.masks.len() {
+            return Err(Error::Internal(
+                "regular windows: no room for the children".into(),
+            ));
+        }
         match self.side {
             3 => self.apply_with::<T, N, 3>(x, out),
             4 => self.apply_with::<T, N, 4>(x, out),
             5 => self.apply_with::<T, N, 5>(x, out),
             _ => self.apply_with::<T, N, 6>(x, out),
         }
+        Ok(())
     }
 
     /// [`Windows::apply`] with the net's side `S` a constant: each face's net is read once,
@@ -194,7 +201,6 @@ impl Windows {
         debug_assert_eq!(self.side, S);
         let weights = weights::<T, S>(self.averages, self.primal, self.lo);
         let nf = self.masks.len();
-        assert!(out.len() >= 4 * nf, "a child per coarse corner");
         out[..4 * nf]
             .par_chunks_mut(4 * CHUNK)
             .enumerate()
