@@ -363,6 +363,29 @@ fn weights<T: Scalar, const S: usize>(m: u32, primal: bool, lo: i32) -> [[T; S];
     })
 }
 
+/// The vertices, edges and faces of `coarse` from which a curve vertex of the step (`curves`)
+/// is born (its old vertex, edge point or face point), each marked in a table of its own.
+fn curve_parents(coarse: &Level, curves: &CurveNetwork) -> Result<[Vec<bool>; 3]> {
+    let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
+    let mut marked = [
+        memory::filled(nv, false)?,
+        memory::filled(ne, false)?,
+        memory::filled(coarse.num_faces(), false)?,
+    ];
+    for cv in curves.vertices() {
+        let w = cv.vertex as usize;
+        let (kind, at) = if w < nv {
+            (0, w)
+        } else if w < nv + ne {
+            (1, w - nv)
+        } else {
+            (2, w - nv - ne)
+        };
+        marked[kind][at] = true;
+    }
+    Ok(marked)
+}
+
 /// What the classification reads of a level, once per step, over the faces and a dead face
 /// `nf` after them, which stands for "no cell": a step across any of its sides lands on it
 /// again, it is never clean and its corners are at vertex 0 (the id a net holds where no cell
@@ -385,7 +408,7 @@ struct Flags {
 
 impl Flags {
     fn of(coarse: &Level, curves: &CurveNetwork) -> Result<Flags> {
-        let (nv, ne, nf) = (coarse.num_vertices, coarse.num_edges(), coarse.num_faces());
+        let (nv, nf) = (coarse.num_vertices, coarse.num_faces());
         let dead = 4 * nf as u32;
         let (corner_edges, edge_corners) = (coarse.corner_edges(), coarse.edge_corners());
         let twin = if coarse.nm_edges.is_empty() {
@@ -421,19 +444,7 @@ impl Flags {
             clean[nf] = false;
             clean
         } else {
-            let mut marked_vertex: Vec<bool> = memory::filled(nv, false)?;
-            let mut marked_edge: Vec<bool> = memory::filled(ne, false)?;
-            let mut marked_face: Vec<bool> = memory::filled(nf, false)?;
-            for cv in curves.vertices() {
-                let w = cv.vertex as usize;
-                if w < nv {
-                    marked_vertex[w] = true;
-                } else if w < nv + ne {
-                    marked_edge[w - nv] = true;
-                } else {
-                    marked_face[w - nv - ne] = true;
-                }
-            }
+            let [marked_vertex, marked_edge, marked_face] = curve_parents(coarse, curves)?;
             gather_hinted(nf + 1, |f| {
                 f < nf
                     && !marked_face[f]
@@ -938,20 +949,9 @@ mod tests {
         ) -> Classified {
             let g = Geometry::of(averages, primal);
             let (walk, namer) = walk_and_namer(&g, primal);
-            let (nv, ne, nf) = (coarse.num_vertices, coarse.num_edges(), coarse.num_faces());
-            let mut marked_vertex = vec![false; nv];
-            let mut marked_edge = vec![false; ne];
-            let mut marked_face = vec![false; nf];
-            for cv in curves.vertices() {
-                let w = cv.vertex as usize;
-                if w < nv {
-                    marked_vertex[w] = true;
-                } else if w < nv + ne {
-                    marked_edge[w - nv] = true;
-                } else {
-                    marked_face[w - nv - ne] = true;
-                }
-            }
+            let (nv, nf) = (coarse.num_vertices, coarse.num_faces());
+            let [marked_vertex, marked_edge, marked_face] =
+                crate::step::regular::curve_parents(coarse, curves).unwrap();
             let corner_edges = coarse.corner_edges();
             let twin = coarse.twin_corners().unwrap();
             let grid_vertex: Vec<bool> = (0..nv)
