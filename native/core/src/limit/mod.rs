@@ -95,6 +95,9 @@ use crate::step::{Final, Parts, Scratch};
 use crate::topology::{quad_next, quad_prev, Level, NONE};
 use rayon::prelude::*;
 
+mod tiles;
+use tiles::Tiles;
+
 /// Extra levels tried at most beyond the first guess before giving up.
 const MAX_EXTRA_LEVELS: u32 = 8;
 
@@ -118,6 +121,8 @@ enum LimitMask {
     Corner,
     /// Not clean at this level: the stencil of the local extension.
     Local,
+    /// An interior vertex of valence 4 that a limit tile computes: its slot there.
+    Tiled(u32),
 }
 
 /// Everything topological the limit needs, built once per plan (see the module documentation).
@@ -137,6 +142,9 @@ pub(crate) struct Stencils {
     local_vertices: Vec<u32>,
     /// Mask of each output vertex.
     masks_of: Vec<LimitMask>,
+    /// The tiles that compute most regular vertices at the plan's own last level (their
+    /// [`LimitMask::Tiled`] stencils have no items).
+    tiles: Option<Tiles>,
     /// Offsets into `items` per output vertex.
     offsets: Vec<u32>,
     /// Indices into the data the stencils read (see `Limit::limit_data`).
@@ -196,6 +204,8 @@ enum Unclean {
 /// past it) with `curves` (the network of the step that made it) for `targets`; `semi_corners`
 /// are the cage vertices tagged semi-sharp (sorted). A target vertex that is not clean makes
 /// the result `None`, or a [`LimitMask::Local`] stencil (listed in `local`) as `unclean` says.
+/// With `tile_depth` (every vertex of `last` a target, its faces blocks of the descendants of
+/// the faces `tile_depth` levels above), the regular vertices go to limit tiles of that depth.
 fn build_stencils(
     last: &Level,
     curves: &CurveNetwork,
@@ -203,6 +213,7 @@ fn build_stencils(
     targets: &Targets,
     semi_corners: &[u32],
     unclean: Unclean,
+    tile_depth: Option<u32>,
 ) -> Result<Option<Stencils>> {
     let primal = degree % 2 == 1;
     let n = neighbourhood_size(degree);
@@ -341,11 +352,20 @@ fn build_stencils(
         }),
         false => None,
     };
+    let tiles = match (&walk, tile_depth) {
+        (Some(walk), Some(depth)) => Tiles::build(last, &walk.twins, &walk.marks, degree, depth)?,
+        _ => None,
+    };
     let chunk_stencils = |stamps: &mut Stamps, range: std::ops::Range<usize>| -> Result<_> {
         let mut chunk = ChunkStencils::default();
         for t in range {
             let v = (targets.vertex)(t);
             let at = chunk.items.len();
+            if let Some(slot) = tiles.as_ref().and_then(|tiles| tiles.slot(v)) {
+                chunk.masks.push(Some(LimitMask::Tiled(slot)));
+                chunk.ends.push(at as u32);
+                continue;
+            }
             let general = |items: &mut Vec<u32>| {
                 items.truncate(at);
                 stencil_of(v).map(|(mask, its)| {
@@ -592,6 +612,7 @@ fn build_stencils(
         local: None,
         local_vertices: local,
         masks_of,
+        tiles,
         offsets,
         items,
         masks,
@@ -832,7 +853,7 @@ fn stencils(refinement: &Refinement, cache: &LimitCache) -> Result<Arc<Stencils>
     if let Some(st) = kept.as_ref() {
         return Ok(st.clone());
     }
-    let st = Arc::new(build(refinement, Some(LOCAL_SHARE))?);
+    let st = Arc::new(build(refinement, Some(LOCAL_SHARE), true)?);
     *kept = Some(st.clone());
     Ok(st)
 }
@@ -841,7 +862,8 @@ fn stencils(refinement: &Refinement, cache: &LimitCache) -> Result<Arc<Stencils>
 /// else, with `local` (the [`LOCAL_SHARE`] it allows) and the averaging rules, the vertices
 /// that are not clean (near irregular vertices, curves, and semi-sharp features until they
 /// have become smooth) on partial levels around them; else on the whole refinement extended.
-fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
+/// With `tiled`, the regular vertices of the plan's own last level go to limit tiles.
+fn build(refinement: &Refinement, local: Option<usize>, tiled: bool) -> Result<Stencils> {
     let options = *refinement.options();
     let levels = options.levels;
     // Semi-sharp features must have left the last step's network (corners on isolated vertices
@@ -889,7 +911,23 @@ fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
             Some(_) => Unclean::LocalWithFans,
             None => Unclean::Refuse,
         };
-        let built = build_stencils(last, curves, degree, &targets, &semi_corners, unclean)?;
+        // Tiles over the faces of the highest quad level at most MAX_DEPTH levels above.
+        let depth = (0..=levels.min(tiles::MAX_DEPTH))
+            .rev()
+            .find(|&t| {
+                let above = &refinement.levels()[(levels - t) as usize];
+                (0..above.num_faces()).all(|f| above.face_corners(f).len() == 4)
+            })
+            .filter(|_| tiled);
+        let built = build_stencils(
+            last,
+            curves,
+            degree,
+            &targets,
+            &semi_corners,
+            unclean,
+            depth,
+        )?;
         if let Some(mut st) = built {
             if st.local_vertices.is_empty() {
                 return Ok(st);
@@ -984,6 +1022,7 @@ fn build(refinement: &Refinement, local: Option<usize>) -> Result<Stencils> {
             &targets,
             &semi_corners,
             Unclean::Refuse,
+            None,
         )? {
             st.extended = Some((extended, Scratch::default()));
             st.extra_levels = m;
@@ -1102,7 +1141,15 @@ fn local_stencils(
         true => Unclean::Local,
         false => Unclean::Refuse,
     };
-    let built = build_stencils(level, network, degree, &targets, semi_corners, unclean)?;
+    let built = build_stencils(
+        level,
+        network,
+        degree,
+        &targets,
+        semi_corners,
+        unclean,
+        None,
+    )?;
     Ok(built.map(|st| (Box::new(st), local)))
 }
 
@@ -1445,8 +1492,12 @@ fn stencil_values<T: Scalar, const N: usize>(
     data: &[[T; N]],
     normals: bool,
 ) -> Result<PositionsNormals<T, N>> {
+    let tiled = match &st.tiles {
+        Some(tiles) => tiles.values(data, normals)?,
+        None => Vec::new(),
+    };
     if !normals {
-        return Ok((stencil_positions(st, data)?, Vec::new()));
+        return Ok((stencil_positions(st, data, &tiled)?, Vec::new()));
     }
     // The tangents in T, as the positions (f32 data gives f32 tangents).
     let at = |x: &[f64; N]| {
@@ -1454,6 +1505,7 @@ fn stencil_values<T: Scalar, const N: usize>(
         DVec3::new(x[0], x[1], x[2])
     };
     gather_pairs_hinted(st.masks_of.len(), |v| match st.masks_of[v] {
+        LimitMask::Tiled(slot) => tiled[slot as usize],
         LimitMask::Interior(m) if !st.joint[m as usize].is_empty() => {
             let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
             let [p, a, b] = match &st.folded[m as usize] {
@@ -1467,12 +1519,17 @@ fn stencil_values<T: Scalar, const N: usize>(
     })
 }
 
-/// Limit positions of every stencil of `st` from `data` (zero for [`LimitMask::Local`]).
+/// Limit positions of every stencil of `st` from `data` (zero for [`LimitMask::Local`]) and
+/// the values of its tiles (`tiled`, per slot).
 fn stencil_positions<T: Scalar, const N: usize>(
     st: &Stencils,
     data: &[[T; N]],
+    tiled: &[([T; N], [T; 3])],
 ) -> Result<Vec<[T; N]>> {
-    gather_hinted(st.masks_of.len(), |v| stencil_position(st, data, v))
+    gather_hinted(st.masks_of.len(), |v| match st.masks_of[v] {
+        LimitMask::Tiled(slot) => tiled[slot as usize].0,
+        _ => stencil_position(st, data, v),
+    })
 }
 
 /// The limit position of stencil `v` of `st` from `data` (zero for [`LimitMask::Local`]).
@@ -1486,7 +1543,7 @@ fn stencil_position<T: Scalar, const N: usize>(st: &Stencils, data: &[[T; N]], v
         LimitMask::Valence2(m) => &st.masks[m as usize].position,
         LimitMask::Curve => &st.curve_mask,
         LimitMask::Corner => return data[items[0] as usize],
-        LimitMask::Local => return zero(),
+        LimitMask::Local | LimitMask::Tiled(_) => return zero(),
     };
     combine(data, items, weights)
 }
@@ -1826,9 +1883,9 @@ mod tests {
         case: &str,
     ) -> (Arc<Stencils>, Arc<Stencils>, f64, [Vec<f64>; 2]) {
         let whole = LimitCache::default();
-        *whole.0.lock().unwrap() = Some(Arc::new(build(refinement, None).unwrap()));
+        *whole.0.lock().unwrap() = Some(Arc::new(build(refinement, None, true).unwrap()));
         let local = LimitCache::default();
-        *local.0.lock().unwrap() = Some(Arc::new(build(refinement, Some(0)).unwrap()));
+        *local.0.lock().unwrap() = Some(Arc::new(build(refinement, Some(0), true).unwrap()));
         let (p, n) = surface(refinement, &Scratch::default(), &local, points).unwrap();
         let (q, m) = surface(refinement, &Scratch::default(), &whole, points).unwrap();
         let extra = |c: &LimitCache| extra_levels(refinement, c).unwrap();
@@ -1871,6 +1928,7 @@ mod tests {
             &targets,
             &semi,
             Unclean::Local,
+            None,
         )
         .unwrap()
         .unwrap();
@@ -1881,6 +1939,152 @@ mod tests {
         surface(refinement, &Scratch::default(), &cache, points)
             .unwrap()
             .1
+    }
+
+    /// A sphere of quads (an icosahedron's triangles split into three quads each, then `n x n`
+    /// each): vertices of valence 3 and 5 among regular ones.
+    fn ico_quads(n: usize) -> (Cage, Vec<f64>) {
+        let t = (1.0 + 5f64.sqrt()) / 2.0;
+        let corners = [
+            [-1.0, t, 0.0],
+            [1.0, t, 0.0],
+            [-1.0, -t, 0.0],
+            [1.0, -t, 0.0],
+            [0.0, -1.0, t],
+            [0.0, 1.0, t],
+            [0.0, -1.0, -t],
+            [0.0, 1.0, -t],
+            [t, 0.0, -1.0],
+            [t, 0.0, 1.0],
+            [-t, 0.0, -1.0],
+            [-t, 0.0, 1.0],
+        ];
+        let triangles = [
+            [0, 11, 5],
+            [0, 5, 1],
+            [0, 1, 7],
+            [0, 7, 10],
+            [0, 10, 11],
+            [1, 5, 9],
+            [5, 11, 4],
+            [11, 10, 2],
+            [10, 7, 6],
+            [7, 1, 8],
+            [3, 9, 4],
+            [3, 4, 2],
+            [3, 2, 6],
+            [3, 6, 8],
+            [3, 8, 9],
+            [4, 9, 5],
+            [2, 4, 11],
+            [6, 2, 10],
+            [8, 6, 7],
+            [9, 8, 1],
+        ];
+        // Points keyed by their position (rounded), so that shared edges share vertices.
+        let mut points: Vec<f64> = Vec::new();
+        let mut ids: HashMap<[i64; 3], i64> = HashMap::new();
+        let mut id = |p: DVec3| -> i64 {
+            let p = p.normalize() * (1.0 + 0.1 * (3.0 * p.x).sin() * p.y.cos());
+            let key = (p * 1e9).round().to_array().map(|x| x as i64);
+            *ids.entry(key).or_insert_with(|| {
+                points.extend(p.to_array());
+                (points.len() / 3 - 1) as i64
+            })
+        };
+        let mut indices = Vec::new();
+        for tri in triangles {
+            let [a, b, c] = tri.map(|i| DVec3::from_array(corners[i]).normalize());
+            let centre = (a + b + c) / 3.0;
+            for (p, q, r) in [(a, b, c), (b, c, a), (c, a, b)] {
+                // The quad at corner p: p, mid(p, q), centre, mid(r, p), as an n x n grid.
+                let (u, v) = ((p + q) / 2.0, (r + p) / 2.0);
+                let at = |i: usize, j: usize| {
+                    let (x, y) = (i as f64 / n as f64, j as f64 / n as f64);
+                    p * ((1.0 - x) * (1.0 - y))
+                        + u * (x * (1.0 - y))
+                        + centre * (x * y)
+                        + v * ((1.0 - x) * y)
+                };
+                for j in 0..n {
+                    for i in 0..n {
+                        indices.extend(
+                            [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)].map(&mut id),
+                        );
+                    }
+                }
+            }
+        }
+        let faces = indices.len() / 4;
+        (
+            Cage::from_indices(points.len() / 3, &vec![4; faces], &indices).unwrap(),
+            points,
+        )
+    }
+
+    /// The limit tiles give the stencils' limits (other sums of the same masks: equal to
+    /// rounding) and take most vertices; on a mesh with boundaries, creases and irregular
+    /// vertices, at every degree and tile depth.
+    #[test]
+    fn tiles_match_the_stencils() {
+        let (sphere, sphere_points) = ico_quads(3);
+        let (grid, grid_points) = grid(6);
+        let crease = grid
+            .clone()
+            .with_creases(&[(8, 15, f32::INFINITY), (15, 22, f32::INFINITY)])
+            .unwrap();
+        let cases = [
+            ("sphere", sphere, sphere_points),
+            ("grid", grid, grid_points.clone()),
+            ("creased grid", crease, grid_points),
+            ("cube", cube().0, cube().1),
+        ];
+        for (name, cage, points) in &cases {
+            for degree in 2..=9 {
+                for levels in 1..=4 {
+                    if degree > 5 && levels > 3 {
+                        continue;
+                    }
+                    let options = Options {
+                        degree,
+                        levels,
+                        ..Options::default()
+                    };
+                    let refinement = Refinement::new(cage, &options).unwrap();
+                    let case = format!("{name} degree {degree} level {levels}");
+                    let with = |tiled: bool| {
+                        let cache = LimitCache::default();
+                        let st = build(&refinement, Some(LOCAL_SHARE), tiled).unwrap();
+                        *cache.0.lock().unwrap() = Some(Arc::new(st));
+                        let scratch = Scratch::default();
+                        let (p, n) = surface(&refinement, &scratch, &cache, points).unwrap();
+                        let q = positions(&refinement, &scratch, &cache, points, 3).unwrap();
+                        assert_eq!(p, q, "{case}: positions alone");
+                        let st = cache.0.lock().unwrap().clone().unwrap();
+                        let tiled = (st.masks_of.iter())
+                            .filter(|m| matches!(m, LimitMask::Tiled(_)))
+                            .count();
+                        (p, n, tiled, st.extended.is_none())
+                    };
+                    let ((p, n, tiled, at_level), (q, m, none, _)) = (with(true), with(false));
+                    assert_eq!(none, 0);
+                    let scale = p.iter().fold(0.0f64, |x, y| x.max(y.abs()));
+                    let (dp, dn) = (worst(&p, &q), worst(&n, &m));
+                    assert!(
+                        dp < 1e-13 * scale && dn < 1e-11,
+                        "{case}: positions {dp:e}, normals {dn:e}"
+                    );
+                    // Most vertices of the sphere are far from its irregular ones.
+                    let outputs = refinement.last_level().num_vertices;
+                    if name == &"sphere" && levels >= 3 && at_level {
+                        assert!(
+                            tiled * 10 >= outputs * 7,
+                            "{case}: {tiled} of {outputs} vertices tiled"
+                        );
+                    }
+                }
+            }
+        }
     }
 
     /// The local extension gives the limits of the whole plan extended (the stencils of the

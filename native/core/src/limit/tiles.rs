@@ -1,0 +1,537 @@
+//! Limit tiles: limit positions and normals over the regular regions of a quad level by
+//! separable tensor-product B-spline masks, a block of vertices at a time.
+//!
+//! Where a vertex's `N`-ring neighbourhood is a grid of regular vertices, its limit masks are
+//! the tensor products of the 1-D B-spline masks at a knot: the value mask for the position,
+//! value x slope and slope x value for the two tangents (DESIGN.md §1; the eigenvectors of the
+//! parent module give the same masks at valence 4, tested). Walked per vertex, as the stencils
+//! are, each vertex reads its `K^2` items (`K = 2N + 1` vertices for odd degrees, `2N` faces
+//! for even ones) and makes three sums over all of them. Over a block of vertices the rows of
+//! the block's window are filtered once for all of its columns, and each vertex then makes three
+//! column sums of `K` products: per vertex and channel about `5K` products instead of `3K^2`
+//! (fewer with the symmetric folding), and each datum is read once per block instead of `K^2`
+//! times.
+//!
+//! A tile is the block of level-`L` vertices over a face of level `L - t`, `t` at most
+//! [`MAX_DEPTH`]: its descendants are the level's faces `g 4^t .. (g + 1) 4^t` (a face's
+//! children are numbered by its corners), and the first of them has its corner 0 at the face's
+//! corner 0, along the face's first edge, so the tile's frame is the face's. Its window, `N`
+//! rings more on every side, is walked once per plan over the level's twin corners. A vertex is
+//! taken by the first tile (in face order) whose walk holds its whole neighbourhood as a grid of
+//! regular vertices (valence 4, interior, on no curve; all different): exactly the vertices
+//! whose stencils would be the valence-4 masks, less those that no tile holds so (near an
+//! irregular vertex, the walk from the tile's corner goes around it), which keep their stencils.
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::analysis::neighbourhood_size;
+use crate::error::{Error, Result};
+use crate::memory;
+use crate::scalar::Scalar;
+use crate::scheme::{cardinal_bspline, cardinal_bspline_derivative};
+use crate::topology::{quad_next, quad_prev, Level, NONE};
+
+/// The largest tile depth `t`: a tile holds `2^t x 2^t` faces of its level.
+pub(super) const MAX_DEPTH: u32 = 3;
+
+/// Output vertices per side of the largest tile.
+const MAX_SIDE: usize = (1 << MAX_DEPTH) + 1;
+
+/// Data items per side of the largest window (`N <= 4`, degree 9).
+const MAX_DATA: usize = MAX_SIDE + 2 * 4;
+
+/// Walked cells per side of the largest window (one ring more than the data, so that every
+/// vertex of the window has its four cells).
+const MAX_CELLS: usize = MAX_DATA + 1;
+
+/// Tiles walked between two claims (bounds the memory of the walks in flight).
+const BLOCK: usize = 1 << 12;
+
+/// The tiles of one quad level: their windows, the vertices each computes, and the 1-D masks.
+#[derive(Debug)]
+pub(super) struct Tiles {
+    /// Output vertices per side of a tile (`2^t + 1`; the far row and column are shared with
+    /// the next tiles, whichever claims them first).
+    side: usize,
+    /// Items per side of a window: vertices for odd degrees, faces for even ones.
+    data_side: usize,
+    /// The masks' width `K`.
+    width: usize,
+    /// The 1-D value and slope masks at a knot over the `K` items, lowest coordinate first.
+    value: Vec<f64>,
+    slope: Vec<f64>,
+    /// Per tile, its window's data ids row after row (`data_side^2`; 0 where no output of the
+    /// tile reads one).
+    ids: Vec<u32>,
+    /// Per tile, its output vertices (bit `side * j + i` for the vertex at column `i`, row `j`).
+    owned: Vec<u128>,
+    /// Per tile, its first slot (the slots of its vertices follow in bit order); one more.
+    offsets: Vec<u32>,
+    /// Per level vertex, its slot, or `NONE` when no tile computes it.
+    slot_of: Vec<u32>,
+}
+
+/// What the walk of one tile found.
+struct Walked {
+    /// The data ids of its window (see [`Tiles::ids`]).
+    ids: [u32; MAX_DATA * MAX_DATA],
+    /// Output vertices whose neighbourhood the window holds as a clean grid (bits as
+    /// [`Tiles::owned`]).
+    valid: u128,
+    /// Level vertex of each output position.
+    outputs: [u32; MAX_SIDE * MAX_SIDE],
+}
+
+impl Tiles {
+    /// The tiles of `level` (a quad level whose faces `g 4^depth ..` descend from one face of
+    /// the level `depth` above it) for the limit of `degree`: `twins` are the level's
+    /// [`Level::twin_corners`], `marks` per vertex 0 when regular (valence 4, interior, on no
+    /// curve). `None` when no vertex is computed by a tile.
+    pub(super) fn build(
+        level: &Level,
+        twins: &[u32],
+        marks: &[u32],
+        degree: u32,
+        depth: u32,
+    ) -> Result<Option<Tiles>> {
+        if depth > MAX_DEPTH || !level.is_quads() || !(2..=9).contains(&degree) {
+            return Ok(None);
+        }
+        let rings = neighbourhood_size(degree);
+        let primal = degree % 2 == 1;
+        let t = 1usize << depth;
+        let side = t + 1;
+        let data_side = match primal {
+            true => side + 2 * rings,
+            false => side + 2 * rings - 1,
+        };
+        let width = match primal {
+            true => 2 * rings + 1,
+            false => 2 * rings,
+        };
+        // Item k of a mask sits at `k - N` (vertices) or `k - N + 1/2` (face centres) from the
+        // vertex; the slope's sign is the same for both tangents, so the normal does not see it.
+        let offset = |k: usize| k as f64 - rings as f64 + if primal { 0.0 } else { 0.5 };
+        let value: Vec<f64> = (0..width)
+            .map(|k| cardinal_bspline(degree, offset(k)))
+            .collect();
+        let slope: Vec<f64> = (0..width)
+            .map(|k| cardinal_bspline_derivative(degree, offset(k)))
+            .collect();
+        let faces = level.num_faces();
+        let count = faces >> (2 * depth);
+        if count << (2 * depth) != faces {
+            return Err(Error::Internal(
+                "limit tiles: the level's faces are not blocks of one face's descendants".into(),
+            ));
+        }
+        let geometry = Geometry {
+            level,
+            twins,
+            marks,
+            t,
+            rings,
+            primal,
+            data_side,
+        };
+        let mut slot_of = memory::filled(level.num_vertices, NONE)?;
+        let mut ids: Vec<u32> = Vec::new();
+        let mut owned: Vec<u128> = Vec::new();
+        let mut offsets: Vec<u32> = vec![0];
+        let mut slots = 0u32;
+        for start in (0..count).step_by(BLOCK) {
+            let end = (start + BLOCK).min(count);
+            let walks: Vec<Walked> = (start..end)
+                .into_par_iter()
+                .with_min_len(16)
+                .map(|g| geometry.walk(g << (2 * depth)))
+                .collect();
+            // Claims in tile order: the result does not depend on the thread count.
+            for w in &walks {
+                let mut mine = 0u128;
+                let mut bits = w.valid;
+                while bits != 0 {
+                    let b = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    let v = w.outputs[b] as usize;
+                    if slot_of[v] == NONE {
+                        slot_of[v] = slots;
+                        slots += 1;
+                        mine |= 1 << b;
+                    }
+                }
+                if mine != 0 {
+                    memory::reserve(&mut ids, data_side * data_side)?;
+                    ids.extend_from_slice(&w.ids[..data_side * data_side]);
+                    memory::reserve(&mut owned, 1)?;
+                    owned.push(mine);
+                    memory::reserve(&mut offsets, 1)?;
+                    offsets.push(slots);
+                }
+            }
+        }
+        if owned.is_empty() {
+            return Ok(None);
+        }
+        Ok(Some(Tiles {
+            side,
+            data_side,
+            width,
+            value,
+            slope,
+            ids,
+            owned,
+            offsets,
+            slot_of,
+        }))
+    }
+
+    /// The slot of level vertex `v` when a tile computes it.
+    pub(super) fn slot(&self, v: usize) -> Option<u32> {
+        let s = self.slot_of[v];
+        (s != NONE).then_some(s)
+    }
+
+    /// Per slot, the limit position from `data` (the level's data: per vertex for odd degrees,
+    /// per face for even ones) and, with `normals`, the unit normal (zero without): the
+    /// tangents are rounded to `T` before their cross product, as the stencils' are.
+    pub(super) fn values<T: Scalar, const N: usize>(
+        &self,
+        data: &[[T; N]],
+        normals: bool,
+    ) -> Result<Vec<([T; N], [T; 3])>> {
+        match self.width {
+            2 => self.values_with::<T, N, 2>(data, normals),
+            3 => self.values_with::<T, N, 3>(data, normals),
+            4 => self.values_with::<T, N, 4>(data, normals),
+            5 => self.values_with::<T, N, 5>(data, normals),
+            6 => self.values_with::<T, N, 6>(data, normals),
+            7 => self.values_with::<T, N, 7>(data, normals),
+            8 => self.values_with::<T, N, 8>(data, normals),
+            _ => self.values_with::<T, N, 9>(data, normals),
+        }
+    }
+
+    /// [`Tiles::values`] with the masks' width `K` a constant.
+    fn values_with<T: Scalar, const N: usize, const K: usize>(
+        &self,
+        data: &[[T; N]],
+        normals: bool,
+    ) -> Result<Vec<([T; N], [T; 3])>> {
+        if self.width != K || self.data_side > MAX_DATA || self.side > MAX_SIDE {
+            return Err(Error::Internal(
+                "limit tiles: a window past its bounds".into(),
+            ));
+        }
+        let slots = *self.offsets.last().unwrap_or(&0) as usize;
+        let mut out = memory::with_capacity(slots)?;
+        out.resize(slots, ([T::default(); N], [T::default(); 3]));
+        let tiles = self.owned.len();
+        // A tile is a few thousand instructions: small tasks still amortise.
+        const TASK: usize = 32;
+        let mut pieces = Vec::with_capacity(tiles / TASK + 1);
+        let mut rest = &mut out[..];
+        for start in (0..tiles).step_by(TASK) {
+            let end = (start + TASK).min(tiles);
+            let len = (self.offsets[end] - self.offsets[start]) as usize;
+            let (piece, tail) = rest.split_at_mut(len);
+            pieces.push((start, end, piece));
+            rest = tail;
+        }
+        let value: [f64; K] = std::array::from_fn(|k| self.value[k]);
+        let slope: [f64; K] = std::array::from_fn(|k| self.slope[k]);
+        pieces.into_par_iter().try_for_each(|(start, end, piece)| {
+            // Every tile overwrites what it reads of these (the columns past a small tile's side
+            // hold finite leftovers, filtered into sums no vertex reads).
+            let mut rows = Box::new(Rows::<N> {
+                window: [[[0.0; MAX_DATA]; MAX_DATA]; N],
+                by_value: [[[0.0; MAX_SIDE]; MAX_DATA]; N],
+                by_slope: [[[0.0; MAX_SIDE]; MAX_DATA]; N],
+            });
+            let mut at = 0;
+            for tile in start..end {
+                let kernel = Kernel {
+                    tiles: self,
+                    value: &value,
+                    slope: &slope,
+                    normals,
+                };
+                at += kernel.tile(tile, data, &mut rows, &mut piece[at..])?;
+            }
+            Ok(())
+        })?;
+        Ok(out)
+    }
+}
+
+/// A task's working rows for [`Kernel::tile`], channel by channel: a tile's window of data and
+/// its rows filtered for the output columns (by the value mask and by the slope mask).
+struct Rows<const N: usize> {
+    window: [[[f64; MAX_DATA]; MAX_DATA]; N],
+    by_value: [[[f64; MAX_SIDE]; MAX_DATA]; N],
+    by_slope: [[[f64; MAX_SIDE]; MAX_DATA]; N],
+}
+
+/// The separable masks of width `K` over the tiles.
+struct Kernel<'a, const K: usize> {
+    tiles: &'a Tiles,
+    value: &'a [f64; K],
+    slope: &'a [f64; K],
+    normals: bool,
+}
+
+impl<const K: usize> Kernel<'_, K> {
+    /// Writes the values of `tile`'s vertices into `out` in slot order; returns their number.
+    /// Rows first, for all output columns at once (each a sum over `K` window columns), then
+    /// per output row the three column sums; the vertices the tile owns are picked from them.
+    fn tile<T: Scalar, const N: usize>(
+        &self,
+        tile: usize,
+        data: &[[T; N]],
+        rows: &mut Rows<N>,
+        out: &mut [([T; N], [T; 3])],
+    ) -> Result<usize> {
+        let (d, side) = (self.tiles.data_side, self.tiles.side);
+        let ids = &self.tiles.ids[tile * d * d..(tile + 1) * d * d];
+        for (y, ids) in ids.chunks_exact(d).enumerate() {
+            for (x, &id) in ids.iter().enumerate() {
+                let item = data.get(id as usize).ok_or_else(|| {
+                    Error::Internal("limit tiles: a window item past the data".into())
+                })?;
+                for (window, &value) in rows.window.iter_mut().zip(item) {
+                    window[y][x] = value.to_f64();
+                }
+            }
+        }
+        for c in 0..N {
+            for y in 0..d {
+                let x = &rows.window[c][y];
+                let mut v = [0.0f64; MAX_SIDE];
+                let mut s = [0.0f64; MAX_SIDE];
+                for k in 0..K {
+                    for i in 0..MAX_SIDE {
+                        v[i] += self.value[k] * x[i + k];
+                    }
+                    if self.normals {
+                        for i in 0..MAX_SIDE {
+                            s[i] += self.slope[k] * x[i + k];
+                        }
+                    }
+                }
+                rows.by_value[c][y] = v;
+                rows.by_slope[c][y] = s;
+            }
+        }
+        let owned = self.tiles.owned[tile];
+        let row_bits = (1u128 << side) - 1;
+        let mut n = 0;
+        for j in 0..side {
+            let mine = (owned >> (j * side)) & row_bits;
+            if mine == 0 {
+                continue;
+            }
+            // The three column sums of output row j, all columns at once.
+            let mut position = [[0.0f64; MAX_SIDE]; N];
+            let mut along_i = [[0.0f64; MAX_SIDE]; N];
+            let mut along_j = [[0.0f64; MAX_SIDE]; N];
+            for c in 0..N {
+                for r in 0..K {
+                    let (bv, bs) = (&rows.by_value[c][j + r], &rows.by_slope[c][j + r]);
+                    for i in 0..MAX_SIDE {
+                        position[c][i] += self.value[r] * bv[i];
+                    }
+                    if self.normals {
+                        for i in 0..MAX_SIDE {
+                            along_i[c][i] += self.value[r] * bs[i];
+                            along_j[c][i] += self.slope[r] * bv[i];
+                        }
+                    }
+                }
+            }
+            // The tangents in T, as the positions (f32 data gives f32 tangents).
+            let at = |t: &[[f64; MAX_SIDE]; N], i: usize| {
+                let x: [f64; 3] = std::array::from_fn(|c| match c < N {
+                    true => T::from_f64(t[c][i]).to_f64(),
+                    false => 0.0,
+                });
+                DVec3::from_array(x)
+            };
+            let mut bits = mine;
+            while bits != 0 {
+                let i = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let normal = match self.normals {
+                    true => at(&along_i, i).cross(at(&along_j, i)).normalize_or_zero(),
+                    false => DVec3::ZERO,
+                };
+                let slot = out.get_mut(n).ok_or_else(|| {
+                    Error::Internal("limit tiles: more vertices than slots".into())
+                })?;
+                *slot = (
+                    std::array::from_fn(|c| T::from_f64(position[c][i])),
+                    normal.to_array().map(T::from_f64),
+                );
+                n += 1;
+            }
+        }
+        Ok(n)
+    }
+}
+
+/// What the walk of a tile reads (see [`Tiles::build`]).
+struct Geometry<'a> {
+    level: &'a Level,
+    twins: &'a [u32],
+    marks: &'a [u32],
+    t: usize,
+    rings: usize,
+    primal: bool,
+    data_side: usize,
+}
+
+impl Geometry<'_> {
+    /// The walk of the tile whose first face is `anchor`: the cells of its window from the
+    /// anchor's corner 0 (cell `(0, 0)`), along row 0 both ways, then up and down each column.
+    /// A vertex is good when it is regular and its four cells meet around it as a grid's do;
+    /// an output vertex is valid when every vertex within `N` rings of it is good and the good
+    /// vertices of the window are all different.
+    fn walk(&self, anchor: usize) -> Walked {
+        let (t, n, d) = (self.t, self.rings, self.data_side);
+        let twin = |c: u32| -> Option<u32> {
+            let o = *self.twins.get(c as usize)?;
+            (o != NONE).then_some(o)
+        };
+        // From a cell's corner 0 (its lower left) to that of the next cell in each direction.
+        let right = |c: u32| Some(quad_next(twin(quad_next(c as usize) as u32)? as usize) as u32);
+        let left = |c: u32| Some(quad_prev(twin(quad_prev(c as usize) as u32)? as usize) as u32);
+        let up = |c: u32| twin(c ^ 2);
+        let down = |c: u32| Some(twin(c)? ^ 2);
+        // Cells (a, b) for a, b in -n-1 ..= t+n, stored at (a + n + 1, b + n + 1).
+        let side = t + 2 * n + 2;
+        let origin = n + 1;
+        let mut cells = [NONE; MAX_CELLS * MAX_CELLS];
+        let cell = |a: usize, b: usize| b * side + a;
+        let first = 4 * anchor as u32;
+        cells[cell(origin, origin)] = first;
+        let mut c = first;
+        for a in origin + 1..side {
+            match right(c) {
+                Some(next) => c = next,
+                None => break,
+            }
+            cells[cell(a, origin)] = c;
+        }
+        c = first;
+        for a in (0..origin).rev() {
+            match left(c) {
+                Some(next) => c = next,
+                None => break,
+            }
+            cells[cell(a, origin)] = c;
+        }
+        for a in 0..side {
+            let base = cells[cell(a, origin)];
+            if base == NONE {
+                continue;
+            }
+            c = base;
+            for b in origin + 1..side {
+                match up(c) {
+                    Some(next) => c = next,
+                    None => break,
+                }
+                cells[cell(a, b)] = c;
+            }
+            c = base;
+            for b in (0..origin).rev() {
+                match down(c) {
+                    Some(next) => c = next,
+                    None => break,
+                }
+                cells[cell(a, b)] = c;
+            }
+        }
+        // Vertices (i, j) for i, j in -n ..= t+n, at (i + n, j + n): the corner 0 of cell
+        // (i, j), good when the cells to its left, below and diagonally meet it as a grid's.
+        let verts = &self.level.corner_verts;
+        let vside = t + 2 * n + 1;
+        let mut good = [false; MAX_DATA * MAX_DATA];
+        let mut ids = [0u32; MAX_DATA * MAX_DATA];
+        let mut vertex = [NONE; MAX_DATA * MAX_DATA];
+        for j in 0..vside {
+            for i in 0..vside {
+                let (a, b) = (i + 1, j + 1);
+                let [below_left, below, left_of, own] = [
+                    cells[cell(a - 1, b - 1)],
+                    cells[cell(a, b - 1)],
+                    cells[cell(a - 1, b)],
+                    cells[cell(a, b)],
+                ];
+                if [below_left, below, left_of, own].contains(&NONE) {
+                    continue;
+                }
+                let v = verts[own as usize];
+                vertex[j * vside + i] = v;
+                good[j * vside + i] = self.marks[v as usize] == 0
+                    && right(below_left) == Some(below)
+                    && right(left_of) == Some(own);
+            }
+        }
+        // All good vertices different (the window is a disc), else no output.
+        let mut seen = [NONE; MAX_DATA * MAX_DATA];
+        let mut count = 0;
+        for x in (0..vside * vside).filter(|&x| good[x]) {
+            seen[count] = vertex[x];
+            count += 1;
+        }
+        let seen = &mut seen[..count];
+        seen.sort_unstable();
+        let distinct = seen.windows(2).all(|w| w[0] != w[1]);
+        // Bad vertices counted over each box of N rings by prefix sums.
+        let ps = vside + 1;
+        let mut bad = [0u16; (MAX_DATA + 1) * (MAX_DATA + 1)];
+        for j in 0..vside {
+            for i in 0..vside {
+                bad[(j + 1) * ps + i + 1] = bad[j * ps + i + 1] + bad[(j + 1) * ps + i]
+                    - bad[j * ps + i]
+                    + u16::from(!good[j * vside + i]);
+            }
+        }
+        let mut valid = 0u128;
+        let mut outputs = [NONE; MAX_SIDE * MAX_SIDE];
+        let out_side = t + 1;
+        for j in 0..out_side {
+            for i in 0..out_side {
+                // The box of output (i, j) is vertices i ..= i + 2n (shifted by n).
+                let (x0, y0, x1, y1) = (i, j, i + 2 * n + 1, j + 2 * n + 1);
+                let count =
+                    bad[y1 * ps + x1] + bad[y0 * ps + x0] - bad[y0 * ps + x1] - bad[y1 * ps + x0];
+                let v = vertex[(j + n) * vside + i + n];
+                outputs[j * out_side + i] = v;
+                if distinct && count == 0 {
+                    valid |= 1 << (j * out_side + i);
+                }
+            }
+        }
+        // The data the outputs read: vertices -n ..= t+n (odd degrees) or the faces of cells
+        // -n ..= t+n-1 (even).
+        for y in 0..d {
+            for x in 0..d {
+                let id = match self.primal {
+                    true => vertex[y * vside + x],
+                    false => match cells[cell(x + 1, y + 1)] {
+                        NONE => NONE,
+                        c => c >> 2,
+                    },
+                };
+                ids[y * d + x] = if id == NONE { 0 } else { id };
+            }
+        }
+        Walked {
+            ids,
+            valid,
+            outputs,
+        }
+    }
+}
