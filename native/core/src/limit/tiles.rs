@@ -304,19 +304,28 @@ impl<const K: usize> Kernel<'_, K> {
                 }
             }
         }
+        // The value mask is symmetric and the slope mask antisymmetric (zero at an odd mask's
+        // centre): items `k` and `K - 1 - k` are summed and subtracted once for both.
+        let (half, odd) = (K / 2, K % 2 == 1);
         for c in 0..N {
             for y in 0..d {
                 let x = &rows.window[c][y];
                 let mut v = [0.0f64; MAX_SIDE];
                 let mut s = [0.0f64; MAX_SIDE];
-                for k in 0..K {
+                for k in 0..half {
+                    let (a, b) = (k, K - 1 - k);
                     for i in 0..MAX_SIDE {
-                        v[i] += self.value[k] * x[i + k];
+                        v[i] += self.value[k] * (x[i + a] + x[i + b]);
                     }
                     if self.normals {
                         for i in 0..MAX_SIDE {
-                            s[i] += self.slope[k] * x[i + k];
+                            s[i] += self.slope[k] * (x[i + a] - x[i + b]);
                         }
+                    }
+                }
+                if odd {
+                    for i in 0..MAX_SIDE {
+                        v[i] += self.value[half] * x[i + half];
                     }
                 }
                 rows.by_value[c][y] = v;
@@ -336,16 +345,24 @@ impl<const K: usize> Kernel<'_, K> {
             let mut along_i = [[0.0f64; MAX_SIDE]; N];
             let mut along_j = [[0.0f64; MAX_SIDE]; N];
             for c in 0..N {
-                for r in 0..K {
-                    let (bv, bs) = (&rows.by_value[c][j + r], &rows.by_slope[c][j + r]);
+                let (bv, bs) = (&rows.by_value[c], &rows.by_slope[c]);
+                for r in 0..half {
+                    let (a, b) = (j + r, j + K - 1 - r);
                     for i in 0..MAX_SIDE {
-                        position[c][i] += self.value[r] * bv[i];
+                        position[c][i] += self.value[r] * (bv[a][i] + bv[b][i]);
                     }
                     if self.normals {
                         for i in 0..MAX_SIDE {
-                            along_i[c][i] += self.value[r] * bs[i];
-                            along_j[c][i] += self.slope[r] * bv[i];
+                            along_i[c][i] += self.value[r] * (bs[a][i] + bs[b][i]);
+                            along_j[c][i] += self.slope[r] * (bv[a][i] - bv[b][i]);
                         }
+                    }
+                }
+                if odd {
+                    let m = j + half;
+                    for i in 0..MAX_SIDE {
+                        position[c][i] += self.value[half] * bv[m][i];
+                        along_i[c][i] += self.value[half] * bs[m][i];
                     }
                 }
             }
