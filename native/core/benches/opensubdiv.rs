@@ -30,7 +30,7 @@
 //!
 //! Environment: `BIDEGREE_OSD_DRIVER` (path of the driver; without it only bidegree's numbers
 //! are printed), `BIDEGREE_BENCH_SECONDS` (time per side of a ratio over all its rounds, default
-//! 1), `BIDEGREE_BENCH_ROUNDS` (default 5), `BIDEGREE_BENCH_MAX_GIB` (skip a row whose memory
+//! 1), `BIDEGREE_BENCH_ROUNDS` (default 7), `BIDEGREE_BENCH_MAX_GIB` (skip a row whose memory
 //! estimate exceeds this, default 13: the crate's `estimate`, which assumes f64 evaluation
 //! buffers, says 12.4 GiB for the 250k cage at level 4 where the measured peak RSS of this bench
 //! was 7.9 GiB; OpenSubdiv's was 9.9 GiB; OpenSubdiv's cached side is left out of a row when both
@@ -336,7 +336,7 @@ fn main() {
         .ok()
         .and_then(|s| s.parse().ok())
         .filter(|&r| r > 0)
-        .unwrap_or(5);
+        .unwrap_or(7);
     let timing = Rounds {
         rounds,
         sample_s: seconds / rounds as f64,
