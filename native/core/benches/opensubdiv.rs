@@ -20,13 +20,16 @@
 //! drifts by more than 2x within minutes, so times taken apart do not divide): the sides run in
 //! interleaved rounds, each round one sample of every side, the order reversed every other round
 //! (fresh: default pool, OpenSubdiv, one thread; cached: copy, default pool, OpenSubdiv, one
-//! thread). A sample is the median of 3 to 21 calls taking about `BIDEGREE_BENCH_SECONDS` /
-//! rounds (one call when a call is longer; only a side's first sample has a warm-up). The ratio
-//! column is the median over the rounds of the ratio of the round's two samples, the range
-//! column its lowest and highest; the faces/s columns come from each side's median sample, so
-//! they need not divide to the ratio. OpenSubdiv's driver stays up for the cage (requests on its
-//! stdin) and its row closes each level: the medians of all its samples of the level. `load` is
-//! the 1-minute load average after the row.
+//! thread). A round goes through every row of a table before the next round starts, so a row's
+//! rounds are spread over the whole table's run rather than the few seconds the row alone
+//! takes; the cached data of a row (plan, OpenSubdiv's refiner) is made again each round,
+//! untimed (on the 250k cage that is seconds a row and round). A sample is the median of 3 to 21 calls taking about
+//! `BIDEGREE_BENCH_SECONDS` / rounds (one call when a call is longer; only a side's first sample
+//! has a warm-up). The ratio column is the median over the rounds of the ratio of the round's
+//! two samples, the range column its lowest and highest; the faces/s columns come from each
+//! side's median sample, so they need not divide to the ratio. OpenSubdiv's driver stays up for
+//! the cage (requests on its stdin); its row closes each level, the medians of all its samples of
+//! the level. Each table ends with the 1-minute load average after each round.
 //!
 //! Environment: `BIDEGREE_OSD_DRIVER` (path of the driver; without it only bidegree's numbers
 //! are printed), `BIDEGREE_BENCH_SECONDS` (time per side of a ratio over all its rounds, default
@@ -224,19 +227,39 @@ impl Sampler {
 /// One side of an interleaved measurement: takes a sample and returns its time (ms).
 type Side<'a> = Box<dyn FnMut() -> f64 + 'a>;
 
-/// Samples every side once a round for `rounds` rounds, in the given order in even rounds and in
-/// reverse in odd ones (so no side always runs right after a given other); returns each side's
-/// samples by round.
-fn interleave(rounds: usize, mut sides: Vec<Side>) -> Vec<Vec<f64>> {
+/// Round `round` of an interleaved measurement: a sample of every side, in the given order in
+/// even rounds and in reverse in odd ones (so no side always runs right after a given other).
+/// Returns the samples in the sides' order.
+fn round(round: usize, mut sides: Vec<Side>) -> Vec<f64> {
     let n = sides.len();
-    let mut samples = vec![Vec::with_capacity(rounds); n];
-    for round in 0..rounds {
-        for k in 0..n {
-            let i = if round % 2 == 0 { k } else { n - 1 - k };
-            samples[i].push(sides[i]());
-        }
+    let mut samples = vec![0.0; n];
+    for k in 0..n {
+        let i = if round.is_multiple_of(2) {
+            k
+        } else {
+            n - 1 - k
+        };
+        samples[i] = sides[i]();
     }
     samples
+}
+
+/// Runs `rounds` rounds of `each` (given the round) and returns the 1-minute load average after
+/// each; says on stderr how far it got.
+fn run_rounds(what: &str, rounds: usize, mut each: impl FnMut(usize)) -> Vec<String> {
+    let start = Instant::now();
+    (0..rounds)
+        .map(|r| {
+            each(r);
+            let load = load_now();
+            eprintln!(
+                "[opensubdiv bench] {what}: round {}/{rounds} done after {:.0} s, load {load}",
+                r + 1,
+                start.elapsed().as_secs_f64()
+            );
+            load
+        })
+        .collect()
 }
 
 /// The per-round ratios `numerator[r] / denominator[r]` of two sides: median and range.
@@ -369,14 +392,15 @@ fn main() {
     println!(
         "{} rayon threads (OpenSubdiv's Far refinement is single-threaded); load average {}; \
          ratio = bidegree faces/s / OpenSubdiv faces/s, the median over {rounds} rounds that \
-         alternate the sides' samples (about {:.2} s each); range = the rounds' lowest-highest \
-         ratio; faces/s from each side's median sample; load = 1-minute load average after the row",
+         alternate the sides' samples (about {:.2} s each), a round going through all rows \
+         before the next; range = the rounds' lowest-highest ratio; faces/s from each side's \
+         median sample",
         rayon::current_num_threads(),
         load_average(),
         timing.sample_s
     );
     let header = format!(
-        "{:>5} {:>5} {:<14} {:>10} {:>11} {:>11} {:>8} {:>8} {:>8} {:>13} {:>13} {:>13} {:>5}",
+        "{:>5} {:>5} {:<14} {:>10} {:>11} {:>11} {:>8} {:>8} {:>8} {:>13} {:>13} {:>13}",
         "cage",
         "level",
         "scheme",
@@ -388,8 +412,7 @@ fn main() {
         "/copy",
         "fresh range",
         "cached range",
-        "/copy range",
-        "load"
+        "/copy range"
     );
     let default_pool = rayon::ThreadPoolBuilder::new()
         .build()
@@ -429,11 +452,16 @@ fn main() {
                 );
             }
         }
-        println!("{header}");
         let moved: Vec<f32> = points.iter().map(|x| x * 1.01).collect();
+        let bench = Bench {
+            cage: &cage,
+            points: &points,
+            moved: &moved,
+            pools: [&default_pool, &one_thread],
+            sample_s: timing.sample_s,
+        };
+        let mut rows = Vec::new();
         for &level in &levels {
-            let mut osd = OsdLevel::default();
-            let mut osd_driver = driver.as_mut().filter(|_| osd_gib(level) <= max_gib);
             let schemes = [
                 ("classic 3", Rules::Classic, 3),
                 ("averaging 3", Rules::Averaging, 3),
@@ -463,17 +491,10 @@ fn main() {
                     );
                     continue;
                 }
-                let row = SchemeRow {
-                    pools: [&default_pool, &one_thread],
-                    cage: &cage,
-                    options: &options,
-                    points: &points,
-                    moved: &moved,
-                };
+                let osd_fresh = driver.is_some() && osd_gib(level) <= max_gib;
                 // Both sides keep their cached data while the cached samples alternate.
-                let osd_cached = osd_gib(level) + gib <= max_gib;
-                let m = row.measure(timing, osd_driver.as_deref_mut(), osd_cached, &mut osd);
-                if m.osd_fresh.is_some() && !osd_cached {
+                let osd_cached = osd_fresh && osd_gib(level) + gib <= max_gib;
+                if osd_fresh && !osd_cached {
                     println!(
                         "{:>5} {:>5} {:<14} {:>10}   cached x not measured: OpenSubdiv and bidegree \
                          together about {:.1} GiB > {max_gib} GiB (BIDEGREE_BENCH_MAX_GIB)",
@@ -484,57 +505,49 @@ fn main() {
                         osd_gib(level) + gib
                     );
                 }
-                for (t, threads) in ["", " 1t"].iter().enumerate() {
-                    if m.osd_fresh.is_some() {
-                        assert_eq!(osd.faces, m.faces, "same output face count as OpenSubdiv");
-                    }
-                    let faces = m.faces as f64;
-                    let fresh = m.osd_fresh.as_ref().map(|o| Ratio::of(o, &m.fresh[t]));
-                    let cached = m.osd_cached.as_ref().map(|o| Ratio::of(o, &m.cached[t]));
-                    let copy = Ratio::of(&m.cached[t], &m.copy);
-                    println!(
-                        "{:>5} {:>5} {:<14} {:>10} {:>11.3e} {:>11.3e} {:>8} {:>8} {:>8.2} {:>13} {:>13} {:>13} {:>5}",
-                        name,
-                        level,
-                        format!("{label}{threads}"),
-                        m.faces,
-                        faces / median(&m.fresh[t]) * 1e3,
-                        faces / median(&m.cached[t]) * 1e3,
-                        Ratio::show(fresh.as_ref()),
-                        Ratio::show(cached.as_ref()),
-                        copy.median,
-                        Ratio::range(fresh.as_ref()),
-                        Ratio::range(cached.as_ref()),
-                        Ratio::range(Some(&copy)),
-                        load_now()
-                    );
-                }
-                std::io::stdout().flush().ok();
-            }
-            if !osd.fresh.is_empty() {
-                let per_s = |ms: &[f64]| {
-                    if ms.is_empty() {
-                        "-".to_string()
-                    } else {
-                        format!("{:.3e}", osd.faces as f64 / median(ms) * 1e3)
-                    }
-                };
-                println!(
-                    "{:>5} {:>5} {:<14} {:>10} {:>11} {:>11} {:>8} {:>8}   (medians of its {} samples above; topology {:.1} ms, peak RSS {:.0} MiB)",
-                    name,
-                    level,
-                    "opensubdiv",
-                    osd.faces,
-                    per_s(&osd.fresh),
-                    per_s(&osd.cached),
-                    "1.00",
-                    "1.00",
-                    osd.fresh.len() + osd.cached.len(),
-                    median(&osd.topology),
-                    osd.peak_rss_mib
-                );
+                rows.push(SchemeRow::new(label, options, osd_fresh, osd_cached));
             }
         }
+        let mut osd: HashMap<u32, OsdLevel> = HashMap::new();
+        let loads = run_rounds(&format!("cage {name}"), rounds, |r| {
+            for row in &mut rows {
+                let level = osd.entry(row.options.levels).or_default();
+                row.round(r, &bench, driver.as_mut(), level);
+            }
+        });
+        println!("{header}");
+        for &level in &levels {
+            for row in rows.iter().filter(|row| row.options.levels == level) {
+                row.print(name);
+            }
+            let Some(o) = osd.get(&level).filter(|o| !o.fresh.is_empty()) else {
+                continue;
+            };
+            let per_s = |ms: &[f64]| {
+                if ms.is_empty() {
+                    "-".to_string()
+                } else {
+                    format!("{:.3e}", o.faces as f64 / median(ms) * 1e3)
+                }
+            };
+            println!(
+                "{:>5} {:>5} {:<14} {:>10} {:>11} {:>11} {:>8} {:>8}   (medians of its {} samples above; topology {:.1} ms)",
+                name,
+                level,
+                "opensubdiv",
+                o.faces,
+                per_s(&o.fresh),
+                per_s(&o.cached),
+                "1.00",
+                "1.00",
+                o.fresh.len() + o.cached.len(),
+                median(&o.topology)
+            );
+        }
+        if let Some(peak) = osd.values().map(|o| o.peak_rss_mib).reduce(f64::max) {
+            println!("OpenSubdiv driver's peak RSS: {peak:.0} MiB (its largest level)");
+        }
+        println!("load average (1 min) after each round: {}", loads.join(" "));
     }
     if std::env::var("BIDEGREE_BENCH_LIMIT").as_deref() != Ok("0") {
         limit_rows(&levels, timing);
@@ -543,39 +556,29 @@ fn main() {
     println!("\nload average at the end: {}", load_average());
 }
 
-/// One scheme at one level of the OpenSubdiv table: what its two rows (default pool, one thread)
-/// measure.
-struct SchemeRow<'a> {
-    pools: [&'a rayon::ThreadPool; 2],
+/// What the rows of the OpenSubdiv table measure on.
+struct Bench<'a> {
     cage: &'a bidegree::Cage,
-    options: &'a Options,
     points: &'a [f32],
+    /// The points moved, for cached evaluations.
     moved: &'a [f32],
+    /// Rayon's default pool and a pool of one thread.
+    pools: [&'a rayon::ThreadPool; 2],
+    sample_s: f64,
 }
 
-/// The samples of a [`SchemeRow`] by round: bidegree's by pool (default, one thread), the copy's,
-/// and OpenSubdiv's when it took part.
-struct SchemeSamples {
-    faces: u64,
-    fresh: [Vec<f64>; 2],
-    cached: [Vec<f64>; 2],
-    copy: Vec<f64>,
-    osd_fresh: Option<Vec<f64>>,
-    osd_cached: Option<Vec<f64>>,
-}
-
-impl SchemeRow<'_> {
+impl Bench<'_> {
     /// A side timing fresh subdivision (`Plan::new` + `evaluate`) on `pool`.
     fn fresh_side<'b>(
         &'b self,
+        options: &'b Options,
         pool: &'b rayon::ThreadPool,
         sampler: &'b mut Sampler,
-        sample_s: f64,
     ) -> Side<'b> {
         Box::new(move || {
             pool.install(|| {
-                sampler.sample(sample_s, || {
-                    let plan = Plan::new(self.cage, self.options).unwrap();
+                sampler.sample(self.sample_s, || {
+                    let plan = Plan::new(self.cage, options).unwrap();
                     let out = plan.evaluate(self.points, 3).unwrap();
                     (plan, out)
                 })
@@ -589,73 +592,140 @@ impl SchemeRow<'_> {
         plan: &'b Plan,
         pool: &'b rayon::ThreadPool,
         sampler: &'b mut Sampler,
-        sample_s: f64,
     ) -> Side<'b> {
         Box::new(move || {
-            pool.install(|| sampler.sample(sample_s, || plan.evaluate(self.moved, 3).unwrap()))
+            pool.install(|| sampler.sample(self.sample_s, || plan.evaluate(self.moved, 3).unwrap()))
         })
     }
+}
 
-    /// Fresh samples in interleaved rounds of (default pool, OpenSubdiv, one thread), then
-    /// cached ones of (copy, default pool, OpenSubdiv, one thread): each bidegree sample runs
-    /// next to an OpenSubdiv one. OpenSubdiv takes part when `driver` is given (its cached side
-    /// only when `osd_cached`), and its samples are also gathered in `level`.
-    fn measure(
-        &self,
-        timing: Rounds,
-        mut driver: Option<&mut Driver>,
-        osd_cached: bool,
-        level: &mut OsdLevel,
-    ) -> SchemeSamples {
-        let Rounds { rounds, sample_s } = timing;
-        let levels = self.options.levels;
-        let [default_pool, one_thread] = self.pools;
+/// One scheme at one level of the OpenSubdiv table (its two rows: default pool, one thread) and
+/// its samples by round.
+struct SchemeRow {
+    label: &'static str,
+    options: Options,
+    /// OpenSubdiv takes part in the fresh samples, and in the cached ones.
+    osd_fresh: bool,
+    osd_cached: bool,
+    faces: u64,
+    /// Fresh default pool, fresh one thread, copy, cached default pool, cached one thread.
+    samplers: [Sampler; 5],
+    /// By pool: default, one thread.
+    fresh: [Vec<f64>; 2],
+    cached: [Vec<f64>; 2],
+    copy: Vec<f64>,
+    osd_fresh_ms: Vec<f64>,
+    osd_cached_ms: Vec<f64>,
+}
 
-        let mut samplers: [Sampler; 2] = Default::default();
-        let [default_sampler, one_sampler] = &mut samplers;
-        let mut sides = vec![self.fresh_side(default_pool, default_sampler, sample_s)];
-        let osd_at = driver.as_deref_mut().map(|d| {
-            let osd: Side = Box::new(|| level.note(d.sample("fresh", levels, sample_s)));
-            sides.push(osd);
-            sides.len() - 1
-        });
-        sides.push(self.fresh_side(one_thread, one_sampler, sample_s));
-        let mut fresh = interleave(rounds, sides);
-        let osd_fresh = osd_at.map(|i| fresh.remove(i));
-        level.fresh.extend(osd_fresh.iter().flatten());
-
-        let plan = default_pool.install(|| Plan::new(self.cage, self.options).unwrap());
-        // The reference of "memory speed": a copy of the output into a new vector (what a
-        // cached evaluation returns).
-        let out = plan.evaluate(self.moved, 3).unwrap();
-        let mut samplers: [Sampler; 3] = Default::default();
-        let [copy_sampler, default_sampler, one_sampler] = &mut samplers;
-        let mut sides: Vec<Side> = vec![
-            Box::new(|| copy_sampler.sample(sample_s, || out.clone())),
-            self.cached_side(&plan, default_pool, default_sampler, sample_s),
-        ];
-        let osd_at = driver.as_deref_mut().filter(|_| osd_cached).map(|d| {
-            let osd: Side = Box::new(|| level.note(d.sample("cached", levels, sample_s)));
-            sides.push(osd);
-            sides.len() - 1
-        });
-        sides.push(self.cached_side(&plan, one_thread, one_sampler, sample_s));
-        let mut cached = interleave(rounds, sides);
-        let osd_cached = osd_at.map(|i| cached.remove(i));
-        level.cached.extend(osd_cached.iter().flatten());
-        if let Some(d) = driver {
-            d.release();
-        }
-        let copy = cached.remove(0);
-        let [fresh_default, fresh_one] = <[Vec<f64>; 2]>::try_from(fresh).unwrap();
-        let [cached_default, cached_one] = <[Vec<f64>; 2]>::try_from(cached).unwrap();
-        SchemeSamples {
-            faces: plan.num_output_faces() as u64,
-            fresh: [fresh_default, fresh_one],
-            cached: [cached_default, cached_one],
-            copy,
+impl SchemeRow {
+    fn new(label: &'static str, options: Options, osd_fresh: bool, osd_cached: bool) -> SchemeRow {
+        SchemeRow {
+            label,
+            options,
             osd_fresh,
             osd_cached,
+            faces: 0,
+            samplers: Default::default(),
+            fresh: Default::default(),
+            cached: Default::default(),
+            copy: Vec::new(),
+            osd_fresh_ms: Vec::new(),
+            osd_cached_ms: Vec::new(),
+        }
+    }
+
+    /// One round: fresh samples of (default pool, OpenSubdiv, one thread), then on a new plan
+    /// cached ones of (copy, default pool, OpenSubdiv, one thread), so that each bidegree sample
+    /// runs next to an OpenSubdiv one. OpenSubdiv's samples are also gathered in `osd`.
+    fn round(&mut self, r: usize, bench: &Bench, driver: Option<&mut Driver>, osd: &mut OsdLevel) {
+        let SchemeRow {
+            options,
+            osd_fresh,
+            osd_cached,
+            faces,
+            samplers,
+            fresh,
+            cached,
+            copy,
+            osd_fresh_ms,
+            osd_cached_ms,
+            ..
+        } = self;
+        let mut driver = driver.filter(|_| *osd_fresh);
+        let level = options.levels;
+        let sample_s = bench.sample_s;
+        let [default_pool, one_thread] = bench.pools;
+        let [fresh_default, fresh_one, copy_sampler, cached_default, cached_one] = samplers;
+
+        let mut sides = vec![bench.fresh_side(options, default_pool, fresh_default)];
+        let osd_at = driver.as_deref_mut().map(|d| {
+            let side: Side = Box::new(|| osd.note(d.sample("fresh", level, sample_s)));
+            sides.push(side);
+            sides.len() - 1
+        });
+        sides.push(bench.fresh_side(options, one_thread, fresh_one));
+        let mut samples = round(r, sides);
+        if let Some(i) = osd_at {
+            osd_fresh_ms.push(samples.remove(i));
+            osd.fresh.push(osd_fresh_ms[r]);
+        }
+        fresh[0].push(samples[0]);
+        fresh[1].push(samples[1]);
+
+        let plan = default_pool.install(|| Plan::new(bench.cage, options).unwrap());
+        // The reference of "memory speed": a copy of the output into a new vector (what a
+        // cached evaluation returns); making it also warms the new plan up.
+        let out = plan.evaluate(bench.moved, 3).unwrap();
+        *faces = plan.num_output_faces() as u64;
+        let mut sides: Vec<Side> = vec![
+            Box::new(|| copy_sampler.sample(sample_s, || out.clone())),
+            bench.cached_side(&plan, default_pool, cached_default),
+        ];
+        let osd_at = driver.as_deref_mut().filter(|_| *osd_cached).map(|d| {
+            let side: Side = Box::new(|| osd.note(d.sample("cached", level, sample_s)));
+            sides.push(side);
+            sides.len() - 1
+        });
+        sides.push(bench.cached_side(&plan, one_thread, cached_one));
+        let mut samples = round(r, sides);
+        if let Some(i) = osd_at {
+            osd_cached_ms.push(samples.remove(i));
+            osd.cached.push(osd_cached_ms[r]);
+        }
+        copy.push(samples[0]);
+        cached[0].push(samples[1]);
+        cached[1].push(samples[2]);
+        if let Some(d) = driver {
+            d.release();
+            assert_eq!(osd.faces, *faces, "same output face count as OpenSubdiv");
+        }
+    }
+
+    /// Prints the two rows (default pool, one thread) of cage `name`.
+    fn print(&self, name: &str) {
+        for (t, threads) in ["", " 1t"].iter().enumerate() {
+            let faces = self.faces as f64;
+            let fresh = (!self.osd_fresh_ms.is_empty())
+                .then(|| Ratio::of(&self.osd_fresh_ms, &self.fresh[t]));
+            let cached = (!self.osd_cached_ms.is_empty())
+                .then(|| Ratio::of(&self.osd_cached_ms, &self.cached[t]));
+            let copy = Ratio::of(&self.cached[t], &self.copy);
+            println!(
+                "{:>5} {:>5} {:<14} {:>10} {:>11.3e} {:>11.3e} {:>8} {:>8} {:>8.2} {:>13} {:>13} {:>13}",
+                name,
+                self.options.levels,
+                format!("{}{threads}", self.label),
+                self.faces,
+                faces / median(&self.fresh[t]) * 1e3,
+                faces / median(&self.cached[t]) * 1e3,
+                Ratio::show(fresh.as_ref()),
+                Ratio::show(cached.as_ref()),
+                copy.median,
+                Ratio::range(fresh.as_ref()),
+                Ratio::range(cached.as_ref()),
+                Ratio::range(Some(&copy)),
+            );
         }
     }
 }
@@ -674,8 +744,78 @@ fn limit_rows(levels: &[u32], timing: Rounds) {
         load_average(),
         timing.rounds
     );
+    let Rounds { rounds, sample_s } = timing;
+    let moved: Vec<f32> = points.iter().map(|x| x * 1.01).collect();
+    /// One row: a plan, its samplers (eval, limit, fresh, first) and their samples by round.
+    struct Row {
+        options: Options,
+        plan: Plan,
+        extra: u32,
+        samplers: [Sampler; 4],
+        samples: [Vec<f64>; 4],
+    }
+    let mut rows = Vec::new();
+    for &level in levels.iter().filter(|&&l| l <= 3) {
+        for degree in 2..=9 {
+            let options = Options {
+                degree,
+                levels: level,
+                ..Options::default()
+            };
+            let plan = Plan::new(&cage, &options).unwrap();
+            match plan.limit_extra_levels() {
+                Ok(extra) => {
+                    // The first call makes the plan's limit data: not a cached call's work.
+                    plan.limit_surface(&points).unwrap();
+                    rows.push(Row {
+                        options,
+                        plan,
+                        extra,
+                        samplers: Default::default(),
+                        samples: Default::default(),
+                    });
+                }
+                Err(_) => println!("{level:>5} {degree:>6}   limit refused (memory budget)"),
+            }
+        }
+    }
+    let loads = run_rounds("limit rows", rounds, |r| {
+        for row in &mut rows {
+            let [eval, limit, fresh, first] = &mut row.samplers;
+            let (plan, options) = (&row.plan, &row.options);
+            let cached = round(
+                r,
+                vec![
+                    Box::new(|| eval.sample(sample_s, || plan.evaluate(&moved, 3).unwrap())),
+                    Box::new(|| limit.sample(sample_s, || plan.limit_surface(&moved).unwrap())),
+                ],
+            );
+            let new = round(
+                r,
+                vec![
+                    Box::new(|| {
+                        fresh.sample(sample_s, || {
+                            let plan = Plan::new(&cage, options).unwrap();
+                            let out = plan.evaluate(&points, 3).unwrap();
+                            (plan, out)
+                        })
+                    }),
+                    Box::new(|| {
+                        first.sample(sample_s, || {
+                            let plan = Plan::new(&cage, options).unwrap();
+                            let out = plan.limit_surface(&points).unwrap();
+                            (plan, out)
+                        })
+                    }),
+                ],
+            );
+            for (list, ms) in row.samples.iter_mut().zip(cached.into_iter().chain(new)) {
+                list.push(ms);
+            }
+        }
+    });
     println!(
-        "{:>5} {:>6} {:>10} {:>10} {:>10} {:>10} {:>10} {:>11} {:>5} {:>11} {:>11} {:>5}",
+        "{:>5} {:>6} {:>10} {:>10} {:>10} {:>10} {:>10} {:>11} {:>5} {:>11} {:>11}",
         "level",
         "degree",
         "eval ms",
@@ -686,69 +826,28 @@ fn limit_rows(levels: &[u32], timing: Rounds) {
         "first/fresh",
         "extra",
         "l/e range",
-        "f/f range",
-        "load"
+        "f/f range"
     );
-    let Rounds { rounds, sample_s } = timing;
-    let moved: Vec<f32> = points.iter().map(|x| x * 1.01).collect();
-    for &level in levels.iter().filter(|&&l| l <= 3) {
-        for degree in 2..=9 {
-            let options = Options {
-                degree,
-                levels: level,
-                ..Options::default()
-            };
-            let plan = Plan::new(&cage, &options).unwrap();
-            let Ok(extra) = plan.limit_extra_levels() else {
-                println!("{level:>5} {degree:>6}   limit refused (memory budget)");
-                continue;
-            };
-            let mut samplers: [Sampler; 4] = Default::default();
-            let [eval, limit, fresh, first] = &mut samplers;
-            let cached = interleave(
-                rounds,
-                vec![
-                    Box::new(|| eval.sample(sample_s, || plan.evaluate(&moved, 3).unwrap())),
-                    Box::new(|| limit.sample(sample_s, || plan.limit_surface(&moved).unwrap())),
-                ],
-            );
-            let new = interleave(
-                rounds,
-                vec![
-                    Box::new(|| {
-                        fresh.sample(sample_s, || {
-                            let plan = Plan::new(&cage, &options).unwrap();
-                            let out = plan.evaluate(&points, 3).unwrap();
-                            (plan, out)
-                        })
-                    }),
-                    Box::new(|| {
-                        first.sample(sample_s, || {
-                            let plan = Plan::new(&cage, &options).unwrap();
-                            let out = plan.limit_surface(&points).unwrap();
-                            (plan, out)
-                        })
-                    }),
-                ],
-            );
-            let limit_eval = Ratio::of(&cached[1], &cached[0]);
-            let first_fresh = Ratio::of(&new[1], &new[0]);
-            println!(
-                "{level:>5} {degree:>6} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>11.2} \
-                 {extra:>5} {:>11} {:>11} {:>5}",
-                median(&cached[0]),
-                median(&cached[1]),
-                median(&new[0]),
-                median(&new[1]),
-                limit_eval.median,
-                first_fresh.median,
-                Ratio::range(Some(&limit_eval)),
-                Ratio::range(Some(&first_fresh)),
-                load_now()
-            );
-            std::io::stdout().flush().ok();
-        }
+    for row in &rows {
+        let [eval, limit, fresh, first] = &row.samples;
+        let limit_eval = Ratio::of(limit, eval);
+        let first_fresh = Ratio::of(first, fresh);
+        println!(
+            "{:>5} {:>6} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>11.2} {:>5} {:>11} {:>11}",
+            row.options.levels,
+            row.options.degree,
+            median(eval),
+            median(limit),
+            median(fresh),
+            median(first),
+            limit_eval.median,
+            first_fresh.median,
+            row.extra,
+            Ratio::range(Some(&limit_eval)),
+            Ratio::range(Some(&first_fresh)),
+        );
     }
+    println!("load average (1 min) after each round: {}", loads.join(" "));
 }
 
 /// The hard limit rows of the module documentation; the fan and the polygon, which have no
@@ -762,19 +861,6 @@ fn hard_limit_rows(timing: Rounds, seconds: f64) {
         load_average(),
         timing.rounds
     );
-    println!(
-        "{:>6} {:>14} {:>14} {:>10} {:>14} {:>14} {:>10} {:>12} {:>12} {:>5}",
-        "degree",
-        "semi ms",
-        "sharp ms",
-        "semi/sharp",
-        "semi first ms",
-        "sharp first ms",
-        "semi/sharp",
-        "cached range",
-        "first range",
-        "load"
-    );
     let options = |degree| Options {
         degree,
         levels: 2,
@@ -784,51 +870,93 @@ fn hard_limit_rows(timing: Rounds, seconds: f64) {
     let moved = |points: &[f32]| points.iter().map(|x| x * 1.01).collect::<Vec<f32>>();
     let (semi, sharp) = (creased_grid(12, 7.5), creased_grid(12, 10.0));
     let (semi_moved, sharp_moved) = (moved(&semi.1), moved(&sharp.1));
-    for degree in [3, 4, 9] {
-        let semi_plan = Plan::new(&semi.0, &options(degree)).unwrap();
-        let sharp_plan = Plan::new(&sharp.0, &options(degree)).unwrap();
-        let mut samplers: [Sampler; 4] = Default::default();
-        let [semi_cached, sharp_cached, semi_first, sharp_first] = &mut samplers;
-        let cached = interleave(
-            rounds,
-            vec![
-                Box::new(|| {
-                    semi_cached.sample(sample_s, || semi_plan.limit_surface(&semi_moved).unwrap())
-                }),
-                Box::new(|| {
-                    sharp_cached
-                        .sample(sample_s, || sharp_plan.limit_surface(&sharp_moved).unwrap())
-                }),
-            ],
-        );
-        let first_call = |(cage, points): &(bidegree::Cage, Vec<f32>)| {
-            let plan = Plan::new(cage, &options(degree)).unwrap();
-            let out = plan.limit_surface(points).unwrap();
-            (plan, out)
-        };
-        let first = interleave(
-            rounds,
-            vec![
-                Box::new(|| semi_first.sample(sample_s, || first_call(&semi))),
-                Box::new(|| sharp_first.sample(sample_s, || first_call(&sharp))),
-            ],
-        );
-        let cached_ratio = Ratio::of(&cached[0], &cached[1]);
-        let first_ratio = Ratio::of(&first[0], &first[1]);
-        println!(
-            "{degree:>6} {:>14.2} {:>14.2} {:>10.2} {:>14.2} {:>14.2} {:>10.2} {:>12} {:>12} {:>5}",
-            median(&cached[0]),
-            median(&cached[1]),
-            cached_ratio.median,
-            median(&first[0]),
-            median(&first[1]),
-            first_ratio.median,
-            Ratio::range(Some(&cached_ratio)),
-            Ratio::range(Some(&first_ratio)),
-            load_now()
-        );
-        std::io::stdout().flush().ok();
+    let first_call = |(cage, points): &(bidegree::Cage, Vec<f32>), degree: u32| {
+        let plan = Plan::new(cage, &options(degree)).unwrap();
+        let out = plan.limit_surface(points).unwrap();
+        (plan, out)
+    };
+    /// One degree: its two plans, samplers (semi, sharp cached; semi, sharp first) and their
+    /// samples by round.
+    struct Row {
+        degree: u32,
+        plans: [Plan; 2],
+        samplers: [Sampler; 4],
+        samples: [Vec<f64>; 4],
     }
+    let mut rows: Vec<Row> = [3, 4, 9]
+        .into_iter()
+        .map(|degree| Row {
+            degree,
+            plans: [&semi, &sharp].map(|(cage, points)| {
+                let plan = Plan::new(cage, &options(degree)).unwrap();
+                // The first call makes the plan's limit data: not a cached call's work.
+                plan.limit_surface(points).unwrap();
+                plan
+            }),
+            samplers: Default::default(),
+            samples: Default::default(),
+        })
+        .collect();
+    let loads = run_rounds("hard limit rows", rounds, |r| {
+        for row in &mut rows {
+            let [semi_cached, sharp_cached, semi_first, sharp_first] = &mut row.samplers;
+            let [semi_plan, sharp_plan] = &row.plans;
+            let degree = row.degree;
+            let cached = round(
+                r,
+                vec![
+                    Box::new(|| {
+                        semi_cached
+                            .sample(sample_s, || semi_plan.limit_surface(&semi_moved).unwrap())
+                    }),
+                    Box::new(|| {
+                        sharp_cached
+                            .sample(sample_s, || sharp_plan.limit_surface(&sharp_moved).unwrap())
+                    }),
+                ],
+            );
+            let first = round(
+                r,
+                vec![
+                    Box::new(|| semi_first.sample(sample_s, || first_call(&semi, degree))),
+                    Box::new(|| sharp_first.sample(sample_s, || first_call(&sharp, degree))),
+                ],
+            );
+            for (list, ms) in row.samples.iter_mut().zip(cached.into_iter().chain(first)) {
+                list.push(ms);
+            }
+        }
+    });
+    println!(
+        "{:>6} {:>14} {:>14} {:>10} {:>14} {:>14} {:>10} {:>12} {:>12}",
+        "degree",
+        "semi ms",
+        "sharp ms",
+        "semi/sharp",
+        "semi first ms",
+        "sharp first ms",
+        "semi/sharp",
+        "cached range",
+        "first range"
+    );
+    for row in &rows {
+        let [semi_cached, sharp_cached, semi_first, sharp_first] = &row.samples;
+        let cached = Ratio::of(semi_cached, sharp_cached);
+        let first = Ratio::of(semi_first, sharp_first);
+        println!(
+            "{:>6} {:>14.2} {:>14.2} {:>10.2} {:>14.2} {:>14.2} {:>10.2} {:>12} {:>12}",
+            row.degree,
+            median(semi_cached),
+            median(sharp_cached),
+            cached.median,
+            median(semi_first),
+            median(sharp_first),
+            first.median,
+            Ratio::range(Some(&cached)),
+            Ratio::range(Some(&first)),
+        );
+    }
+    println!("load average (1 min) after each round: {}", loads.join(" "));
     println!(
         "{:>16} {:>10} {:>10}",
         "cage, degree 9", "first ms", "cached ms"
