@@ -1,6 +1,7 @@
 // OpenSubdiv reference for `cargo bench -p bidegree --bench opensubdiv` (built by
-// scripts/bench_opensubdiv.sh, started by the bench). It owns nothing but the timing of OpenSubdiv's
-// own uniform refinement, done exactly as a user of the Far API does it (far_tutorial_0 style):
+// scripts/bench_opensubdiv.sh, started by the bench). It owns nothing but the timing of
+// OpenSubdiv's own uniform refinement, done exactly as a user of the Far API does it
+// (far_tutorial_0 style):
 //
 //   fresh  = Far::TopologyRefinerFactory<TopologyDescriptor>::Create + RefineUniform(level)
 //            + allocation of the primvar buffer + Far::PrimvarRefiner::Interpolate per level
@@ -224,6 +225,8 @@ int main(int argc, char** argv) {
                 topology.push_back(topo);
                 return total;
             });
+            // The warm-up's topology time when the warm-up was not one of the repetitions.
+            if (static_cast<int>(topology.size()) > reps) topology.erase(topology.begin());
             std::printf("osd fresh level=%d faces=%d ms=%.4f topology_ms=%.4f reps=%d "
                         "peak_rss_mib=%.0f\n",
                         level, faces, ms, median(topology), reps, peak_rss_mib());

@@ -16,20 +16,20 @@
 //! for the same cage and level (> 1: bidegree faster); `/copy` is the cached time over that of
 //! copying the output into a new vector (1: memory speed).
 //!
-//! How a ratio is measured (issue 16: on the shared 2-core machine the speed of either side
-//! drifts by more than 2x within minutes, so times taken apart do not divide): the sides run in
+//! How a ratio is measured (issue 16: on the shared 2-core machine the speed of either side drifts
+//! by more than 2x within minutes, so times taken apart do not divide): the sides run in
 //! interleaved rounds, each round one sample of every side, the order reversed every other round
 //! (fresh: default pool, OpenSubdiv, one thread; cached: copy, default pool, OpenSubdiv, one
 //! thread). A round goes through every row of a table before the next round starts, so a row's
-//! rounds are spread over the whole table's run rather than the few seconds the row alone
-//! takes; the cached data of a row (plan, OpenSubdiv's refiner) is made again each round,
-//! untimed (on the 250k cage that is seconds a row and round). A sample is the median of 3 to 21 calls taking about
+//! rounds are spread over the whole table's run rather than the few seconds the row alone takes;
+//! the cached data of a row (plan, OpenSubdiv's refiner) is made again each round, untimed (on the
+//! 250k cage that is seconds a row and round). A sample is the median of 3 to 21 calls taking about
 //! `BIDEGREE_BENCH_SECONDS` / rounds (one call when a call is longer; only a side's first sample
-//! has a warm-up). The ratio column is the median over the rounds of the ratio of the round's
-//! two samples, the range column its lowest and highest; the faces/s columns come from each
-//! side's median sample, so they need not divide to the ratio. OpenSubdiv's driver stays up for
-//! the cage (requests on its stdin); its row closes each level, the medians of all its samples of
-//! the level. Each table ends with the 1-minute load average after each round.
+//! has a warm-up). The ratio column is the median over the rounds of the ratio of the round's two
+//! samples, the range column its lowest and highest; the faces/s columns come from each side's
+//! median sample, so they need not divide to the ratio. OpenSubdiv's driver stays up for the cage
+//! (requests on its stdin); its row closes each level, the medians of all its samples of the level.
+//! Each table ends with the 1-minute load average after each round.
 //!
 //! Environment: `BIDEGREE_OSD_DRIVER` (path of the driver; without it only bidegree's numbers
 //! are printed), `BIDEGREE_BENCH_SECONDS` (time per side of a ratio over all its rounds, default
@@ -270,6 +270,7 @@ struct Ratio {
 }
 
 impl Ratio {
+    /// The ratios of the samples of the same round.
     fn of(numerator: &[f64], denominator: &[f64]) -> Ratio {
         let ratios: Vec<f64> = numerator
             .iter()
@@ -619,6 +620,7 @@ struct SchemeRow {
 }
 
 impl SchemeRow {
+    /// A row with no samples yet.
     fn new(label: &'static str, options: Options, osd_fresh: bool, osd_cached: bool) -> SchemeRow {
         SchemeRow {
             label,
