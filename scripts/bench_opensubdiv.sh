@@ -2,7 +2,8 @@
 # The benchmark against OpenSubdiv's C++ library (issue 5; not a test). Installs what it needs
 # (Debian/Ubuntu: libosd-dev and g++ through apt-get, with sudo when not root), compiles
 # bench/opensubdiv/driver.cpp with -O3 -march=native into target/osd/, then runs
-# `cargo bench -p bidegree --bench opensubdiv` with BIDEGREE_OSD_DRIVER pointing at it.
+# `cargo bench -p bidegree --bench opensubdiv` with BIDEGREE_OSD_DRIVER pointing at it (the bench
+# keeps one driver per cage running and interleaves its timings with bidegree's).
 # The BIDEGREE_BENCH_* variables documented in native/core/benches/opensubdiv.rs pass through
 # (e.g. BIDEGREE_BENCH_CAGES=4k for a quick run).
 set -euo pipefail
@@ -33,7 +34,7 @@ if [ ! -x "$DRIVER" ] || [ "$ROOT/bench/opensubdiv/driver.cpp" -nt "$DRIVER" ]; 
     g++ -std=c++17 -O3 -march=native -o "$DRIVER" "$ROOT/bench/opensubdiv/driver.cpp" -losdCPU
 fi
 
-log "load average before the run: $(cut -d' ' -f1-3 /proc/loadavg) on $(nproc) cores"
+log "$(date -u +%H:%M:%S) UTC, load average before the run: $(cut -d' ' -f1-3 /proc/loadavg) on $(nproc) cores"
 cd "$ROOT"
 BIDEGREE_OSD_DRIVER="$DRIVER" cargo bench -p bidegree --bench opensubdiv
-log "load average after the run: $(cut -d' ' -f1-3 /proc/loadavg)"
+log "$(date -u +%H:%M:%S) UTC, load average after the run: $(cut -d' ' -f1-3 /proc/loadavg)"

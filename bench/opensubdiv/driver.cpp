@@ -1,6 +1,7 @@
-// OpenSubdiv reference for `cargo bench -p bidegree --bench opensubdiv` (built and run by
-// scripts/bench_opensubdiv.sh). It owns nothing but the timing of OpenSubdiv's own uniform
-// refinement, done exactly as a user of the Far API does it (far_tutorial_0 style):
+// OpenSubdiv reference for `cargo bench -p bidegree --bench opensubdiv` (built by
+// scripts/bench_opensubdiv.sh, started by the bench). It owns nothing but the timing of
+// OpenSubdiv's own uniform refinement, done exactly as a user of the Far API does it
+// (far_tutorial_0 style):
 //
 //   fresh  = Far::TopologyRefinerFactory<TopologyDescriptor>::Create + RefineUniform(level)
 //            + allocation of the primvar buffer + Far::PrimvarRefiner::Interpolate per level
@@ -9,13 +10,19 @@
 // Scheme catmark, boundary interpolation edge-only, no creases, float x/y/z positions, default
 // UniformOptions (orderVerticesFromFacesFirst = false, fullTopologyInLastLevel = false).
 //
-// Usage: osd_driver CAGE.bin LEVEL[,LEVEL...] [TARGET_SECONDS]
+// Usage: osd_driver CAGE.bin, then one request a line on stdin, one answer a line on stdout, so
+// that the bench can interleave OpenSubdiv's samples with its own (the cage is parsed once):
+//   fresh LEVEL SECONDS   -> osd fresh level=L faces=F ms=M topology_ms=M reps=R peak_rss_mib=X
+//   cached LEVEL SECONDS  -> osd cached level=L faces=F ms=M reps=R peak_rss_mib=X
+//   release               -> osd released
+// ms is the median of R repetitions sized to take about SECONDS: one when a single run takes
+// longer, else 3 to 21. The first sample of a (mode, level) starts with a warm-up run, which
+// counts as the repetition when it took longer than SECONDS. `cached` keeps the refiner and buffer
+// of its level for the next `cached` request; `fresh`, `release` or another level drop them (so
+// the bench's own memory and OpenSubdiv's add up only while both sides hold cached data).
+// topology_ms is Create + RefineUniform alone; peak_rss_mib is the process's peak so far.
 // CAGE.bin (little endian, written by the Rust bench): u32 num_vertices, u32 num_faces,
 // u32 face_sizes[num_faces], u32 face_vertices[sum of sizes], f32 points[3 * num_vertices].
-// Prints one line per level:
-//   osd level=L faces=F fresh_ms=M cached_ms=M topology_ms=M reps=R peak_rss_mib=X
-// (medians over R repetitions after one warm-up, which counts as the first repetition when it
-// took longer than TARGET_SECONDS, default 1; topology_ms is Create + RefineUniform alone).
 
 #include <opensubdiv/far/primvarRefiner.h>
 #include <opensubdiv/far/topologyDescriptor.h>
@@ -29,8 +36,12 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <iostream>
+#include <map>
 #include <memory>
+#include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 using namespace OpenSubdiv;
@@ -142,61 +153,103 @@ std::pair<double, double> fresh_run(const Cage& cage, int level, int* faces) {
     return {total, topology};
 }
 
-int repetitions(double warmup_ms, double target_s) {
-    int reps = static_cast<int>(target_s * 1e3 / std::max(warmup_ms, 1e-3));
-    return std::clamp(reps, 3, 21);
+// Repetitions of a run of `run_ms` for a sample of about `target_s` (the bench's rule).
+int repetitions(double run_ms, double target_s) {
+    if (run_ms > target_s * 1e3) return 1;
+    return std::clamp(static_cast<int>(target_s * 1e3 / std::max(run_ms, 1e-3)), 3, 21);
 }
+
+// Times `run` (returns ms) for one sample of about `target_s`; `estimate` is the run time of the
+// previous sample of the same kind (0: none yet, so warm up first). Returns {median ms, reps}.
+template <class Run>
+std::pair<double, int> sample(double target_s, double& estimate, Run run) {
+    std::vector<double> times;
+    if (estimate <= 0) {
+        double warmup = run();
+        if (warmup > target_s * 1e3) times.push_back(warmup);
+        estimate = warmup;
+    }
+    int reps = repetitions(estimate, target_s);
+    while (static_cast<int>(times.size()) < reps) times.push_back(run());
+    estimate = median(times);
+    return {estimate, reps};
+}
+
+double peak_rss_mib() {
+    struct rusage usage;
+    getrusage(RUSAGE_SELF, &usage);
+    return usage.ru_maxrss / 1024.0;
+}
+
+// The refiner and buffer that `cached` requests of one level reuse.
+struct Held {
+    int level = -1;
+    std::unique_ptr<Far::TopologyRefiner> refiner;
+    std::vector<Vertex> buffer;
+
+    void release() {
+        level = -1;
+        refiner.reset();
+        std::vector<Vertex>().swap(buffer);
+    }
+};
 
 }  // namespace
 
 int main(int argc, char** argv) {
-    if (argc < 3) {
-        std::fprintf(stderr, "usage: %s CAGE.bin LEVEL[,LEVEL...] [TARGET_SECONDS]\n", argv[0]);
+    if (argc != 2) {
+        std::fprintf(stderr, "usage: %s CAGE.bin (requests on stdin: fresh|cached LEVEL SECONDS, "
+                             "release)\n", argv[0]);
         return 2;
     }
     Cage cage = read_cage(argv[1]);
-    double target_s = argc > 3 ? std::atof(argv[3]) : 1.0;
-    std::string list = argv[2];
-    for (size_t at = 0; at < list.size();) {
-        size_t comma = list.find(',', at);
-        if (comma == std::string::npos) comma = list.size();
-        int level = std::atoi(list.substr(at, comma - at).c_str());
-        at = comma + 1;
-
-        int faces = 0;
-        auto warmup = fresh_run(cage, level, &faces);
-        int reps = repetitions(warmup.first, target_s);
-        std::vector<double> fresh, topology, cached;
-        // A warm-up longer than the target counts as the first sample (keeps big levels short).
-        bool long_warmup = warmup.first > target_s * 1e3;
-        if (long_warmup) {
-            fresh.push_back(warmup.first);
-            topology.push_back(warmup.second);
-        }
-        for (int r = long_warmup ? 1 : 0; r < reps; ++r) {
-            auto [t, topo] = fresh_run(cage, level, &faces);
-            fresh.push_back(t);
-            topology.push_back(topo);
-        }
-        {
-            auto refiner = refine(cage, level);
-            std::vector<Vertex> buffer(refiner->GetNumVerticesTotal());
-            auto t0 = Clock::now();
-            interpolate(*refiner, cage, buffer);  // warm-up
-            double first = ms_since(t0);
-            if (first > target_s * 1e3) cached.push_back(first);
-            for (int r = first > target_s * 1e3 ? 1 : 0; r < reps; ++r) {
-                auto t0 = Clock::now();
-                interpolate(*refiner, cage, buffer);
-                cached.push_back(ms_since(t0));
+    Held held;
+    // Run-time estimates by (mode, level): 0 fresh, 1 cached.
+    std::map<std::pair<int, int>, double> estimates;
+    std::string line;
+    while (std::getline(std::cin, line)) {
+        std::istringstream request(line);
+        std::string mode;
+        int level = 0;
+        double target_s = 0;
+        request >> mode >> level >> target_s;
+        if (mode == "release") {
+            held.release();
+            std::printf("osd released\n");
+        } else if (mode == "fresh" && request) {
+            held.release();
+            int faces = 0;
+            std::vector<double> topology;
+            auto [ms, reps] = sample(target_s, estimates[{0, level}], [&] {
+                auto [total, topo] = fresh_run(cage, level, &faces);
+                topology.push_back(topo);
+                return total;
+            });
+            // The warm-up's topology time when the warm-up was not one of the repetitions.
+            if (static_cast<int>(topology.size()) > reps) topology.erase(topology.begin());
+            std::printf("osd fresh level=%d faces=%d ms=%.4f topology_ms=%.4f reps=%d "
+                        "peak_rss_mib=%.0f\n",
+                        level, faces, ms, median(topology), reps, peak_rss_mib());
+        } else if (mode == "cached" && request) {
+            if (held.level != level) {
+                held.release();
+                held.refiner = refine(cage, level);
+                held.buffer.resize(held.refiner->GetNumVerticesTotal());
+                held.level = level;
+                // Touches the new buffer's pages, outside the timing.
+                interpolate(*held.refiner, cage, held.buffer);
             }
+            auto [ms, reps] = sample(target_s, estimates[{1, level}], [&] {
+                auto t0 = Clock::now();
+                interpolate(*held.refiner, cage, held.buffer);
+                return ms_since(t0);
+            });
+            std::printf("osd cached level=%d faces=%d ms=%.4f reps=%d peak_rss_mib=%.0f\n", level,
+                        held.refiner->GetLevel(level).GetNumFaces(), ms, reps, peak_rss_mib());
+        } else {
+            std::fprintf(stderr, "osd_driver: bad request %s\n", line.c_str());
+            return 2;
         }
-        struct rusage usage;
-        getrusage(RUSAGE_SELF, &usage);
-        std::printf("osd level=%d faces=%d fresh_ms=%.4f cached_ms=%.4f topology_ms=%.4f reps=%d "
-                    "peak_rss_mib=%.0f\n",
-                    level, faces, median(fresh), median(cached), median(topology), reps,
-                    usage.ru_maxrss / 1024.0);
         std::fflush(stdout);
     }
     return 0;
