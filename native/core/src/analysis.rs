@@ -320,8 +320,8 @@ fn impulse_responses(
             ..Options::default()
         },
     )?;
-    plan.complete_levels()?;
-    let (coarse, fine) = (&plan.levels()[1], &plan.levels()[2]);
+    let levels = plan.try_levels()?;
+    let (coarse, fine) = (&levels[1], &levels[2]);
     // The centre keeps id 0 at every level; its child corners are 4c for its coarse corners c.
     let first = coarse.corners_of_vertex(0)[0] as usize;
     let columns = complete_neighbourhood(coarse, first, degree)?;
@@ -1126,7 +1126,8 @@ pub fn refine(
             ..Options::default()
         },
     )?;
-    let level1 = &plan.levels()[1];
+    let levels = plan.try_levels()?;
+    let level1 = &levels[1];
     let first = level1.corners_of_vertex(0)[0] as usize;
     let items = complete_neighbourhood(level1, first, degree)?;
     let size = if primal {
@@ -1134,7 +1135,7 @@ pub fn refine(
     } else {
         level1.num_faces()
     };
-    let last = &plan.levels()[steps + 1];
+    let last = &levels[steps + 1];
     let first_last = first * 4usize.pow(steps as u32);
     // The cage has rings enough for the grid read out: a boundary met is an internal error.
     let boundary = || {
