@@ -341,6 +341,18 @@ def test_panic_becomes_internal_error() -> None:
     assert bidegree.subdivide(cube(), degree=3, levels=1).num_faces == 24
 
 
+def test_panic_on_a_worker_thread_becomes_internal_error() -> None:
+    # The core's passes run on rayon's workers: a panic there is handed to the caller, caught
+    # at the boundary, and its text (recorded by the worker's hook) is the detail alone.
+    for _ in range(3):
+        with pytest.raises(bidegree.InternalError, match="a bug in bidegree") as caught:
+            bidegree._native._panic_for_tests(in_worker=True)
+        assert "deliberate panic" not in str(caught.value)
+        assert "deliberate panic for tests on a worker" in caught.value.detail
+        assert "errors.rs" in caught.value.detail
+    assert bidegree.subdivide(cube(), degree=3, levels=1).num_faces == 24
+
+
 # ---------------------------------------------------------------------------------------------
 # dtypes, layouts, re-evaluation
 

@@ -82,7 +82,17 @@ pub fn polar_cage(valence: usize, rings: usize) -> Result<Cage> {
         };
         v as i64
     };
-    let mut faces = memory::with_capacity(4 * valence * r * r)?;
+    let too_large = || {
+        Error::InvalidInput(format!(
+            "a polar cage of valence {valence} and {rings} rings is more than 32-bit indices \
+             can address"
+        ))
+    };
+    let num_faces = (valence.checked_mul(r))
+        .and_then(|n| n.checked_mul(r))
+        .filter(|&n| n <= u32::MAX as usize / 4)
+        .ok_or_else(too_large)?;
+    let mut faces = memory::with_capacity(4 * num_faces)?;
     for s in 0..valence {
         for i in 0..r {
             for j in 0..r {
@@ -95,7 +105,7 @@ pub fn polar_cage(valence: usize, rings: usize) -> Result<Cage> {
             }
         }
     }
-    let sizes = memory::filled(valence * r * r, 4)?;
+    let sizes = memory::filled(num_faces, 4)?;
     Cage::from_indices(1 + valence * r * (r + 1), &sizes, &faces)
 }
 
@@ -240,10 +250,15 @@ pub(crate) fn frame_items(
     items
 }
 
-/// The complete neighbourhood of the polar cages built here, which have no boundary nearby.
-fn complete_neighbourhood(level: &Level, first: usize, degree: u32) -> Vec<Labelled> {
-    neighbourhood(level, first, degree, neighbourhood_size(degree) + 1)
-        .expect("the analysis cage is large enough to have no boundary nearby")
+/// The complete neighbourhood of the polar cages built here, which have no boundary nearby
+/// (they are made with rings enough for it: an internal error otherwise).
+fn complete_neighbourhood(level: &Level, first: usize, degree: u32) -> Result<Vec<Labelled>> {
+    neighbourhood(level, first, degree, neighbourhood_size(degree) + 1).ok_or_else(|| {
+        Error::Internal(format!(
+            "the polar cage of degree {degree} must have no boundary within the complete \
+             neighbourhood of its centre"
+        ))
+    })
 }
 
 /// The subdivision matrix of degree `degree` around an irregular vertex or face of valence
@@ -305,12 +320,12 @@ fn impulse_responses(
             ..Options::default()
         },
     )?;
-    plan.complete_levels()?;
-    let (coarse, fine) = (&plan.levels()[1], &plan.levels()[2]);
+    let levels = plan.try_levels()?;
+    let (coarse, fine) = (&levels[1], &levels[2]);
     // The centre keeps id 0 at every level; its child corners are 4c for its coarse corners c.
     let first = coarse.corners_of_vertex(0)[0] as usize;
-    let columns = complete_neighbourhood(coarse, first, degree);
-    let rows = complete_neighbourhood(fine, 4 * first, degree);
+    let columns = complete_neighbourhood(coarse, first, degree)?;
+    let rows = complete_neighbourhood(fine, 4 * first, degree)?;
     let size = if degree.is_multiple_of(2) {
         coarse.num_faces()
     } else {
@@ -354,11 +369,13 @@ fn step_values<const C: usize>(
     j: usize,
     values: &[[f64; C]],
 ) -> Result<Vec<[f64; C]>> {
-    let (levels, networks) = (refinement.levels(), refinement.curve_networks());
-    assert!(
-        j >= 1 && j < networks.len(),
-        "step_values needs 1 <= j < levels"
-    );
+    let (levels, networks) = (refinement.try_levels()?, refinement.curve_networks());
+    if !(1..networks.len()).contains(&j) {
+        return Err(Error::Internal(format!(
+            "step_values needs 1 <= j < {} (the refinement's levels), not j = {j}",
+            networks.len()
+        )));
+    }
     let (coarse, previous) = (&levels[j], &networks[j - 1]);
     let cage = vec![[0.0f64; C]; levels[0].num_vertices];
     let primal = refinement.scheme().is_primal();
@@ -1091,10 +1108,15 @@ pub fn refine(
     if valence < 3 {
         return Err(Error::InvalidInput(format!("valence {valence} is below 3")));
     }
+    if !(extent.is_finite() && extent >= 0.0) {
+        return Err(Error::InvalidInput(format!(
+            "extent {extent} must be finite and at least 0"
+        )));
+    }
     let n = neighbourhood_size(degree);
     let primal = degree % 2 == 1;
     // Enough rings (level 0) for the data (N + 1 level-1 rings) and the read-out, plus margin.
-    let rings = ((extent.max((n + 1) as f64) / 2.0).ceil() as usize) + 2;
+    let rings = ((extent.max((n + 1) as f64) / 2.0).ceil() as usize).saturating_add(2);
     let cage = polar_cage(valence, rings)?;
     let plan = Refinement::new(
         &cage,
@@ -1104,18 +1126,26 @@ pub fn refine(
             ..Options::default()
         },
     )?;
-    let level1 = &plan.levels()[1];
+    let levels = plan.try_levels()?;
+    let level1 = &levels[1];
     let first = level1.corners_of_vertex(0)[0] as usize;
-    let items = complete_neighbourhood(level1, first, degree);
+    let items = complete_neighbourhood(level1, first, degree)?;
     let size = if primal {
         level1.num_vertices
     } else {
         level1.num_faces()
     };
-    let last = &plan.levels()[steps + 1];
+    let last = &levels[steps + 1];
     let first_last = first * 4usize.pow(steps as u32);
-    let grid = SectorGrid::new(last, first_last).expect("no boundary near the centre");
-    let frame = |s, i, j| grid.frame(s, i, j).expect("no boundary near the centre");
+    // The cage has rings enough for the grid read out: a boundary met is an internal error.
+    let boundary = || {
+        Error::Internal(format!(
+            "the polar cage of valence {valence} must have no boundary within {extent} level-1 \
+             units of its centre"
+        ))
+    };
+    let grid = SectorGrid::new(last, first_last).ok_or_else(boundary)?;
+    let frame = |s, i, j| grid.frame(s, i, j).ok_or_else(boundary);
     let spacing = 0.5f64.powi(steps as i32);
     let m = (extent / spacing).ceil() as usize;
     let (rows, columns) = if primal { (m + 1, m + 1) } else { (m + 1, m) };
@@ -1130,12 +1160,12 @@ pub fn refine(
             }
             for (s, at) in at.iter_mut().enumerate() {
                 let item = if primal {
-                    last.corner_verts[frame(s, r, c)] as usize
+                    last.corner_verts[frame(s, r, c)?] as usize
                 } else if r == 0 {
                     // Face (s, -1, c) is face (s + 1, c, 0).
-                    last.face_of(frame((s + 1) % valence, c, 0))
+                    last.face_of(frame((s + 1) % valence, c, 0)?)
                 } else {
-                    last.face_of(frame(s, r - 1, c))
+                    last.face_of(frame(s, r - 1, c)?)
                 };
                 at.push(item);
             }

@@ -205,6 +205,7 @@ impl CurveNetwork {
     /// with their cage sharpness (sorted by vertex), `previous` the network of the step that
     /// made `coarse` (`None` for the cage level), `primal` whether the 1-D data between steps is
     /// primal (odd degrees), and `pin(v)` the cage vertex of coarse vertex `v` (or `NONE`).
+    /// Panics where [`CurveNetwork::try_build`] returns an error.
     pub(crate) fn build(
         coarse: &Level,
         curves: &[Curve],
@@ -214,6 +215,21 @@ impl CurveNetwork {
         primal: bool,
         pin: impl Fn(u32) -> u32,
     ) -> CurveNetwork {
+        Self::try_build(coarse, curves, corners, level, previous, primal, pin)
+            .unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// [`CurveNetwork::build`], returning [`Error::Internal`] when the curves do not continue
+    /// the previous step's network (a curve edge whose end or parent is not one of its items).
+    pub(crate) fn try_build(
+        coarse: &Level,
+        curves: &[Curve],
+        corners: &[(u32, f32)],
+        level: u32,
+        previous: Option<&CurveNetwork>,
+        primal: bool,
+        pin: impl Fn(u32) -> u32,
+    ) -> Result<CurveNetwork> {
         let nv = coarse.num_vertices as u32;
         // (vertex, curve edge index, weight) for every end of every new curve edge at an old
         // vertex.
@@ -230,7 +246,13 @@ impl CurveNetwork {
                     Some(p) if primal => p.vertex_index(end),
                     Some(p) => p.edge_index(c.edge),
                 }
-                .expect("a curve edge's ends and parent are curve items of the previous step");
+                .ok_or_else(|| {
+                    Error::Internal(format!(
+                        "curve edge {} of step {level}: its ends and parent must be curve items \
+                         of the previous step",
+                        c.edge
+                    ))
+                })?;
                 edges.push(CurveEdge {
                     edge: 2 * c.edge + k as u32,
                     ends: [0, 0],
@@ -262,7 +284,12 @@ impl CurveNetwork {
             let old = coarse.edge_verts()[c.edge as usize][i % 2];
             let old_index = vertices[..first_mid as usize]
                 .binary_search_by_key(&old, |cv| cv.vertex)
-                .expect("a curve edge's end is a curve vertex") as u32;
+                .map_err(|_| {
+                    Error::Internal(format!(
+                        "curve edge {} of step {level}: its end {old} must be a curve vertex",
+                        c.edge
+                    ))
+                })? as u32;
             let mid_index = first_mid + (i / 2) as u32;
             edge.ends = if i % 2 == 0 {
                 [old_index, mid_index]
@@ -270,7 +297,7 @@ impl CurveNetwork {
                 [mid_index, old_index]
             };
         }
-        CurveNetwork { vertices, edges }
+        Ok(CurveNetwork { vertices, edges })
     }
 
     /// The curve edges of the fine level that are still sharp in the next step (halves of the
@@ -389,12 +416,12 @@ fn old_curve_vertices(
 ) -> Vec<CurveVertex> {
     let mut out = Vec::with_capacity(ends.len());
     let (mut i, mut t) = (0, 0);
-    while i < ends.len() || t < corners.len() {
+    loop {
         let v = match (ends.get(i), corners.get(t)) {
             (Some(e), Some(tag)) => e.0.min(tag.0),
             (Some(e), None) => e.0,
             (None, Some(tag)) => tag.0,
-            (None, None) => unreachable!(),
+            (None, None) => break,
         };
         let start = i;
         while i < ends.len() && ends[i].0 == v {

@@ -478,7 +478,11 @@ impl FaceVarying {
         let compact = self.refinement.compact(points);
         let at_vertices = match evaluate::run(&self.refinement, &self.scratch, &compact, false)? {
             Final::Primal(at_vertices) => at_vertices,
-            Final::Dual { .. } => unreachable!("primal data asked for"),
+            Final::Dual { .. } => {
+                return Err(Error::Internal(
+                    "a run asked for primal data returned dual data".into(),
+                ))
+            }
         };
         let Some(index) = index else {
             return Ok(at_vertices.into_flattened());

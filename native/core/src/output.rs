@@ -109,8 +109,14 @@ impl OutputMesh {
     fn level<'a>(&'a self, refinement: &'a Refinement, with_edges: bool) -> &'a Level {
         match &self.polygons {
             Some(d) => &d.level,
-            None if with_edges => refinement.levels().last().expect("a level"),
-            None => refinement.last_level(),
+            None => {
+                if with_edges {
+                    // The accessors' contract (`Plan::complete_output`): a refused allocation
+                    // completing the last level's tables panics here.
+                    refinement.levels();
+                }
+                refinement.last_level()
+            }
         }
     }
 
@@ -119,36 +125,18 @@ impl OutputMesh {
     /// accessor.
     pub(crate) fn complete(&self, refinement: &Refinement) -> Result<()> {
         if self.polygons.is_none() {
-            if self.face_offsets.get().is_none() {
-                let last = refinement.last_level();
-                let offsets = if last.is_quads() {
-                    gather_hinted(last.num_faces() + 1, |f| 4 * f as u32)?
-                } else {
-                    memory::collect(last.face_offsets.iter().copied())?
-                };
-                let _ = self.face_offsets.set(offsets);
-            }
-            if self.face_origin.get().is_none() {
-                let _ = self.face_origin.set(face_origin(refinement)?);
-            }
+            lazy(&self.face_offsets, || drawing_face_offsets(refinement))?;
+            lazy(&self.face_origin, || face_origin(refinement))?;
         }
         refinement.complete_levels()
-    }
-
-    /// A table of [`OutputMesh::complete`], built on first use.
-    fn completed<'a>(&self, table: &'a OnceLock<Vec<u32>>, refinement: &Refinement) -> &'a [u32] {
-        if table.get().is_none() {
-            self.complete(refinement)
-                .unwrap_or_else(|e| panic!("output tables: {e}"));
-        }
-        table.get().expect("completed")
     }
 
     /// Offsets of each output face's vertices in [`OutputMesh::face_vertices`] (faces + 1).
     pub(crate) fn face_offsets<'a>(&'a self, refinement: &'a Refinement) -> &'a [u32] {
         match &self.polygons {
             Some(d) => &d.level.face_offsets,
-            None => self.completed(&self.face_offsets, refinement),
+            None => lazy(&self.face_offsets, || drawing_face_offsets(refinement))
+                .unwrap_or_else(|e| panic!("output face offsets: {e}")),
         }
     }
 
@@ -161,7 +149,8 @@ impl OutputMesh {
     pub(crate) fn face_origin<'a>(&'a self, refinement: &'a Refinement) -> &'a [u32] {
         match &self.polygons {
             Some(d) => &d.face_origin,
-            None => self.completed(&self.face_origin, refinement),
+            None => lazy(&self.face_origin, || face_origin(refinement))
+                .unwrap_or_else(|e| panic!("output face origins: {e}")),
         }
     }
 
@@ -180,47 +169,50 @@ impl OutputMesh {
     /// level ([`Level::refine`]), every other edge is inside a face. Dual mesh: only the edges
     /// that close a fan where it opens (between the boundary points of two halves of one cage
     /// edge) lie on a cage edge; every other dual edge crosses the edges of `M_L`.
-    pub(crate) fn edge_origin<'a>(&'a self, refinement: &'a Refinement) -> &'a [u32] {
-        self.edge_origin.get_or_init(|| {
-            let levels = refinement.levels();
-            let origin = |e: u32| primal_edge_origin(levels, e);
-            let table = match &self.polygons {
-                None => gather_hinted(levels.last().expect("a level").num_edges(), |e| {
-                    origin(e as u32)
-                }),
-                Some(d) if !d.dual => gather_hinted(d.level.num_edges(), |e| {
-                    origin(self.level_edge(refinement, e))
-                }),
-                Some(d) => {
-                    let curves = refinement.curve_networks().last().expect("a step");
-                    let num_faces = levels.last().expect("a level").num_faces() as u32;
-                    let on_cage = |p: u32| {
-                        let p = d.vertex_source.as_ref().map_or(p, |s| s[p as usize]);
-                        p.checked_sub(num_faces).map(|i| {
-                            origin(curves.edges()[d.boundary_points[i as usize] as usize].edge)
-                        })
-                    };
-                    let edges = d.level.edge_verts();
-                    gather_hinted(edges.len(), |e| {
-                        let [a, b] = edges[e];
-                        match (on_cage(a), on_cage(b)) {
-                            (Some(x), Some(y)) if x == y => x,
-                            _ => NONE,
-                        }
-                    })
-                }
-            };
-            table.unwrap_or_else(|e| panic!("output edge origins: {e}"))
-        })
+    /// Built on first use; a refused allocation is an error.
+    pub(crate) fn edge_origin<'a>(&'a self, refinement: &'a Refinement) -> Result<&'a [u32]> {
+        lazy(&self.edge_origin, || self.edge_origin_table(refinement))
     }
 
-    /// The edge of `M_L` that edge `e` of the drawing mesh is: itself, or, when holes are left
-    /// out, the edge leaving the `M_L` corner of one of its corners.
-    fn level_edge(&self, refinement: &Refinement, e: usize) -> u32 {
+    /// The table of [`OutputMesh::edge_origin`].
+    fn edge_origin_table(&self, refinement: &Refinement) -> Result<Vec<u32>> {
+        let levels = refinement.try_levels()?;
+        let last = refinement.last_level();
+        let origin = |e: u32| primal_edge_origin(levels, e);
+        match &self.polygons {
+            None => gather_hinted(last.num_edges(), |e| origin(e as u32)),
+            Some(d) if !d.dual => {
+                gather_hinted(d.level.num_edges(), |e| origin(self.level_edge(last, e)))
+            }
+            Some(d) => {
+                let curves = refinement.last_network("the dual output's edge origins")?;
+                let num_faces = last.num_faces() as u32;
+                let on_cage = |p: u32| {
+                    let p = d.vertex_source.as_ref().map_or(p, |s| s[p as usize]);
+                    p.checked_sub(num_faces).map(|i| {
+                        origin(curves.edges()[d.boundary_points[i as usize] as usize].edge)
+                    })
+                };
+                let edges = d.level.edge_verts();
+                gather_hinted(edges.len(), |e| {
+                    let [a, b] = edges[e];
+                    match (on_cage(a), on_cage(b)) {
+                        (Some(x), Some(y)) if x == y => x,
+                        _ => NONE,
+                    }
+                })
+            }
+        }
+    }
+
+    /// The edge of `M_L` (`last`, its edge tables complete) that edge `e` of the drawing mesh
+    /// is: itself, or, when holes are left out, the edge leaving the `M_L` corner of one of its
+    /// corners.
+    fn level_edge(&self, last: &Level, e: usize) -> u32 {
         match &self.polygons {
             Some(d) if !d.dual => {
+                // `Level` makes each edge from the corners that leave along it.
                 let c = d.level.edge_slots(e).next().expect("an edge has a corner");
-                let last = refinement.levels().last().expect("a level");
                 last.corner_edges()[d.corner_source[c as usize] as usize]
             }
             _ => e as u32,
@@ -233,12 +225,15 @@ impl OutputMesh {
     /// ([`decrement`]); 0 for an edge inside a cage face. Boundary edges are infinitely sharp.
     pub(crate) fn edge_sharpness(&self, refinement: &Refinement) -> Result<Vec<f32>> {
         let depth = refinement.levels_as_built().len() - 1;
-        let origin = self.edge_origin(refinement);
+        let origin = self.edge_origin(refinement)?;
         let primal = self.dual().is_none();
         match refinement.sharpness(depth) {
-            Some(level) if primal => gather_hinted(origin.len(), |e| {
-                level.edge(self.level_edge(refinement, e) as usize)
-            }),
+            Some(level) if primal => {
+                let last = refinement.last_level();
+                gather_hinted(origin.len(), |e| {
+                    level.edge(self.level_edge(last, e) as usize)
+                })
+            }
             _ => {
                 let cage = &refinement.features().edge_sharpness;
                 gather_hinted(origin.len(), |e| match origin[e] {
@@ -260,7 +255,11 @@ impl OutputMesh {
                 mut faces,
                 curve_edges,
             } => {
-                let dual = self.dual().expect("dual output has a dual mesh");
+                let dual = self.dual().ok_or_else(|| {
+                    Error::Internal(
+                        "dual data needs the dual output mesh, and the plan has none".into(),
+                    )
+                })?;
                 memory::reserve(&mut faces, dual.boundary_points.len())?;
                 faces.extend(
                     dual.boundary_points
@@ -412,6 +411,26 @@ fn keep_faces(
     })
 }
 
+/// `table`, built by `build` unless it is already.
+fn lazy(table: &OnceLock<Vec<u32>>, build: impl FnOnce() -> Result<Vec<u32>>) -> Result<&[u32]> {
+    if let Some(table) = table.get() {
+        return Ok(table);
+    }
+    let built = build()?;
+    // Two threads building at once build the same table; one is kept.
+    Ok(table.get_or_init(|| built))
+}
+
+/// Face offsets of the drawing mesh `M_L`.
+fn drawing_face_offsets(refinement: &Refinement) -> Result<Vec<u32>> {
+    let last = refinement.last_level();
+    if last.is_quads() {
+        gather_hinted(last.num_faces() + 1, |f| 4 * f as u32)
+    } else {
+        memory::collect(last.face_offsets.iter().copied())
+    }
+}
+
 /// Face f of M_L is corner f of M_{L-1}, inside face f/4 of M_{L-1} (for L-1 >= 1), down to a
 /// corner of the cage.
 fn face_origin(refinement: &Refinement) -> Result<Vec<u32>> {
@@ -442,8 +461,9 @@ fn primal_edge_origin(levels: &[Level], mut e: u32) -> u32 {
 /// across manifold edges and reversed so that the dual faces keep the orientation of the
 /// surface; a fan that opens at boundary or non-manifold edges is closed by their 1-D points.
 fn dual_mesh(refinement: &Refinement, face_origin: &[u32]) -> Result<PolygonMesh> {
-    let last = refinement.levels().last().expect("a refined level");
-    let curves = refinement.curve_networks().last().expect("a step");
+    refinement.try_levels()?;
+    let last = refinement.last_level();
+    let curves = refinement.last_network("the dual mesh")?;
     let num_faces = last.num_faces() as u32;
     // No face across (`Level::opposite` is `None`): a fan opens there. Boundary and
     // non-manifold edges are infinitely sharp, so they are curve edges of every step.
@@ -452,11 +472,16 @@ fn dual_mesh(refinement: &Refinement, face_origin: &[u32]) -> Result<PolygonMesh
     boundary_points.extend(
         (0..curves.edges().len() as u32).filter(|&i| opens(curves.edges()[i as usize].edge)),
     );
-    let point_of_edge = |e: u32| -> u32 {
+    let point_of_edge = |e: u32| -> Result<u32> {
         let at = boundary_points
             .binary_search_by_key(&e, |&i| curves.edges()[i as usize].edge)
-            .expect("boundary and non-manifold edges are curve edges of the last step");
-        num_faces + at as u32
+            .map_err(|_| {
+                Error::Internal(format!(
+                    "boundary or non-manifold edge {e} of the last level must be a curve edge \
+                     of the last step"
+                ))
+            })?;
+        Ok(num_faces + at as u32)
     };
     // A vertex has one dual face per fan: at most its corners, one per vertex mostly.
     let mut offsets = memory::with_capacity(last.num_vertices + 1)?;
@@ -490,9 +515,10 @@ fn dual_mesh(refinement: &Refinement, face_origin: &[u32]) -> Result<PolygonMesh
                     break;
                 }
             }
+            // The loop pushes `start` before it can break.
             let end = *fan.last().expect("a fan has a corner") as usize;
             if opens(last.corner_edges()[end]) {
-                verts.push(point_of_edge(last.corner_edges()[end]));
+                verts.push(point_of_edge(last.corner_edges()[end])?);
                 sources.push(end as u32);
             }
             for &c in fan.iter().rev() {
@@ -500,7 +526,7 @@ fn dual_mesh(refinement: &Refinement, face_origin: &[u32]) -> Result<PolygonMesh
                 sources.push(c);
             }
             if opens(incoming(fan[0] as usize)) {
-                verts.push(point_of_edge(incoming(fan[0] as usize)));
+                verts.push(point_of_edge(incoming(fan[0] as usize))?);
                 sources.push(fan[0]);
             }
             offsets.push(verts.len() as u32);

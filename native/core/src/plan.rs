@@ -112,7 +112,8 @@ impl Plan {
     /// for an edge inside a cage face (for edge attributes: creases, sharp edges, seams). The
     /// halves of a cage edge on the drawing mesh; on the dual mesh only the boundary edges
     /// between two boundary points of one cage edge (the others cross the surface's edges).
-    pub fn output_edge_origin(&self) -> &[u32] {
+    /// Built on first use (and kept); a refused allocation is [`crate::Error::OutOfMemory`].
+    pub fn output_edge_origin(&self) -> Result<&[u32]> {
         self.output.edge_origin(&self.refinement)
     }
 
@@ -128,7 +129,7 @@ impl Plan {
     /// The edges of the cage (of `M_0`) as pairs of cage vertices (the user's numbering, smaller
     /// first), ordered by pair.
     pub fn cage_edges(&self) -> Vec<[u32; 2]> {
-        let level = &self.refinement.levels()[0];
+        let level = self.refinement.cage_level();
         level
             .edge_verts()
             .iter()
@@ -262,7 +263,7 @@ impl Plan {
         channels: usize,
         indices: Option<&'a [u32]>,
     ) -> Result<(Cow<'a, [T]>, Topology<'a>)> {
-        let corners = self.refinement.levels_as_built()[0].num_corners();
+        let corners = self.refinement.cage_level().num_corners();
         let Some(indices) = indices else {
             check_values(values, channels, corners)?;
             return Ok((Cow::Borrowed(values), Topology::ByValue));

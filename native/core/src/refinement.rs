@@ -100,7 +100,7 @@ impl Refinement {
             } else {
                 coarse.refine()?
             };
-            let network = CurveNetwork::build(
+            let network = CurveNetwork::try_build(
                 coarse,
                 &curves,
                 &features.corners,
@@ -108,7 +108,7 @@ impl Refinement {
                 networks.last(),
                 scheme.is_primal(),
                 pin,
-            );
+            )?;
             curves = network.next_curves();
             levels.push(fine);
             networks.push(network);
@@ -189,11 +189,17 @@ impl Refinement {
     }
 
     /// The refined levels `M_0..M_L`, every table built (the last level's edge and vertex ->
-    /// corner tables are added on the first call).
+    /// corner tables are added on the first call). Panics if an allocation is refused there;
+    /// paths that return a `Result` use [`Refinement::try_levels`].
     pub(crate) fn levels(&self) -> &[Level] {
-        self.complete_levels()
-            .unwrap_or_else(|e| panic!("the last level's tables: {e}"));
-        &self.levels
+        self.try_levels()
+            .unwrap_or_else(|e| panic!("the last level's tables: {e}"))
+    }
+
+    /// [`Refinement::levels`], a refused allocation an error.
+    pub(crate) fn try_levels(&self) -> Result<&[Level]> {
+        self.complete_levels()?;
+        Ok(&self.levels)
     }
 
     /// Completes the last level's tables ([`Refinement::levels`] does it on first use, and
@@ -211,9 +217,23 @@ impl Refinement {
         &self.levels
     }
 
+    /// The cage level `M_0` (complete: refinement and the curve features read its edges).
+    pub(crate) fn cage_level(&self) -> &Level {
+        &self.levels[0]
+    }
+
     /// The last level `M_L` as built.
     pub(crate) fn last_level(&self) -> &Level {
+        // `levels` is private, starts as `vec![level0]` in `build` and never shrinks.
         self.levels.last().expect("a refinement has its cage level")
+    }
+
+    /// The curve network of the last step; its absence (a refinement of no levels) is an
+    /// internal error naming `what` needed it.
+    pub(crate) fn last_network(&self, what: &str) -> Result<&CurveNetwork> {
+        self.networks
+            .last()
+            .ok_or_else(|| Error::Internal(format!("{what} needs a refined level, and has none")))
     }
 
     /// The curve network of each step.

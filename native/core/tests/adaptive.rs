@@ -940,7 +940,7 @@ fn triangle_edges_know_their_cage_edge_and_sharpness() {
                 };
                 assert_eq!(
                     mesh.edge_origin[c],
-                    plan.output_edge_origin()[e],
+                    plan.output_edge_origin().unwrap()[e],
                     "corner {c}"
                 );
                 assert_eq!(mesh.edge_sharpness[c], sharpness[e], "corner {c}");

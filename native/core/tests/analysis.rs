@@ -155,3 +155,31 @@ fn biquartic_stencils_near_an_irregular_face_follow_equation_2() {
         }
     }
 }
+
+/// `refine`'s extent comes from its caller: one that is not finite, or so large that the
+/// polar cage's ring count saturates, is refused as bad input (it panicked: the cage got one
+/// ring, and the neighbourhood walk met its boundary).
+#[test]
+fn refine_refuses_an_extent_it_cannot_hold() {
+    use bidegree::analysis::{polar_cage, refine};
+    use bidegree::Error;
+    let impulse = vec![1.0];
+    for extent in [f64::INFINITY, f64::NAN, -1.0] {
+        let refused = refine(5, 4, std::slice::from_ref(&impulse), 1, extent);
+        assert!(
+            matches!(refused, Err(Error::InvalidInput(_))),
+            "extent {extent}: {refused:?}"
+        );
+    }
+    let refused = refine(5, 4, &[impulse], 1, 1e30);
+    assert!(
+        matches!(refused, Err(Error::InvalidInput(_))),
+        "{refused:?}"
+    );
+    let refused = polar_cage(4, usize::MAX / 2);
+    assert!(
+        matches!(refused, Err(Error::InvalidInput(_))),
+        "{:?}",
+        refused.map(|_| ())
+    );
+}

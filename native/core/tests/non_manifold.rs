@@ -468,7 +468,10 @@ fn the_dual_output_leaves_out_the_faces_that_reach_into_a_hole() {
                 "{what}: unused vertices"
             );
             // Every edge keeps its cage edge (the halves of the boundary edges).
-            assert_eq!(part.output_edge_origin().len(), part.output_edges().len());
+            assert_eq!(
+                part.output_edge_origin().unwrap().len(),
+                part.output_edges().len()
+            );
             assert_eq!(
                 part.output_edge_sharpness().unwrap().len(),
                 part.output_edges().len()
@@ -551,7 +554,7 @@ proptest! {
                 prop_assert_eq!(out.len(), 3 * n);
                 prop_assert!(out.iter().all(|x| x.is_finite()));
                 prop_assert!(plan.output_face_vertices().iter().all(|&v| (v as usize) < n));
-                prop_assert_eq!(plan.output_edge_origin().len(), plan.output_edges().len());
+                prop_assert_eq!(plan.output_edge_origin().unwrap().len(), plan.output_edges().len());
             }
             Err(e) => prop_assert!(typed(&e), "{e}"),
         }

@@ -7,7 +7,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::arrays::array2;
-use crate::errors::{invalid, run};
+use crate::errors::{invalid, run, to_py_err};
 
 /// Registers the analysis functions in the extension module.
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -149,15 +149,17 @@ fn analyze<'py>(
         dict.set_item("map_points", shaped(py, points, &[k, rows, columns, 2])?)?;
         let params: Vec<f64> = map.params.iter().flatten().copied().collect();
         dict.set_item("map_params", shaped(py, params, &[rows, columns, 2])?)?;
+        // Cells between grid points; `reshape` refuses a table of another size.
+        let cells_shape = [rows.saturating_sub(1), columns.saturating_sub(1)];
         let cells: Vec<f64> = map.cell_jacobian.iter().flatten().copied().collect();
         dict.set_item(
             "map_cell_jacobian",
-            shaped(py, cells, &[rows - 1, columns - 1, 2])?,
+            shaped(py, cells, &[cells_shape[0], cells_shape[1], 2])?,
         )?;
         let ring: Vec<bool> = map.in_ring.clone();
         dict.set_item(
             "map_in_ring",
-            PyArray1::from_vec(py, ring).reshape([rows - 1, columns - 1])?,
+            PyArray1::from_vec(py, ring).reshape(cells_shape)?,
         )?;
         dict.set_item("map_spacing", map.spacing)?;
         dict.set_item("map_steps", map.steps)?;
@@ -185,11 +187,18 @@ fn basis_function<'py>(
         }
         bidegree::analysis::basis_function(degree, valence, label, steps as usize)
     })?;
+    // The core refines the one impulse: one channel.
+    let Some(channel) = net.values.first() else {
+        return Err(to_py_err(
+            py,
+            Error::Internal("basis_function must return the impulse's channel".into()),
+        ));
+    };
     let dict = PyDict::new(py);
-    let (k, rows, columns) = (net.values[0].len(), net.rows, net.columns);
+    let (k, rows, columns) = (channel.len(), net.rows, net.columns);
     let params: Vec<f64> = net.params.iter().flatten().copied().collect();
     dict.set_item("params", shaped(py, params, &[rows, columns, 2])?)?;
-    let values: Vec<f64> = net.values[0].iter().flatten().copied().collect();
+    let values: Vec<f64> = channel.iter().flatten().copied().collect();
     dict.set_item("values", shaped(py, values, &[k, rows, columns])?)?;
     dict.set_item("spacing", net.spacing)?;
     dict.set_item("primal", degree % 2 == 1)?;

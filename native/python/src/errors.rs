@@ -277,10 +277,20 @@ pub(crate) fn guard<T>(py: Python<'_>, access: impl FnOnce() -> T) -> PyResult<T
     catch(access).map_err(|failure| failure.into_py(py))
 }
 
-/// Makes a panic in the core on purpose (tests check that it arrives as `InternalError`).
+/// Makes a panic in the core on purpose (tests check that it arrives as `InternalError`);
+/// `in_worker`: on a rayon worker thread, as a panic in the core's parallel passes would be.
 #[pyfunction]
-fn _panic_for_tests(py: Python<'_>) -> PyResult<()> {
-    run(py, || -> bidegree::Result<()> {
+#[pyo3(signature = (in_worker=false))]
+fn _panic_for_tests(py: Python<'_>, in_worker: bool) -> PyResult<()> {
+    use rayon::prelude::*;
+    run(py, move || -> bidegree::Result<()> {
+        if in_worker {
+            (0..64u32).into_par_iter().for_each(|i| {
+                if i == 37 {
+                    panic!("deliberate panic for tests on a worker");
+                }
+            });
+        }
         panic!("deliberate panic for tests")
     })
 }

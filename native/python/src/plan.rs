@@ -341,7 +341,7 @@ impl PyPlan {
     /// Cage edge (row of `cage_edges`) each output edge lies on, -1 inside a cage face, int32.
     fn edge_origin<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<i32>>> {
         self.indices(py, |plan| {
-            plan.output_edge_origin()
+            plan.output_edge_origin()?
                 .iter()
                 .map(|&e| {
                     if e == bidegree::Level::NONE {

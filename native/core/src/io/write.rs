@@ -271,24 +271,25 @@ fn check_write_input<T: ObjFloat>(mesh: &ObjOutput<'_, T>) -> Result<()> {
         ));
     }
     let num_vertices = points.len() / 3;
-    if face_offsets.is_empty() {
-        if !face_vertices.is_empty() {
+    match (face_offsets.first(), face_offsets.last()) {
+        (Some(&first), Some(&end)) => {
+            if first != 0 {
+                return invalid("write_obj: face_offsets must start at 0".into());
+            }
+            if face_offsets.windows(2).any(|w| w[1] < w[0]) {
+                return invalid("write_obj: face_offsets must not decrease".into());
+            }
+            if end as usize != face_vertices.len() {
+                return invalid(format!(
+                    "write_obj: face_offsets ends at {end} but there are {} face corners",
+                    face_vertices.len()
+                ));
+            }
+        }
+        _ if !face_vertices.is_empty() => {
             return invalid("write_obj: face_offsets is empty but face_vertices is not".into());
         }
-    } else {
-        if face_offsets[0] != 0 {
-            return invalid("write_obj: face_offsets must start at 0".into());
-        }
-        if face_offsets.windows(2).any(|w| w[1] < w[0]) {
-            return invalid("write_obj: face_offsets must not decrease".into());
-        }
-        if *face_offsets.last().unwrap() as usize != face_vertices.len() {
-            return invalid(format!(
-                "write_obj: face_offsets ends at {} but there are {} face corners",
-                face_offsets.last().unwrap(),
-                face_vertices.len()
-            ));
-        }
+        _ => {}
     }
     if let Some(&bad) = face_vertices
         .par_iter()

@@ -13,6 +13,7 @@ use std::mem::MaybeUninit;
 
 use super::{CurveData, LevelData, Step};
 use crate::curves::LevelSharpness;
+use crate::error::{Error, Result};
 use crate::options::Creasing;
 use crate::parallel::{fill, hinted_or_abort};
 use crate::scalar::{add, lerp, mad, scale, zero, Scalar, Value};
@@ -25,29 +26,31 @@ use crate::topology::{Level, NONE};
 
 impl<T: Scalar, const N: usize> LevelData<'_, T, N> {
     /// The Catmull-Clark step (see the module documentation); the data stays primal.
-    pub(super) fn catmark(&mut self, step: &Step, creasing: Creasing) {
+    pub(super) fn catmark(&mut self, step: &Step, creasing: Creasing) -> Result<()> {
         debug_assert!(self.primal, "Catmull-Clark data is primal");
         let mut out = self.fresh();
-        step_into(step, creasing, &self.vertices, &mut out);
+        step_into(step, creasing, &self.vertices, &mut out)?;
         if let Cow::Owned(old) = std::mem::replace(&mut self.vertices, Cow::Owned(out)) {
             self.spare = old;
         }
         self.curve = CurveData::OnVertices;
+        Ok(())
     }
 }
 
 /// One step of `values` (per vertex of `step.coarse`) into `out` (its previous contents are
-/// dropped; its allocation is reused when large enough).
+/// dropped; its allocation is reused when large enough). A step without the levels' sharpness
+/// tables (which `Refinement` builds for these rules) is an internal error.
 pub(crate) fn step_into<T: Scalar, const N: usize>(
     step: &Step,
     creasing: Creasing,
     values: &[Value<T, N>],
     out: &mut Vec<Value<T, N>>,
-) {
+) -> Result<()> {
     let (coarse, fine) = (step.coarse, step.fine);
-    let (this, child) = step
-        .sharpness
-        .expect("the Catmull-Clark rules step with the levels' sharpness");
+    let (this, child) = step.sharpness.ok_or_else(|| {
+        Error::Internal("a Catmull-Clark step needs its levels' sharpness tables".into())
+    })?;
     let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
     let n = fine.num_vertices;
     out.clear();
@@ -103,6 +106,7 @@ pub(crate) fn step_into<T: Scalar, const N: usize>(
     }
     // SAFETY: the three sections, which `fill` wrote completely, are the first `n` items.
     unsafe { out.set_len(n) };
+    Ok(())
 }
 
 /// The vertex point of old vertex `v` (OpenSubdiv's `ComputeVertexVertexMask` with the parent

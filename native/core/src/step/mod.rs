@@ -338,7 +338,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
             Scheme::Averaging { degree } => self.average(step, degree)?,
             Scheme::Bilinear => self.average_by_passes(step, 1),
             Scheme::DooSabin => self.doo_sabin(step),
-            Scheme::CatmullClark { creasing } => self.catmark(step, creasing),
+            Scheme::CatmullClark { creasing } => self.catmark(step, creasing)?,
         }
         Ok(())
     }

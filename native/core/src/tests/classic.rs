@@ -595,8 +595,8 @@ fn step_into_reuses_a_dirty_buffer_and_matches_step() {
         for j in 0..2 {
             let step = plan.refinement().step(j);
             let mut expected = Vec::new();
-            step_into(&step, creasing, &values, &mut expected);
-            step_into(&step, creasing, &values, &mut buffer);
+            step_into(&step, creasing, &values, &mut expected).unwrap();
+            step_into(&step, creasing, &values, &mut buffer).unwrap();
             assert_eq!(buffer.len(), levels[j + 1].num_vertices);
             let bits = |v: &[P]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&buffer), bits(&expected));
