@@ -255,7 +255,7 @@ fn build_stencils(
             if transient[i] {
                 return None;
             }
-            let Some([a, _]) = cv.edges else {
+            let Some([a, b]) = cv.edges else {
                 // Odd degrees: the corner's own vertex, which holds its cage point at every
                 // level (on a partial level its index is not the cage vertex's).
                 let item = if primal {
@@ -290,7 +290,6 @@ fn build_stencils(
                 }
                 Some(out)
             };
-            let [a, b] = [a, cv.edges.expect("a curve vertex")[1]];
             // Odd: N vertices each way (the N-th may be a corner: its value is still its 1-D
             // value); even: N edges each way. One more step each way must exist (no corner
             // within the mask's reach, else the 1-D scheme is not uniform there).
@@ -589,21 +588,27 @@ fn build_stencils(
             // neighbourhood is clean, so they are there).
             for &x in &corners {
                 for y in [last.next(x), last.next(last.next(x))] {
-                    let across = last
-                        .opposite(last.corner_edges()[y] as usize, y)
-                        .expect("a clean neighbourhood");
+                    let across =
+                        (last.opposite(last.corner_edges()[y] as usize, y)).ok_or_else(|| {
+                            Error::Internal("limit fans: a valence-2 vertex on a boundary".into())
+                        })?;
                     fan_items.push(last.face_of(across) as u32);
                 }
             }
         } else {
-            let curve_item = |e: u32| nf as u32 + curve_index(e).expect("a curve edge of the step");
+            let curve_item = |e: u32| -> Result<u32> {
+                let i = curve_index(e).ok_or_else(|| {
+                    Error::Internal("limit fans: a fan ends on an edge of no curve".into())
+                })?;
+                Ok(nf as u32 + i)
+            };
             if !closed {
-                fan_items.push(curve_item(last.corner_edges()[start]));
+                fan_items.push(curve_item(last.corner_edges()[start])?);
             }
             fan_items.extend(corners.iter().map(|&x| last.face_of(x) as u32));
             if !closed {
                 let x = *corners.last().expect("a corner");
-                fan_items.push(curve_item(last.corner_edges()[last.prev(x)]));
+                fan_items.push(curve_item(last.corner_edges()[last.prev(x)])?);
             }
         }
         let id = fan_closed.len() as u32;
@@ -894,8 +899,8 @@ fn build(refinement: &Refinement, local: Option<usize>, tiled: bool) -> Result<S
     candidates.dedup();
     candidates.retain(|&m| m > 0);
     // The last level's edge and vertex -> corner tables, fallibly (`levels()` would panic).
-    refinement.complete_levels()?;
-    let last = refinement.levels().last().expect("a level");
+    let all_levels = refinement.try_levels()?;
+    let last = refinement.last_level();
     let outputs = last.num_vertices;
     let degree = options.degree;
     let whole = |i: usize| i;
@@ -905,7 +910,7 @@ fn build(refinement: &Refinement, local: Option<usize>, tiled: bool) -> Result<S
     if levels > 0 && (smooth == 0 || share.is_some()) {
         // The stencils at the plan's own last level; with the averaging rules, the vertices
         // that are not clean there get theirs on partial levels around them.
-        let curves = refinement.curve_networks().last().expect("a step");
+        let curves = refinement.last_network("the limit's stencils")?;
         let targets = Targets {
             count: outputs,
             output: last,
@@ -922,7 +927,7 @@ fn build(refinement: &Refinement, local: Option<usize>, tiled: bool) -> Result<S
         let depth = (0..=levels.min(tiles::MAX_DEPTH))
             .rev()
             .find(|&t| {
-                let above = &refinement.levels()[(levels - t) as usize];
+                let above = &all_levels[(levels - t) as usize];
                 (0..above.num_faces()).all(|f| above.face_corners(f).len() == 4)
             })
             .filter(|_| tiled);
@@ -1020,8 +1025,8 @@ fn build(refinement: &Refinement, local: Option<usize>, tiled: bool) -> Result<S
             corner: &corner,
             index: &below,
         };
-        let ext_last = extended.levels().last().expect("a level");
-        let curves = extended.curve_networks().last().expect("a step");
+        let ext_last = extended.last_level();
+        let curves = extended.last_network("the limit's stencils")?;
         if let Some(mut st) = build_stencils(
             ext_last,
             curves,
@@ -1266,7 +1271,8 @@ pub(crate) fn surface<T: Scalar>(
         rule,
     };
     let (positions, normals) = limit.of::<T, 3>(points, true)?;
-    Ok((positions, normals.expect("normals were asked for")))
+    let normals = normals.ok_or_else(|| Error::Internal("limit: no normals made".into()))?;
+    Ok((positions, normals))
 }
 
 /// One limit request on a plan's refinement.
@@ -1290,19 +1296,25 @@ impl Limit<'_> {
         match self.rule {
             LimitMethod::CatmullClark => {
                 let Final::Primal(last) = run(r, self.scratch, &compact, false)? else {
-                    unreachable!("primal classic run")
+                    return Err(Error::Internal(
+                        "limit: a classic run left dual data".into(),
+                    ));
                 };
-                r.complete_levels()?;
-                let j = r.levels().len() - 1;
-                let sharpness = r.sharpness(j).expect("Catmull-Clark levels have sharpness");
-                let out = catmark_limit(&r.levels()[j], sharpness, &last)?;
+                let levels = r.try_levels()?;
+                let j = levels.len() - 1;
+                let sharpness = r.sharpness(j).ok_or_else(|| {
+                    Error::Internal("limit: a Catmull-Clark level without sharpness".into())
+                })?;
+                let out = catmark_limit(&levels[j], sharpness, &last)?;
                 Ok((out.into_flattened(), None))
             }
             LimitMethod::Interpolating => {
                 // Bilinear: the surface interpolates the refined points; each face's patch has
                 // its own normal at its corners.
                 let Final::Primal(last) = run(r, self.scratch, &compact, false)? else {
-                    unreachable!("degree 1 is primal")
+                    return Err(Error::Internal(
+                        "limit: a degree-1 run left dual data".into(),
+                    ));
                 };
                 let normals = match normals {
                     true => Some(face_corner_normals(r.last_level(), &last)?),
@@ -1617,7 +1629,9 @@ fn catmark_limit<T: Scalar, const N: usize>(
     this: &LevelSharpness,
     values: &[Value<T, N>],
 ) -> Result<Vec<Value<T, N>>> {
-    assert!(level.is_quads(), "limit positions need a quad level");
+    if !level.is_quads() {
+        return Err(Error::Internal("limit positions need a quad level".into()));
+    }
     gather_hinted(level.num_vertices, |v| match this.rule(v) {
         VertexRule::Dart
             if level
