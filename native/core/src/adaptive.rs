@@ -439,14 +439,30 @@ fn adaptive_in_pool<T: Scalar>(
             try_insert(&mut refined[j], &nodes)?;
             continue;
         }
-        let mut seeds: Vec<Vec<u64>> = (0..=j)
-            .map(|t| nodes_at(&refined, roots, t))
-            .collect::<Result<_>>()?;
+        let seeds_to = |refined: &[IdSet], top: usize| -> Result<Vec<Vec<u64>>> {
+            (0..=top).map(|t| nodes_at(refined, roots, t)).collect()
+        };
+        let mut seeds = seeds_to(&refined, j)?;
+        extend_pass(&ctx, &mut parts, &seeds, held)?;
+        let decided = decide(&ctx, &grid, j, &parts[j], &nodes, options.tolerance)?;
+        // The nodes decided above the tolerance are refined whatever the measurements say: the
+        // nodes that the restriction criterion adds below level j for them are known before
+        // level j + 1 is made, and the levels they change are made again first (not after
+        // level j + 1 was made on the old ones, to be made again in the next decision).
+        let mut lowest = j;
+        for (&node, &d) in nodes.iter().zip(&decided) {
+            if d == Some(true) {
+                lowest = lowest.min(restrict_refine(&parts, &mut refined, j, node)?);
+            }
+        }
+        if lowest < j {
+            parts.truncate(lowest + 1);
+            seeds = seeds_to(&refined, j)?;
+            extend_pass(&ctx, &mut parts, &seeds, held)?;
+        }
         // The nodes that the grid's closed form decides need no children; the others' children
         // are the next level's seeds (a superset of its nodes), where the undecided ones are
         // measured.
-        extend_pass(&ctx, &mut parts, &seeds, held)?;
-        let decided = decide(&ctx, &grid, j, &parts[j], &nodes, options.tolerance)?;
         let pick = |keep: fn(Option<bool>) -> bool| -> Vec<u64> {
             (nodes.iter().zip(&decided))
                 .filter(|&(_, &d)| keep(d))
@@ -455,14 +471,11 @@ fn adaptive_in_pool<T: Scalar>(
         };
         seeds.push(children(&pick(|d| d != Some(false)))?);
         extend_pass(&ctx, &mut parts, &seeds, held)?;
-        let mut errors = measure(&ctx, &parts, j, &pick(|d| d.is_none()))?.into_iter();
+        let undecided = pick(|d| d.is_none());
+        let errors = measure(&ctx, &parts, j, &undecided)?;
         let mut lowest = j;
-        for (&node, &d) in nodes.iter().zip(&decided) {
-            let above = match d {
-                Some(above) => above,
-                None => errors.next().is_some_and(|e| e > options.tolerance),
-            };
-            if above {
+        for (&node, &error) in undecided.iter().zip(&errors) {
+            if error > options.tolerance {
                 lowest = lowest.min(restrict_refine(&parts, &mut refined, j, node)?);
             }
         }
@@ -1894,14 +1907,6 @@ impl Grid {
         if reach > margin || inner + 1 > margin || inner > reach || side > GRID_SIDE {
             return None;
         }
-        // Unit roundoff of the input's scalars.
-        let unit = {
-            let mut u = 1.0f64;
-            while T::from_f64(1.0) + T::from_f64(u / 2.0) != T::from_f64(1.0) {
-                u /= 2.0;
-            }
-            u / 2.0
-        };
         let scale_by = if ctx.diagonal > 0.0 {
             1.0 / ctx.diagonal
         } else {
@@ -1913,7 +1918,7 @@ impl Grid {
             reach,
             inner: inner.max(reach - 1),
             weights,
-            slack: 256.0 * (n as f64 + 2.0) * unit * scale_by,
+            slack: 256.0 * (n as f64 + 2.0) * T::UNIT_ROUNDOFF * scale_by,
         })
     }
 }
