@@ -18,13 +18,14 @@
 //! # Partial levels and exactness
 //! Level `j` is kept only on a subset `P_j` of the faces of `M_j`, stored as a [`Level`] whose
 //! numbering preserves the relative order of the uniform ids (faces, corners, edges, vertices
-//! sorted by uniform id; every vertex's corner list in the uniform order). `P_{j+1}` is
-//! `P_j.refine()` restricted to the faces that are needed, its curve network and 1-D data
-//! restricted alike ([`CurveNetwork::restrict`]). The step primitive then accumulates every sum
-//! over the same terms in the same order as in the uniform [`crate::Plan`], so every value whose
-//! stencil lies inside `P_j` is bitwise the uniform value by construction (and checked against
-//! the uniform plan in `tests/adaptive.rs` for degrees 1-5 and 9, with boundaries, creases and
-//! corners).
+//! sorted by uniform id; every vertex's corner list in the uniform order). `P_{j+1}` is the
+//! refinement of `P_j` restricted to the faces that are needed (the margin rings around the
+//! parents of its seeds, below), its curve network and 1-D data restricted alike
+//! ([`CurveNetwork::restrict`]). The step primitive then accumulates every sum over the same
+//! terms in the same order as in the uniform [`crate::Plan`], so every value whose stencil lies
+//! inside the exact data of `P_j` is bitwise the uniform value by construction (and checked
+//! against the uniform plan in `tests/adaptive.rs` for degrees 1-5 and 9, with boundaries,
+//! creases and corners).
 //!
 //! Margin. One step of degree n is a replication followed by n averages. Backwards from a set
 //! `S` of fine faces (their dual points, or the primal points at their vertices), the n averages
@@ -33,7 +34,12 @@
 //! so the data of `S = ring_r(children(Y))` is exact when `P_j ⊇ ring_(ceil(r/2) + m)(Y)` with
 //! `m = ceil(ceil(n/2) / 2)`. Keeping `P_j = ring_r(S_j)` around the seed faces `S_j` of every
 //! level, with `S_{j+1} ⊆ children(S_j)`, is therefore exact when `r >= ceil(r/2) + m`, i.e. with
-//! the margin `r = 2m` rings (2 for degrees 1-4, 4 for 5-8, 6 for 9-12, ...). This is a
+//! the margin `r = 2m` rings (2 for degrees 1-4, 4 for 5-8, 6 for 9-12, ...). `P_{j+1}` is made
+//! as the whole refinement of `ring_r(Y)` in `P_j`, `Y` the parents of its seeds: its data are
+//! exact on `ring_r(S_{j+1})` and not on its outer faces, which nothing reads (every read, by the
+//! steps of the next level, the decisions, the measures and the drawing, lies within the margin
+//! rings of some level's seeds). Cutting `P_{j+1}` down to `ring_r(S_{j+1})` would cost more than
+//! the refinement that made it, for little less data. This is a
 //! sufficient margin derived from the stencil sizes, not a minimal one (the seeds themselves
 //! already carry rings of nodes, from the restriction criterion and the measured children): in
 //! `tests/adaptive.rs`, no margin at all fails for degrees 2-5 on a bumped grid, while one ring
@@ -235,7 +241,8 @@ type P<T> = [T; 3];
 /// A partial level's 2-D data (borrowed) and 1-D data, as a step takes them.
 type LevelParts<'a, T> = (&'a [P<T>], Vec<P<T>>);
 
-/// One partial level: a subset of the faces of uniform `M_j`, with its data.
+/// One partial level: a subset of the faces of uniform `M_j`, with its data (exact on the
+/// margin rings around the seeds it was made for; module documentation).
 #[derive(Debug)]
 struct Part<T> {
     level: Level,
@@ -979,10 +986,9 @@ fn extend_pass<T: Scalar>(
             retained + BYTES_PER_CORNER as f64 * fine_corners as f64,
             fine_corners as f64 / 4.0,
         )?;
-        let around = Keep::Around(&seeds[t + 1]);
         let next = match around_parents(ctx, t, coarse, &seeds[t + 1])? {
-            Some(sub) => refine_part(ctx, t, &sub, around)?,
-            None => refine_part(ctx, t, coarse, around)?,
+            Some(sub) => refine_part(ctx, t, &sub, Keep::All)?,
+            None => refine_part(ctx, t, coarse, Keep::All)?,
         };
         retained += BYTES_PER_CORNER as f64 * next.level.num_corners() as f64;
         parts.push(next);
@@ -1358,6 +1364,11 @@ enum Keep<'a> {
     Around(&'a [u64]),
     /// Exactly these faces (sorted uniform ids).
     Faces(&'a [u64]),
+    /// Every face of the refined level: made from the margin rings around the parents of its
+    /// seeds ([`around_parents`]), its data are exact on the margin rings around the seeds,
+    /// which is all that is read of it, and a restriction to them would cost more than the
+    /// refinement that made them.
+    All,
 }
 
 /// The topology of one step `P_t -> P_{t+1}` ([`refine_topology`]): the refined level, the
@@ -1371,6 +1382,9 @@ struct PartStep {
     faces: Vec<u32>,
     /// The step's curve vertices (odd degrees) or curve edges (even) that it keeps.
     keep_curve: Vec<u32>,
+    /// Whether the next part is the whole fine level (`vertices`, `faces` and `keep_curve` are
+    /// then empty).
+    whole: bool,
     /// The averaging rules: the step's regular windows, built with its topology so that the
     /// local levels of a limit, evaluated on every call, do not build them again (a cached
     /// limit on the 4k ico cage at level 3: degree 9 1448M -> 1030M instructions, degree 4
@@ -1382,6 +1396,7 @@ impl PartStep {
     /// The items of the fine level whose data the next part keeps: vertices (odd degrees) or
     /// faces (even).
     fn keep(&self, odd: bool) -> &[u32] {
+        debug_assert!(!self.whole, "a whole level keeps every item");
         match odd {
             true => &self.vertices,
             false => &self.faces,
@@ -1440,6 +1455,16 @@ fn refine_part<T: Scalar>(
         false => Some(run.drawing_points(&step.step(ctx.scheme, &coarse.level))?),
     };
     let (data, curve) = run.into_parts();
+    if step.whole {
+        next.points = match drawing {
+            Some(points) => points,
+            None => memory::collect(data.iter().copied())?,
+        };
+        next.data = data;
+        next.curve = curve;
+        next.level = step.fine;
+        return Ok(next);
+    }
     let points = drawing.as_deref().unwrap_or(&data);
     let pick =
         |values: &[P<T>], keep: &[u32]| gather_hinted(keep.len(), |i| values[keep[i] as usize]);
@@ -1450,7 +1475,8 @@ fn refine_part<T: Scalar>(
 }
 
 /// The topology of one step `P_t -> P_{t+1}`: refine, keep the faces `keep` names. Returns the
-/// step and the next part, without data.
+/// step and the next part, without data (and, when it keeps every face, without its level,
+/// which is the step's fine level).
 fn refine_topology<T: Sync, U>(
     ctx: &Context<U>,
     t: usize,
@@ -1530,10 +1556,41 @@ fn refine_topology<T: Sync, U>(
         pin,
     );
 
+    let windows = match ctx.scheme {
+        Scheme::Averaging { degree } => Windows::of_step(c, &fine, &network, degree, t)?,
+        _ => None,
+    };
+    let counts = [nv + ne + nf, 2 * ne + ncorners, ncorners, 4 * ncorners];
     // The seeds and the margin rings around them, or the faces named.
     let (seeds, margin) = match keep {
         Keep::Around(seeds) => (seeds, ctx.margin),
         Keep::Faces(faces) => (faces, 0),
+        Keep::All => {
+            let next = Part {
+                face_uid: gather_hinted(fine.num_faces(), corner_uid)?,
+                vert_uid: gather_hinted(fine.num_vertices, vert_uid)?,
+                edge_uid: gather_hinted(fine.num_edges(), edge_uid)?,
+                edge_faces: gather_hinted(fine.num_edges(), edge_faces)?,
+                vert_faces: gather_hinted(fine.num_vertices, vert_faces)?,
+                curves: network.next_curves(),
+                network: Some(network.clone()),
+                data: Vec::new(),
+                curve: Vec::new(),
+                points: Vec::new(),
+                counts,
+                level: Level::default(),
+            };
+            let step = PartStep {
+                fine,
+                network,
+                vertices: Vec::new(),
+                faces: Vec::new(),
+                keep_curve: Vec::new(),
+                whole: true,
+                windows,
+            };
+            return Ok((step, next));
+        }
     };
     let mut keep = memory::filled(fine.num_faces(), false)?;
     // Both lists are sorted: one merge walk finds every seed.
@@ -1559,7 +1616,6 @@ fn refine_topology<T: Sync, U>(
     fn pick<V: Send>(map: &[u32], of: impl Fn(usize) -> V + Sync + Send) -> Result<Vec<V>> {
         gather_hinted(map.len(), |i| of(map[i] as usize))
     }
-    let counts = [nv + ne + nf, 2 * ne + ncorners, ncorners, 4 * ncorners];
     let next = Part {
         face_uid: pick(&sub.faces, corner_uid)?,
         vert_uid: pick(&sub.vertices, vert_uid)?,
@@ -1574,16 +1630,13 @@ fn refine_topology<T: Sync, U>(
         counts,
         level: sub.level,
     };
-    let windows = match ctx.scheme {
-        Scheme::Averaging { degree } => Windows::of_step(c, &fine, &network, degree, t)?,
-        _ => None,
-    };
     let step = PartStep {
         fine,
         network,
         vertices: sub.vertices,
         faces: sub.faces,
         keep_curve: if odd { kept_vertices } else { kept_edges },
+        whole: false,
         windows,
     };
     Ok((step, next))
