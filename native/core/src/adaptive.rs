@@ -1996,8 +1996,8 @@ fn decide<T: Scalar>(
     let Some(grid) = grid else {
         return memory::filled(nodes.len(), None);
     };
-    let level = &part.level;
     let regular = regular_flags(ctx, part)?;
+    let twins = grid_twins(part)?;
     // Blocks of nodes: the four siblings from level 2 on (always all four: nodes are the
     // children of refined nodes, and holes are whole cage faces), single nodes at level 1.
     let span = if t >= 2 && nodes.len().is_multiple_of(4) {
@@ -2005,12 +2005,11 @@ fn decide<T: Scalar>(
     } else {
         1
     };
-    let edge_corners = level.edge_corners();
     let scale_by = scale_of(ctx);
     let blocks = gather_hinted(nodes.len() / span / span, |i| -> [Option<bool>; 4] {
         let block = &nodes[span * span * i..span * span * (i + 1)];
         let mut out = [None; 4];
-        if let Some(errors) = block_errors(grid, part, &regular, edge_corners, span, block) {
+        if let Some(errors) = block_errors(grid, part, &regular, &twins, span, block) {
             for (o, (error, slack)) in out.iter_mut().zip(errors) {
                 let error = error * scale_by;
                 let slack = slack * scale_by;
@@ -2067,18 +2066,42 @@ fn regular_flags<T: Scalar>(ctx: &Context<T>, part: &Part<T>) -> Result<Vec<bool
     })
 }
 
+/// Per corner `c` of `part`: the corner of the face across its outgoing edge that leaves the
+/// vertex `c`'s edge arrives at, where that edge has two faces in the uniform level, both here,
+/// running opposite ways (as on a grid); `NONE` elsewhere. One table for the level, so that the
+/// walks of [`block_errors`] cross a side in one lookup.
+fn grid_twins<T: Sync>(part: &Part<T>) -> Result<Vec<u32>> {
+    let level = &part.level;
+    let corner_edges = level.corner_edges();
+    let edge_corners = level.edge_corners();
+    gather_hinted(level.num_corners(), |c| {
+        let e = corner_edges[c] as usize;
+        if part.edge_faces[e] != 2 {
+            return NONE;
+        }
+        let [c0, c1] = edge_corners[e];
+        let d = if c0 as usize == c { c1 } else { c0 };
+        let ahead = (c & !3) | ((c + 1) & 3);
+        if d == NONE || level.corner_verts[d as usize] != level.corner_verts[ahead] {
+            NONE
+        } else {
+            d
+        }
+    })
+}
+
 /// The closed-form errors (absolute) and their rounding bounds of the nodes of `block` (one
-/// node, or four siblings in their order), `None` unless a grid holds them all.
+/// node, or four siblings in their order), `None` unless a grid holds them all; `twins` is
+/// [`grid_twins`] of `part`.
 fn block_errors<T: Scalar>(
     grid: &Grid,
     part: &Part<T>,
     regular: &[bool],
-    edge_corners: &[[u32; 2]],
+    twins: &[u32],
     span: usize,
     block: &[u64],
 ) -> Option<[(f64, f64); 4]> {
     let level = &part.level;
-    let corner_edges = level.corner_edges();
     let f = part.face_of_uid(block[0])?;
     if span == 2
         && block
@@ -2091,18 +2114,8 @@ fn block_errors<T: Scalar>(
     // The frame corner (at the cell's (0, 0), its next along x) of the cell across side k
     // (0: -y, 1: +x, 2: +y, 3: -x) of the cell of frame corner `fc`, on a grid.
     let step = |fc: u32, k: u32| -> Option<u32> {
-        let cross = (fc & !3) | ((fc + k) & 3);
-        let e = corner_edges[cross as usize] as usize;
-        if part.edge_faces[e] != 2 {
-            return None;
-        }
-        let [c0, c1] = edge_corners[e];
-        let d = if c0 == cross { c1 } else { c0 };
-        let ahead = (cross & !3) | ((cross + 1) & 3);
-        if d == NONE || level.corner_verts[d as usize] != level.corner_verts[ahead as usize] {
-            return None;
-        }
-        Some((d & !3) | ((d + 6 - k) & 3))
+        let d = twins[((fc & !3) | ((fc + k) & 3)) as usize];
+        (d != NONE).then_some((d & !3) | ((d + 6 - k) & 3))
     };
     // Cells -r..=r + span - 1 in both directions, the first node's cell at (0, 0): along
     // its column, then along each row.
@@ -2622,16 +2635,11 @@ mod tests {
                     let exact = measure(&ctx, &parts, t, nodes).unwrap();
                     let span = if t >= 2 { 2 } else { 1 };
                     let regular = regular_flags(&ctx, part).unwrap();
+                    let twins = grid_twins(part).unwrap();
                     for (i, block) in nodes.chunks(span * span).enumerate() {
                         total += block.len();
-                        let Some(errors) = block_errors(
-                            &grid,
-                            part,
-                            &regular,
-                            part.level.edge_corners(),
-                            span,
-                            block,
-                        ) else {
+                        let Some(errors) = block_errors(&grid, part, &regular, &twins, span, block)
+                        else {
                             continue;
                         };
                         for (k, &(error, slack)) in errors[..block.len()].iter().enumerate() {
