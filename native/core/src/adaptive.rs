@@ -49,9 +49,11 @@
 //! triangulation need; a query that meets an incomplete vertex is reported as
 //! [`Error::Internal`] rather than answered wrongly.
 //!
-//! Bookkeeping. Making a partial level (its margin rings, its restriction to them, its uniform
-//! ids and picked data) and measuring its nodes are gathers and prefix sums in fixed chunks
-//! ([`crate::parallel`]): parallel, with results that do not depend on the number of threads.
+//! Bookkeeping. Making a partial level (the margin rings around its seeds' parents, the
+//! restriction of the coarser level to them and its refinement, uniform ids and data), deciding
+//! and measuring its nodes and writing the output triangles are gathers and prefix sums in fixed
+//! chunks ([`crate::parallel`]): parallel, with results that do not depend on the number of
+//! threads.
 //! Lookups by uniform id go through the sorted id lists (merge walks) and flat per-level tables,
 //! not hash maps; the refined sets are the only ones.
 //!
@@ -90,6 +92,8 @@
 
 use std::collections::HashSet;
 use std::hash::{BuildHasherDefault, Hasher};
+
+use rayon::prelude::*;
 
 use crate::curves::{CageFeatures, Curve, CurveNetwork};
 use crate::error::{AdaptiveStage, Error, Result};
@@ -2316,6 +2320,56 @@ struct Drawn<T> {
     corner_at: Vec<(u32, u32, u8)>,
 }
 
+/// Leaves per chunk of the parallel triangle output.
+const LEAF_CHUNK: usize = 1 << 10;
+
+/// A run of leaves (indices into the output order) and the runs of the triangle outputs that
+/// their triangles fill.
+struct LeafChunk<'a> {
+    leaves: std::ops::Range<usize>,
+    triangles: &'a mut [[u32; 3]],
+    face_origin: &'a mut [u32],
+    triangle_level: &'a mut [u32],
+    corner_at: &'a mut [(u32, u32, u8)],
+    edge_origin: &'a mut [u32],
+    edge_level: &'a mut [u32],
+    edge_sharpness: &'a mut [f32],
+}
+
+impl<'a> LeafChunk<'a> {
+    /// The first `n` triangles of these runs, for the leaves `leaves`, and the rest.
+    fn split(self, leaves: std::ops::Range<usize>, n: usize) -> (LeafChunk<'a>, LeafChunk<'a>) {
+        let (triangles, t) = self.triangles.split_at_mut(n);
+        let (face_origin, o) = self.face_origin.split_at_mut(n);
+        let (triangle_level, l) = self.triangle_level.split_at_mut(n);
+        let (corner_at, ca) = self.corner_at.split_at_mut(3 * n);
+        let (edge_origin, eo) = self.edge_origin.split_at_mut(3 * n);
+        let (edge_level, el) = self.edge_level.split_at_mut(3 * n);
+        let (edge_sharpness, es) = self.edge_sharpness.split_at_mut(3 * n);
+        let rest = LeafChunk {
+            leaves: leaves.end..leaves.end,
+            triangles: t,
+            face_origin: o,
+            triangle_level: l,
+            corner_at: ca,
+            edge_origin: eo,
+            edge_level: el,
+            edge_sharpness: es,
+        };
+        let chunk = LeafChunk {
+            leaves,
+            triangles,
+            face_origin,
+            triangle_level,
+            corner_at,
+            edge_origin,
+            edge_level,
+            edge_sharpness,
+        };
+        (chunk, rest)
+    }
+}
+
 /// The output mesh: leaves (hole leaves are none) triangulated by the templates, shared
 /// vertices drawn at the finest level around them.
 fn triangulate<T: Scalar>(
@@ -2410,69 +2464,100 @@ fn triangulate<T: Scalar>(
             (0..4).find(|&k| on(p, k) && on(q, k)).unwrap_or(4) as u8
         })
     });
-    // Each leaf's template slots and case, first: the outputs are then allocated once.
-    let mut cases: Vec<([u32; 8], u8)> = memory::with_capacity(leaves.iter().map(Vec::len).sum())?;
-    for t in 1..=max_level {
+    // The leaves in output order, then each one's template slots and case: the outputs are
+    // then allocated once, and every leaf's triangles written apart (in parallel chunks, the
+    // same output whatever the threads).
+    let leaf_at: Vec<(u32, u32)> = memory::collect(
+        (1..=max_level).flat_map(|t| leaf_faces[t].iter().map(move |&f| (t as u32, f as u32))),
+    )?;
+    let cases = gather_hinted(leaf_at.len(), |i| -> Result<([u32; 8], u8)> {
+        let (t, f) = (leaf_at[i].0 as usize, leaf_at[i].1 as usize);
         let part = &parts[t];
         let level = &part.level;
         let manifold = level.edges().more.is_empty();
-        for &f in &leaf_faces[t] {
-            let mut slots = [NONE; 8];
-            let mut mask = 0u8;
-            for k in 0..4 {
-                let corner = 4 * f + k;
-                slots[2 * k] = drawn_as[t][level.corner_verts[corner] as usize];
-                if t == max_level {
-                    continue;
-                }
-                let e = level.corner_edges()[corner] as usize;
-                // Any drawn face across the edge (one, or several on a non-manifold edge) that
-                // is refined once more has the edge's midpoint; a hole has nothing drawn.
-                let finer_across = |other: u32| {
-                    if other == NONE || other as usize == corner {
-                        return false;
-                    }
-                    let g = (other >> 2) as usize;
-                    is_refined[t][g] && !ctx.is_hole(t, part.face_uid[g])
-                };
-                let finer = if manifold {
-                    // Two slots at most, without the slot iterator.
-                    level.edge_corners()[e].into_iter().any(finer_across)
-                } else {
-                    level.edge_slots(e).any(finer_across)
-                };
-                if finer {
-                    let uid = part.counts[0] + part.edge_uid[e];
-                    let finer = &parts[t + 1];
-                    let at = finer.vert_uid.binary_search(&uid).ok();
-                    slots[2 * k + 1] = at.map_or(NONE, |w| drawn_as[t + 1][w]);
-                    if slots[2 * k + 1] == NONE {
-                        return Err(Error::Internal(format!(
-                            "adaptive: edge point {uid} of level {} missing",
-                            t + 1
-                        )));
-                    }
-                    mask |= 1 << k;
-                }
+        let mut slots = [NONE; 8];
+        let mut mask = 0u8;
+        for k in 0..4 {
+            let corner = 4 * f + k;
+            slots[2 * k] = drawn_as[t][level.corner_verts[corner] as usize];
+            if t == max_level {
+                continue;
             }
-            cases.push((slots, mask));
+            let e = level.corner_edges()[corner] as usize;
+            // Any drawn face across the edge (one, or several on a non-manifold edge) that
+            // is refined once more has the edge's midpoint; a hole has nothing drawn.
+            let finer_across = |other: u32| {
+                if other == NONE || other as usize == corner {
+                    return false;
+                }
+                let g = (other >> 2) as usize;
+                is_refined[t][g] && !ctx.is_hole(t, part.face_uid[g])
+            };
+            let finer = if manifold {
+                // Two slots at most, without the slot iterator.
+                level.edge_corners()[e].into_iter().any(finer_across)
+            } else {
+                level.edge_slots(e).any(finer_across)
+            };
+            if finer {
+                let uid = part.counts[0] + part.edge_uid[e];
+                let finer = &parts[t + 1];
+                let at = finer.vert_uid.binary_search(&uid).ok();
+                slots[2 * k + 1] = at.map_or(NONE, |w| drawn_as[t + 1][w]);
+                if slots[2 * k + 1] == NONE {
+                    return Err(Error::Internal(format!(
+                        "adaptive: edge point {uid} of level {} missing",
+                        t + 1
+                    )));
+                }
+                mask |= 1 << k;
+            }
+        }
+        Ok((slots, mask))
+    })?;
+    let mut ok: Vec<([u32; 8], u8)> = memory::with_capacity(cases.len())?;
+    for case in cases {
+        ok.push(case?);
+    }
+    let cases = ok;
+    let first_triangle =
+        prefix_offsets(cases.len(), |i| templates[cases[i].1 as usize].len() as u32)?;
+    let num_triangles = first_triangle[cases.len()] as usize;
+    let mut triangles = zeroed_hinted::<[u32; 3]>(num_triangles)?;
+    let mut face_origin = zeroed_hinted::<u32>(num_triangles)?;
+    let mut triangle_level = zeroed_hinted::<u32>(num_triangles)?;
+    let mut corner_at = memory::filled(3 * num_triangles, (0u32, 0u32, 0u8))?;
+    let mut edge_origin = zeroed_hinted::<u32>(3 * num_triangles)?;
+    let mut edge_level = zeroed_hinted::<u32>(3 * num_triangles)?;
+    let mut edge_sharpness = zeroed_hinted::<f32>(3 * num_triangles)?;
+    // Chunks of leaves and the runs of the outputs they write.
+    let mut chunks: Vec<LeafChunk> = Vec::new();
+    {
+        let mut rest = LeafChunk {
+            leaves: 0..0,
+            triangles: &mut triangles[..],
+            face_origin: &mut face_origin[..],
+            triangle_level: &mut triangle_level[..],
+            corner_at: &mut corner_at[..],
+            edge_origin: &mut edge_origin[..],
+            edge_level: &mut edge_level[..],
+            edge_sharpness: &mut edge_sharpness[..],
+        };
+        for first in (0..cases.len()).step_by(LEAF_CHUNK) {
+            let end = (first + LEAF_CHUNK).min(cases.len());
+            let n = (first_triangle[end] - first_triangle[first]) as usize;
+            let (chunk, more) = rest.split(first..end, n);
+            chunks.push(chunk);
+            rest = more;
         }
     }
-    let num_triangles: usize = (cases.iter())
-        .map(|&(_, mask)| templates[mask as usize].len())
-        .sum();
-    let mut triangles = memory::with_capacity(num_triangles)?;
-    let mut face_origin = memory::with_capacity(num_triangles)?;
-    let mut triangle_level = memory::with_capacity(num_triangles)?;
-    let mut corner_at = memory::with_capacity(3 * num_triangles)?;
-    let mut edge_origin = memory::with_capacity(3 * num_triangles)?;
-    let mut edge_level = memory::with_capacity(3 * num_triangles)?;
-    let mut edge_sharpness = memory::with_capacity(3 * num_triangles)?;
-    let mut case = cases.iter();
-    for t in 1..=max_level {
-        let part = &parts[t];
-        let level = &part.level;
-        for (&f, &(slots, mask)) in leaf_faces[t].iter().zip(case.by_ref()) {
+    chunks.par_iter_mut().for_each(|chunk| {
+        let (mut x, mut y) = (0, 0);
+        for i in chunk.leaves.clone() {
+            let (t, f) = (leaf_at[i].0 as usize, leaf_at[i].1 as usize);
+            let (slots, mask) = cases[i];
+            let part = &parts[t];
+            let level = &part.level;
             let origin = ctx.level0.corner_faces[(part.face_uid[f] >> (2 * (t - 1))) as usize];
             // The cage edge under each side of the leaf.
             let sides: [u32; 4] = std::array::from_fn(|k| {
@@ -2483,32 +2568,34 @@ fn triangulate<T: Scalar>(
                 )
             });
             for tri in &templates[mask as usize] {
-                triangles.push(tri.map(|p| slots[p as usize]));
-                corner_at.extend(tri.map(|p| (t as u32, f as u32, p)));
+                chunk.triangles[x] = tri.map(|p| slots[p as usize]);
+                chunk.face_origin[x] = origin;
+                chunk.triangle_level[x] = t as u32;
+                x += 1;
                 for i in 0..3 {
                     let (p, q) = (tri[i], tri[(i + 1) % 3]);
                     let side = side_of[p as usize][q as usize];
                     let origin = sides.get(side as usize).copied().unwrap_or(NONE);
                     let depth = t as u32 + (p % 2 == 1 || q % 2 == 1) as u32;
-                    edge_origin.push(origin);
-                    edge_level.push(depth);
                     let cage = if origin == NONE {
                         0.0
                     } else {
                         ctx.features.edge_sharpness[origin as usize]
                     };
+                    chunk.corner_at[y] = (t as u32, f as u32, p);
+                    chunk.edge_origin[y] = origin;
+                    chunk.edge_level[y] = depth;
                     // Decrementing keeps 0 (and makes anything not positive 0): skip it there.
-                    edge_sharpness.push(if cage <= 0.0 {
+                    chunk.edge_sharpness[y] = if cage <= 0.0 {
                         0.0
                     } else {
                         (0..depth).fold(cage, |s, _| decrement(s))
-                    });
+                    };
+                    y += 1;
                 }
-                face_origin.push(origin);
-                triangle_level.push(t as u32);
             }
         }
-    }
+    });
     let mut leaves_per_level = vec![0u64; max_level + 1];
     for (t, l) in leaves.iter().enumerate() {
         if t <= max_level {
