@@ -18,13 +18,14 @@
 //! # Partial levels and exactness
 //! Level `j` is kept only on a subset `P_j` of the faces of `M_j`, stored as a [`Level`] whose
 //! numbering preserves the relative order of the uniform ids (faces, corners, edges, vertices
-//! sorted by uniform id; every vertex's corner list in the uniform order). `P_{j+1}` is
-//! `P_j.refine()` restricted to the faces that are needed, its curve network and 1-D data
-//! restricted alike ([`CurveNetwork::restrict`]). The step primitive then accumulates every sum
-//! over the same terms in the same order as in the uniform [`crate::Plan`], so every value whose
-//! stencil lies inside `P_j` is bitwise the uniform value by construction (and checked against
-//! the uniform plan in `tests/adaptive.rs` for degrees 1-5 and 9, with boundaries, creases and
-//! corners).
+//! sorted by uniform id; every vertex's corner list in the uniform order). `P_{j+1}` is the
+//! refinement of `P_j` restricted to the faces that are needed (the margin rings around the
+//! parents of its seeds, below), its curve network and 1-D data restricted alike
+//! ([`CurveNetwork::restrict`]). The step primitive then accumulates every sum over the same
+//! terms in the same order as in the uniform [`crate::Plan`], so every value whose stencil lies
+//! inside the exact data of `P_j` is bitwise the uniform value by construction (and checked
+//! against the uniform plan in `tests/adaptive.rs` for degrees 1-5 and 9, with boundaries,
+//! creases and corners).
 //!
 //! Margin. One step of degree n is a replication followed by n averages. Backwards from a set
 //! `S` of fine faces (their dual points, or the primal points at their vertices), the n averages
@@ -33,7 +34,12 @@
 //! so the data of `S = ring_r(children(Y))` is exact when `P_j ⊇ ring_(ceil(r/2) + m)(Y)` with
 //! `m = ceil(ceil(n/2) / 2)`. Keeping `P_j = ring_r(S_j)` around the seed faces `S_j` of every
 //! level, with `S_{j+1} ⊆ children(S_j)`, is therefore exact when `r >= ceil(r/2) + m`, i.e. with
-//! the margin `r = 2m` rings (2 for degrees 1-4, 4 for 5-8, 6 for 9-12, ...). This is a
+//! the margin `r = 2m` rings (2 for degrees 1-4, 4 for 5-8, 6 for 9-12, ...). `P_{j+1}` is made
+//! as the whole refinement of `ring_r(Y)` in `P_j`, `Y` the parents of its seeds: its data are
+//! exact on `ring_r(S_{j+1})` and not on its outer faces, which nothing reads (every read, by the
+//! steps of the next level, the decisions, the measures and the drawing, lies within the margin
+//! rings of some level's seeds). Cutting `P_{j+1}` down to `ring_r(S_{j+1})` would cost more than
+//! the refinement that made it, for little less data. This is a
 //! sufficient margin derived from the stencil sizes, not a minimal one (the seeds themselves
 //! already carry rings of nodes, from the restriction criterion and the measured children): in
 //! `tests/adaptive.rs`, no margin at all fails for degrees 2-5 on a bumped grid, while one ring
@@ -43,9 +49,11 @@
 //! triangulation need; a query that meets an incomplete vertex is reported as
 //! [`Error::Internal`] rather than answered wrongly.
 //!
-//! Bookkeeping. Making a partial level (its margin rings, its restriction to them, its uniform
-//! ids and picked data) and measuring its nodes are gathers and prefix sums in fixed chunks
-//! ([`crate::parallel`]): parallel, with results that do not depend on the number of threads.
+//! Bookkeeping. Making a partial level (the margin rings around its seeds' parents, the
+//! restriction of the coarser level to them and its refinement, uniform ids and data), deciding
+//! and measuring its nodes and writing the output triangles are gathers and prefix sums in fixed
+//! chunks ([`crate::parallel`]): parallel, with results that do not depend on the number of
+//! threads.
 //! Lookups by uniform id go through the sorted id lists (merge walks) and flat per-level tables,
 //! not hash maps; the refined sets are the only ones.
 //!
@@ -84,6 +92,8 @@
 
 use std::collections::HashSet;
 use std::hash::{BuildHasherDefault, Hasher};
+
+use rayon::prelude::*;
 
 use crate::curves::{CageFeatures, Curve, CurveNetwork};
 use crate::error::{AdaptiveStage, Error, Result};
@@ -235,7 +245,8 @@ type P<T> = [T; 3];
 /// A partial level's 2-D data (borrowed) and 1-D data, as a step takes them.
 type LevelParts<'a, T> = (&'a [P<T>], Vec<P<T>>);
 
-/// One partial level: a subset of the faces of uniform `M_j`, with its data.
+/// One partial level: a subset of the faces of uniform `M_j`, with its data (exact on the
+/// margin rings around the seeds it was made for; module documentation).
 #[derive(Debug)]
 struct Part<T> {
     level: Level,
@@ -439,14 +450,30 @@ fn adaptive_in_pool<T: Scalar>(
             try_insert(&mut refined[j], &nodes)?;
             continue;
         }
-        let mut seeds: Vec<Vec<u64>> = (0..=j)
-            .map(|t| nodes_at(&refined, roots, t))
-            .collect::<Result<_>>()?;
+        let seeds_to = |refined: &[IdSet], top: usize| -> Result<Vec<Vec<u64>>> {
+            (0..=top).map(|t| nodes_at(refined, roots, t)).collect()
+        };
+        let mut seeds = seeds_to(&refined, j)?;
+        extend_pass(&ctx, &mut parts, &seeds, held)?;
+        let decided = decide(&ctx, &grid, j, &parts[j], &nodes, options.tolerance)?;
+        // The nodes decided above the tolerance are refined whatever the measurements say: the
+        // nodes that the restriction criterion adds below level j for them are known before
+        // level j + 1 is made, and the levels they change are made again first (not after
+        // level j + 1 was made on the old ones, to be made again in the next decision).
+        let mut lowest = j;
+        for (&node, &d) in nodes.iter().zip(&decided) {
+            if d == Some(true) {
+                lowest = lowest.min(restrict_refine(&parts, &mut refined, j, node)?);
+            }
+        }
+        if lowest < j {
+            parts.truncate(lowest + 1);
+            seeds = seeds_to(&refined, j)?;
+            extend_pass(&ctx, &mut parts, &seeds, held)?;
+        }
         // The nodes that the grid's closed form decides need no children; the others' children
         // are the next level's seeds (a superset of its nodes), where the undecided ones are
         // measured.
-        extend_pass(&ctx, &mut parts, &seeds, held)?;
-        let decided = decide(&ctx, &grid, j, &parts[j], &nodes, options.tolerance)?;
         let pick = |keep: fn(Option<bool>) -> bool| -> Vec<u64> {
             (nodes.iter().zip(&decided))
                 .filter(|&(_, &d)| keep(d))
@@ -455,14 +482,11 @@ fn adaptive_in_pool<T: Scalar>(
         };
         seeds.push(children(&pick(|d| d != Some(false)))?);
         extend_pass(&ctx, &mut parts, &seeds, held)?;
-        let mut errors = measure(&ctx, &parts, j, &pick(|d| d.is_none()))?.into_iter();
+        let undecided = pick(|d| d.is_none());
+        let errors = measure(&ctx, &parts, j, &undecided)?;
         let mut lowest = j;
-        for (&node, &d) in nodes.iter().zip(&decided) {
-            let above = match d {
-                Some(above) => above,
-                None => errors.next().is_some_and(|e| e > options.tolerance),
-            };
-            if above {
+        for (&node, &error) in undecided.iter().zip(&errors) {
+            if error > options.tolerance {
                 lowest = lowest.min(restrict_refine(&parts, &mut refined, j, node)?);
             }
         }
@@ -966,10 +990,9 @@ fn extend_pass<T: Scalar>(
             retained + BYTES_PER_CORNER as f64 * fine_corners as f64,
             fine_corners as f64 / 4.0,
         )?;
-        let around = Keep::Around(&seeds[t + 1]);
         let next = match around_parents(ctx, t, coarse, &seeds[t + 1])? {
-            Some(sub) => refine_part(ctx, t, &sub, around)?,
-            None => refine_part(ctx, t, coarse, around)?,
+            Some(sub) => refine_part(ctx, t, &sub, Keep::All)?,
+            None => refine_part(ctx, t, coarse, Keep::All)?,
         };
         retained += BYTES_PER_CORNER as f64 * next.level.num_corners() as f64;
         parts.push(next);
@@ -1345,6 +1368,11 @@ enum Keep<'a> {
     Around(&'a [u64]),
     /// Exactly these faces (sorted uniform ids).
     Faces(&'a [u64]),
+    /// Every face of the refined level: made from the margin rings around the parents of its
+    /// seeds ([`around_parents`]), its data are exact on the margin rings around the seeds,
+    /// which is all that is read of it, and a restriction to them would cost more than the
+    /// refinement that made them.
+    All,
 }
 
 /// The topology of one step `P_t -> P_{t+1}` ([`refine_topology`]): the refined level, the
@@ -1358,6 +1386,9 @@ struct PartStep {
     faces: Vec<u32>,
     /// The step's curve vertices (odd degrees) or curve edges (even) that it keeps.
     keep_curve: Vec<u32>,
+    /// Whether the next part is the whole fine level (`vertices`, `faces` and `keep_curve` are
+    /// then empty).
+    whole: bool,
     /// The averaging rules: the step's regular windows, built with its topology so that the
     /// local levels of a limit, evaluated on every call, do not build them again (a cached
     /// limit on the 4k ico cage at level 3: degree 9 1448M -> 1030M instructions, degree 4
@@ -1369,6 +1400,7 @@ impl PartStep {
     /// The items of the fine level whose data the next part keeps: vertices (odd degrees) or
     /// faces (even).
     fn keep(&self, odd: bool) -> &[u32] {
+        debug_assert!(!self.whole, "a whole level keeps every item");
         match odd {
             true => &self.vertices,
             false => &self.faces,
@@ -1427,6 +1459,16 @@ fn refine_part<T: Scalar>(
         false => Some(run.drawing_points(&step.step(ctx.scheme, &coarse.level))?),
     };
     let (data, curve) = run.into_parts();
+    if step.whole {
+        next.points = match drawing {
+            Some(points) => points,
+            None => memory::collect(data.iter().copied())?,
+        };
+        next.data = data;
+        next.curve = curve;
+        next.level = step.fine;
+        return Ok(next);
+    }
     let points = drawing.as_deref().unwrap_or(&data);
     let pick =
         |values: &[P<T>], keep: &[u32]| gather_hinted(keep.len(), |i| values[keep[i] as usize]);
@@ -1437,7 +1479,8 @@ fn refine_part<T: Scalar>(
 }
 
 /// The topology of one step `P_t -> P_{t+1}`: refine, keep the faces `keep` names. Returns the
-/// step and the next part, without data.
+/// step and the next part, without data (and, when it keeps every face, without its level,
+/// which is the step's fine level).
 fn refine_topology<T: Sync, U>(
     ctx: &Context<U>,
     t: usize,
@@ -1517,10 +1560,41 @@ fn refine_topology<T: Sync, U>(
         pin,
     );
 
+    let windows = match ctx.scheme {
+        Scheme::Averaging { degree } => Windows::of_step(c, &fine, &network, degree, t)?,
+        _ => None,
+    };
+    let counts = [nv + ne + nf, 2 * ne + ncorners, ncorners, 4 * ncorners];
     // The seeds and the margin rings around them, or the faces named.
     let (seeds, margin) = match keep {
         Keep::Around(seeds) => (seeds, ctx.margin),
         Keep::Faces(faces) => (faces, 0),
+        Keep::All => {
+            let next = Part {
+                face_uid: gather_hinted(fine.num_faces(), corner_uid)?,
+                vert_uid: gather_hinted(fine.num_vertices, vert_uid)?,
+                edge_uid: gather_hinted(fine.num_edges(), edge_uid)?,
+                edge_faces: gather_hinted(fine.num_edges(), edge_faces)?,
+                vert_faces: gather_hinted(fine.num_vertices, vert_faces)?,
+                curves: network.next_curves(),
+                network: Some(network.clone()),
+                data: Vec::new(),
+                curve: Vec::new(),
+                points: Vec::new(),
+                counts,
+                level: Level::default(),
+            };
+            let step = PartStep {
+                fine,
+                network,
+                vertices: Vec::new(),
+                faces: Vec::new(),
+                keep_curve: Vec::new(),
+                whole: true,
+                windows,
+            };
+            return Ok((step, next));
+        }
     };
     let mut keep = memory::filled(fine.num_faces(), false)?;
     // Both lists are sorted: one merge walk finds every seed.
@@ -1546,7 +1620,6 @@ fn refine_topology<T: Sync, U>(
     fn pick<V: Send>(map: &[u32], of: impl Fn(usize) -> V + Sync + Send) -> Result<Vec<V>> {
         gather_hinted(map.len(), |i| of(map[i] as usize))
     }
-    let counts = [nv + ne + nf, 2 * ne + ncorners, ncorners, 4 * ncorners];
     let next = Part {
         face_uid: pick(&sub.faces, corner_uid)?,
         vert_uid: pick(&sub.vertices, vert_uid)?,
@@ -1561,16 +1634,13 @@ fn refine_topology<T: Sync, U>(
         counts,
         level: sub.level,
     };
-    let windows = match ctx.scheme {
-        Scheme::Averaging { degree } => Windows::of_step(c, &fine, &network, degree, t)?,
-        _ => None,
-    };
     let step = PartStep {
         fine,
         network,
         vertices: sub.vertices,
         faces: sub.faces,
         keep_curve: if odd { kept_vertices } else { kept_edges },
+        whole: false,
         windows,
     };
     Ok((step, next))
@@ -1894,14 +1964,6 @@ impl Grid {
         if reach > margin || inner + 1 > margin || inner > reach || side > GRID_SIDE {
             return None;
         }
-        // Unit roundoff of the input's scalars.
-        let unit = {
-            let mut u = 1.0f64;
-            while T::from_f64(1.0) + T::from_f64(u / 2.0) != T::from_f64(1.0) {
-                u /= 2.0;
-            }
-            u / 2.0
-        };
         let scale_by = if ctx.diagonal > 0.0 {
             1.0 / ctx.diagonal
         } else {
@@ -1913,7 +1975,7 @@ impl Grid {
             reach,
             inner: inner.max(reach - 1),
             weights,
-            slack: 256.0 * (n as f64 + 2.0) * unit * scale_by,
+            slack: 256.0 * (n as f64 + 2.0) * T::UNIT_ROUNDOFF * scale_by,
         })
     }
 }
@@ -1938,8 +2000,8 @@ fn decide<T: Scalar>(
     let Some(grid) = grid else {
         return memory::filled(nodes.len(), None);
     };
-    let level = &part.level;
     let regular = regular_flags(ctx, part)?;
+    let twins = grid_twins(part)?;
     // Blocks of nodes: the four siblings from level 2 on (always all four: nodes are the
     // children of refined nodes, and holes are whole cage faces), single nodes at level 1.
     let span = if t >= 2 && nodes.len().is_multiple_of(4) {
@@ -1947,12 +2009,11 @@ fn decide<T: Scalar>(
     } else {
         1
     };
-    let edge_corners = level.edge_corners();
     let scale_by = scale_of(ctx);
     let blocks = gather_hinted(nodes.len() / span / span, |i| -> [Option<bool>; 4] {
         let block = &nodes[span * span * i..span * span * (i + 1)];
         let mut out = [None; 4];
-        if let Some(errors) = block_errors(grid, part, &regular, edge_corners, span, block) {
+        if let Some(errors) = block_errors(grid, part, &regular, &twins, span, block) {
             for (o, (error, slack)) in out.iter_mut().zip(errors) {
                 let error = error * scale_by;
                 let slack = slack * scale_by;
@@ -2009,18 +2070,42 @@ fn regular_flags<T: Scalar>(ctx: &Context<T>, part: &Part<T>) -> Result<Vec<bool
     })
 }
 
+/// Per corner `c` of `part`: the corner of the face across its outgoing edge that leaves the
+/// vertex `c`'s edge arrives at, where that edge has two faces in the uniform level, both here,
+/// running opposite ways (as on a grid); `NONE` elsewhere. One table for the level, so that the
+/// walks of [`block_errors`] cross a side in one lookup.
+fn grid_twins<T: Sync>(part: &Part<T>) -> Result<Vec<u32>> {
+    let level = &part.level;
+    let corner_edges = level.corner_edges();
+    let edge_corners = level.edge_corners();
+    gather_hinted(level.num_corners(), |c| {
+        let e = corner_edges[c] as usize;
+        if part.edge_faces[e] != 2 {
+            return NONE;
+        }
+        let [c0, c1] = edge_corners[e];
+        let d = if c0 as usize == c { c1 } else { c0 };
+        let ahead = (c & !3) | ((c + 1) & 3);
+        if d == NONE || level.corner_verts[d as usize] != level.corner_verts[ahead] {
+            NONE
+        } else {
+            d
+        }
+    })
+}
+
 /// The closed-form errors (absolute) and their rounding bounds of the nodes of `block` (one
-/// node, or four siblings in their order), `None` unless a grid holds them all.
+/// node, or four siblings in their order), `None` unless a grid holds them all; `twins` is
+/// [`grid_twins`] of `part`.
 fn block_errors<T: Scalar>(
     grid: &Grid,
     part: &Part<T>,
     regular: &[bool],
-    edge_corners: &[[u32; 2]],
+    twins: &[u32],
     span: usize,
     block: &[u64],
 ) -> Option<[(f64, f64); 4]> {
     let level = &part.level;
-    let corner_edges = level.corner_edges();
     let f = part.face_of_uid(block[0])?;
     if span == 2
         && block
@@ -2033,18 +2118,8 @@ fn block_errors<T: Scalar>(
     // The frame corner (at the cell's (0, 0), its next along x) of the cell across side k
     // (0: -y, 1: +x, 2: +y, 3: -x) of the cell of frame corner `fc`, on a grid.
     let step = |fc: u32, k: u32| -> Option<u32> {
-        let cross = (fc & !3) | ((fc + k) & 3);
-        let e = corner_edges[cross as usize] as usize;
-        if part.edge_faces[e] != 2 {
-            return None;
-        }
-        let [c0, c1] = edge_corners[e];
-        let d = if c0 == cross { c1 } else { c0 };
-        let ahead = (cross & !3) | ((cross + 1) & 3);
-        if d == NONE || level.corner_verts[d as usize] != level.corner_verts[ahead as usize] {
-            return None;
-        }
-        Some((d & !3) | ((d + 6 - k) & 3))
+        let d = twins[((fc & !3) | ((fc + k) & 3)) as usize];
+        (d != NONE).then_some((d & !3) | ((d + 6 - k) & 3))
     };
     // Cells -r..=r + span - 1 in both directions, the first node's cell at (0, 0): along
     // its column, then along each row.
@@ -2245,6 +2320,56 @@ struct Drawn<T> {
     corner_at: Vec<(u32, u32, u8)>,
 }
 
+/// Leaves per chunk of the parallel triangle output.
+const LEAF_CHUNK: usize = 1 << 10;
+
+/// A run of leaves (indices into the output order) and the runs of the triangle outputs that
+/// their triangles fill.
+struct LeafChunk<'a> {
+    leaves: std::ops::Range<usize>,
+    triangles: &'a mut [[u32; 3]],
+    face_origin: &'a mut [u32],
+    triangle_level: &'a mut [u32],
+    corner_at: &'a mut [(u32, u32, u8)],
+    edge_origin: &'a mut [u32],
+    edge_level: &'a mut [u32],
+    edge_sharpness: &'a mut [f32],
+}
+
+impl<'a> LeafChunk<'a> {
+    /// The first `n` triangles of these runs, for the leaves `leaves`, and the rest.
+    fn split(self, leaves: std::ops::Range<usize>, n: usize) -> (LeafChunk<'a>, LeafChunk<'a>) {
+        let (triangles, t) = self.triangles.split_at_mut(n);
+        let (face_origin, o) = self.face_origin.split_at_mut(n);
+        let (triangle_level, l) = self.triangle_level.split_at_mut(n);
+        let (corner_at, ca) = self.corner_at.split_at_mut(3 * n);
+        let (edge_origin, eo) = self.edge_origin.split_at_mut(3 * n);
+        let (edge_level, el) = self.edge_level.split_at_mut(3 * n);
+        let (edge_sharpness, es) = self.edge_sharpness.split_at_mut(3 * n);
+        let rest = LeafChunk {
+            leaves: leaves.end..leaves.end,
+            triangles: t,
+            face_origin: o,
+            triangle_level: l,
+            corner_at: ca,
+            edge_origin: eo,
+            edge_level: el,
+            edge_sharpness: es,
+        };
+        let chunk = LeafChunk {
+            leaves,
+            triangles,
+            face_origin,
+            triangle_level,
+            corner_at,
+            edge_origin,
+            edge_level,
+            edge_sharpness,
+        };
+        (chunk, rest)
+    }
+}
+
 /// The output mesh: leaves (hole leaves are none) triangulated by the templates, shared
 /// vertices drawn at the finest level around them.
 fn triangulate<T: Scalar>(
@@ -2339,69 +2464,100 @@ fn triangulate<T: Scalar>(
             (0..4).find(|&k| on(p, k) && on(q, k)).unwrap_or(4) as u8
         })
     });
-    // Each leaf's template slots and case, first: the outputs are then allocated once.
-    let mut cases: Vec<([u32; 8], u8)> = memory::with_capacity(leaves.iter().map(Vec::len).sum())?;
-    for t in 1..=max_level {
+    // The leaves in output order, then each one's template slots and case: the outputs are
+    // then allocated once, and every leaf's triangles written apart (in parallel chunks, the
+    // same output whatever the threads).
+    let leaf_at: Vec<(u32, u32)> = memory::collect(
+        (1..=max_level).flat_map(|t| leaf_faces[t].iter().map(move |&f| (t as u32, f as u32))),
+    )?;
+    let cases = gather_hinted(leaf_at.len(), |i| -> Result<([u32; 8], u8)> {
+        let (t, f) = (leaf_at[i].0 as usize, leaf_at[i].1 as usize);
         let part = &parts[t];
         let level = &part.level;
         let manifold = level.edges().more.is_empty();
-        for &f in &leaf_faces[t] {
-            let mut slots = [NONE; 8];
-            let mut mask = 0u8;
-            for k in 0..4 {
-                let corner = 4 * f + k;
-                slots[2 * k] = drawn_as[t][level.corner_verts[corner] as usize];
-                if t == max_level {
-                    continue;
-                }
-                let e = level.corner_edges()[corner] as usize;
-                // Any drawn face across the edge (one, or several on a non-manifold edge) that
-                // is refined once more has the edge's midpoint; a hole has nothing drawn.
-                let finer_across = |other: u32| {
-                    if other == NONE || other as usize == corner {
-                        return false;
-                    }
-                    let g = (other >> 2) as usize;
-                    is_refined[t][g] && !ctx.is_hole(t, part.face_uid[g])
-                };
-                let finer = if manifold {
-                    // Two slots at most, without the slot iterator.
-                    level.edge_corners()[e].into_iter().any(finer_across)
-                } else {
-                    level.edge_slots(e).any(finer_across)
-                };
-                if finer {
-                    let uid = part.counts[0] + part.edge_uid[e];
-                    let finer = &parts[t + 1];
-                    let at = finer.vert_uid.binary_search(&uid).ok();
-                    slots[2 * k + 1] = at.map_or(NONE, |w| drawn_as[t + 1][w]);
-                    if slots[2 * k + 1] == NONE {
-                        return Err(Error::Internal(format!(
-                            "adaptive: edge point {uid} of level {} missing",
-                            t + 1
-                        )));
-                    }
-                    mask |= 1 << k;
-                }
+        let mut slots = [NONE; 8];
+        let mut mask = 0u8;
+        for k in 0..4 {
+            let corner = 4 * f + k;
+            slots[2 * k] = drawn_as[t][level.corner_verts[corner] as usize];
+            if t == max_level {
+                continue;
             }
-            cases.push((slots, mask));
+            let e = level.corner_edges()[corner] as usize;
+            // Any drawn face across the edge (one, or several on a non-manifold edge) that
+            // is refined once more has the edge's midpoint; a hole has nothing drawn.
+            let finer_across = |other: u32| {
+                if other == NONE || other as usize == corner {
+                    return false;
+                }
+                let g = (other >> 2) as usize;
+                is_refined[t][g] && !ctx.is_hole(t, part.face_uid[g])
+            };
+            let finer = if manifold {
+                // Two slots at most, without the slot iterator.
+                level.edge_corners()[e].into_iter().any(finer_across)
+            } else {
+                level.edge_slots(e).any(finer_across)
+            };
+            if finer {
+                let uid = part.counts[0] + part.edge_uid[e];
+                let finer = &parts[t + 1];
+                let at = finer.vert_uid.binary_search(&uid).ok();
+                slots[2 * k + 1] = at.map_or(NONE, |w| drawn_as[t + 1][w]);
+                if slots[2 * k + 1] == NONE {
+                    return Err(Error::Internal(format!(
+                        "adaptive: edge point {uid} of level {} missing",
+                        t + 1
+                    )));
+                }
+                mask |= 1 << k;
+            }
+        }
+        Ok((slots, mask))
+    })?;
+    let mut ok: Vec<([u32; 8], u8)> = memory::with_capacity(cases.len())?;
+    for case in cases {
+        ok.push(case?);
+    }
+    let cases = ok;
+    let first_triangle =
+        prefix_offsets(cases.len(), |i| templates[cases[i].1 as usize].len() as u32)?;
+    let num_triangles = first_triangle[cases.len()] as usize;
+    let mut triangles = zeroed_hinted::<[u32; 3]>(num_triangles)?;
+    let mut face_origin = zeroed_hinted::<u32>(num_triangles)?;
+    let mut triangle_level = zeroed_hinted::<u32>(num_triangles)?;
+    let mut corner_at = memory::filled(3 * num_triangles, (0u32, 0u32, 0u8))?;
+    let mut edge_origin = zeroed_hinted::<u32>(3 * num_triangles)?;
+    let mut edge_level = zeroed_hinted::<u32>(3 * num_triangles)?;
+    let mut edge_sharpness = zeroed_hinted::<f32>(3 * num_triangles)?;
+    // Chunks of leaves and the runs of the outputs they write.
+    let mut chunks: Vec<LeafChunk> = Vec::new();
+    {
+        let mut rest = LeafChunk {
+            leaves: 0..0,
+            triangles: &mut triangles[..],
+            face_origin: &mut face_origin[..],
+            triangle_level: &mut triangle_level[..],
+            corner_at: &mut corner_at[..],
+            edge_origin: &mut edge_origin[..],
+            edge_level: &mut edge_level[..],
+            edge_sharpness: &mut edge_sharpness[..],
+        };
+        for first in (0..cases.len()).step_by(LEAF_CHUNK) {
+            let end = (first + LEAF_CHUNK).min(cases.len());
+            let n = (first_triangle[end] - first_triangle[first]) as usize;
+            let (chunk, more) = rest.split(first..end, n);
+            chunks.push(chunk);
+            rest = more;
         }
     }
-    let num_triangles: usize = (cases.iter())
-        .map(|&(_, mask)| templates[mask as usize].len())
-        .sum();
-    let mut triangles = memory::with_capacity(num_triangles)?;
-    let mut face_origin = memory::with_capacity(num_triangles)?;
-    let mut triangle_level = memory::with_capacity(num_triangles)?;
-    let mut corner_at = memory::with_capacity(3 * num_triangles)?;
-    let mut edge_origin = memory::with_capacity(3 * num_triangles)?;
-    let mut edge_level = memory::with_capacity(3 * num_triangles)?;
-    let mut edge_sharpness = memory::with_capacity(3 * num_triangles)?;
-    let mut case = cases.iter();
-    for t in 1..=max_level {
-        let part = &parts[t];
-        let level = &part.level;
-        for (&f, &(slots, mask)) in leaf_faces[t].iter().zip(case.by_ref()) {
+    chunks.par_iter_mut().for_each(|chunk| {
+        let (mut x, mut y) = (0, 0);
+        for i in chunk.leaves.clone() {
+            let (t, f) = (leaf_at[i].0 as usize, leaf_at[i].1 as usize);
+            let (slots, mask) = cases[i];
+            let part = &parts[t];
+            let level = &part.level;
             let origin = ctx.level0.corner_faces[(part.face_uid[f] >> (2 * (t - 1))) as usize];
             // The cage edge under each side of the leaf.
             let sides: [u32; 4] = std::array::from_fn(|k| {
@@ -2412,32 +2568,34 @@ fn triangulate<T: Scalar>(
                 )
             });
             for tri in &templates[mask as usize] {
-                triangles.push(tri.map(|p| slots[p as usize]));
-                corner_at.extend(tri.map(|p| (t as u32, f as u32, p)));
+                chunk.triangles[x] = tri.map(|p| slots[p as usize]);
+                chunk.face_origin[x] = origin;
+                chunk.triangle_level[x] = t as u32;
+                x += 1;
                 for i in 0..3 {
                     let (p, q) = (tri[i], tri[(i + 1) % 3]);
                     let side = side_of[p as usize][q as usize];
                     let origin = sides.get(side as usize).copied().unwrap_or(NONE);
                     let depth = t as u32 + (p % 2 == 1 || q % 2 == 1) as u32;
-                    edge_origin.push(origin);
-                    edge_level.push(depth);
                     let cage = if origin == NONE {
                         0.0
                     } else {
                         ctx.features.edge_sharpness[origin as usize]
                     };
+                    chunk.corner_at[y] = (t as u32, f as u32, p);
+                    chunk.edge_origin[y] = origin;
+                    chunk.edge_level[y] = depth;
                     // Decrementing keeps 0 (and makes anything not positive 0): skip it there.
-                    edge_sharpness.push(if cage <= 0.0 {
+                    chunk.edge_sharpness[y] = if cage <= 0.0 {
                         0.0
                     } else {
                         (0..depth).fold(cage, |s, _| decrement(s))
-                    });
+                    };
+                    y += 1;
                 }
-                face_origin.push(origin);
-                triangle_level.push(t as u32);
             }
         }
-    }
+    });
     let mut leaves_per_level = vec![0u64; max_level + 1];
     for (t, l) in leaves.iter().enumerate() {
         if t <= max_level {
@@ -2564,16 +2722,11 @@ mod tests {
                     let exact = measure(&ctx, &parts, t, nodes).unwrap();
                     let span = if t >= 2 { 2 } else { 1 };
                     let regular = regular_flags(&ctx, part).unwrap();
+                    let twins = grid_twins(part).unwrap();
                     for (i, block) in nodes.chunks(span * span).enumerate() {
                         total += block.len();
-                        let Some(errors) = block_errors(
-                            &grid,
-                            part,
-                            &regular,
-                            part.level.edge_corners(),
-                            span,
-                            block,
-                        ) else {
+                        let Some(errors) = block_errors(&grid, part, &regular, &twins, span, block)
+                        else {
                             continue;
                         };
                         for (k, &(error, slack)) in errors[..block.len()].iter().enumerate() {

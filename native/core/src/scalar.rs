@@ -16,6 +16,9 @@ pub trait Scalar:
     + Mul<Output = Self>
     + 'static
 {
+    /// Unit roundoff: half the machine epsilon, the largest relative error of one rounding to
+    /// nearest (bounds of rounding errors are stated in it).
+    const UNIT_ROUNDOFF: f64;
     /// Converts from f64 (weights are computed in f64).
     fn from_f64(x: f64) -> Self;
     /// Converts to f64.
@@ -25,6 +28,7 @@ pub trait Scalar:
 }
 
 impl Scalar for f32 {
+    const UNIT_ROUNDOFF: f64 = f32::EPSILON as f64 / 2.0;
     #[inline]
     fn from_f64(x: f64) -> Self {
         x as f32
@@ -40,6 +44,7 @@ impl Scalar for f32 {
 }
 
 impl Scalar for f64 {
+    const UNIT_ROUNDOFF: f64 = f64::EPSILON / 2.0;
     #[inline]
     fn from_f64(x: f64) -> Self {
         x

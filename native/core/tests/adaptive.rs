@@ -1109,3 +1109,27 @@ fn indexed_face_varying_values_follow_their_indices() {
         Err(Error::InvalidInput(_))
     ));
 }
+
+/// The output is bitwise the same whatever the number of threads: every parallel pass (the
+/// partial levels, the decisions, the triangle output) works in fixed chunks. The case is large
+/// enough for several chunks of leaves and of faces.
+#[test]
+fn output_does_not_depend_on_the_threads() {
+    let (cage, points) = bumped_grid(16, 3.0);
+    for degree in [3, 4] {
+        let options = options(degree, 5, 1e-6);
+        let run = |threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| subdivide_adaptive(&cage, &points, &options).unwrap())
+        };
+        let one = run(1);
+        assert!(one.num_leaves() > 8192, "{} leaves", one.num_leaves());
+        let three = run(3);
+        let bits = |m: &AdaptiveMesh<f64>| m.points.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&one), bits(&three), "degree {degree}: points");
+        assert_eq!(one, three, "degree {degree}");
+    }
+}
