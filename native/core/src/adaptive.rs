@@ -1140,8 +1140,11 @@ impl LocalLevels {
         targets: &[u32],
         rings: usize,
     ) -> Result<LocalLevels> {
-        let last = refinement.levels().last().expect("a level");
-        let network = refinement.curve_networks().last().expect("a step");
+        let last = refinement
+            .try_levels()?
+            .last()
+            .ok_or_else(|| Error::Internal("local levels: a refinement without levels".into()))?;
+        let network = refinement.last_network("the local levels")?;
         let top = refinement.levels().len() - 1;
         let from = (last, network, None, top);
         LocalLevels::grow(refinement, from, seeds, extra, targets, rings)
@@ -1158,7 +1161,7 @@ impl LocalLevels {
         targets: &[u32],
         rings: usize,
     ) -> Result<LocalLevels> {
-        let network = self.network();
+        let network = self.network()?;
         let from = (&self.last.level, network, Some(&self.last), self.top);
         LocalLevels::grow(refinement, from, seeds, extra, targets, rings)
     }
@@ -1298,11 +1301,10 @@ impl LocalLevels {
     }
 
     /// The curve network of the step that made the last level, restricted to it.
-    pub(crate) fn network(&self) -> &CurveNetwork {
-        self.last
-            .network
-            .as_ref()
-            .expect("a refined part has its network")
+    pub(crate) fn network(&self) -> Result<&CurveNetwork> {
+        (self.last.network.as_ref()).ok_or_else(|| {
+            Error::Internal("local levels: a refined part without its network".into())
+        })
     }
 
     /// The data of the last partial level as a plan's run leaves it (per vertex for odd degrees,
@@ -1558,7 +1560,7 @@ fn refine_topology<T: Sync, U>(
         coarse.network.as_ref(),
         odd,
         pin,
-    );
+    )?;
 
     let windows = match ctx.scheme {
         Scheme::Averaging { degree } => Windows::of_step(c, &fine, &network, degree, t)?,

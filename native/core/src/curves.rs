@@ -205,23 +205,9 @@ impl CurveNetwork {
     /// with their cage sharpness (sorted by vertex), `previous` the network of the step that
     /// made `coarse` (`None` for the cage level), `primal` whether the 1-D data between steps is
     /// primal (odd degrees), and `pin(v)` the cage vertex of coarse vertex `v` (or `NONE`).
-    /// Panics where [`CurveNetwork::try_build`] returns an error.
+    /// [`Error::Internal`] when the curves do not continue the previous step's network (a curve
+    /// edge whose end or parent is not one of its items).
     pub(crate) fn build(
-        coarse: &Level,
-        curves: &[Curve],
-        corners: &[(u32, f32)],
-        level: u32,
-        previous: Option<&CurveNetwork>,
-        primal: bool,
-        pin: impl Fn(u32) -> u32,
-    ) -> CurveNetwork {
-        Self::try_build(coarse, curves, corners, level, previous, primal, pin)
-            .unwrap_or_else(|e| panic!("{e}"))
-    }
-
-    /// [`CurveNetwork::build`], returning [`Error::Internal`] when the curves do not continue
-    /// the previous step's network (a curve edge whose end or parent is not one of its items).
-    pub(crate) fn try_build(
         coarse: &Level,
         curves: &[Curve],
         corners: &[(u32, f32)],

@@ -100,7 +100,7 @@ impl Refinement {
             } else {
                 coarse.refine()?
             };
-            let network = CurveNetwork::try_build(
+            let network = CurveNetwork::build(
                 coarse,
                 &curves,
                 &features.corners,

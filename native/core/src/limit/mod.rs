@@ -1148,7 +1148,7 @@ fn local_stencils(
         corner: &corner,
         index: &index,
     };
-    let (level, network) = (local.level(), local.network());
+    let (level, network) = (local.level(), local.network()?);
     let unclean = match allow_local {
         true => Unclean::Local,
         false => Unclean::Refuse,

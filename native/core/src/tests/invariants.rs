@@ -21,7 +21,7 @@ fn a_curve_network_that_does_not_continue_the_previous_step_is_an_internal_error
     let curves = networks[0].next_curves();
     let corners = &refinement.features().corners;
     let build = |previous: &CurveNetwork| {
-        CurveNetwork::try_build(
+        CurveNetwork::build(
             &levels[1],
             &curves,
             corners,
