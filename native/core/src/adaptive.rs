@@ -607,7 +607,7 @@ fn context<T: Scalar>(
     let base = Refinement::new(cage, &options0)?;
     let (given, _) = points.as_chunks::<3>();
     let compact: Vec<P<T>> = base.compact(given).into_owned();
-    let level0 = base.levels()[0].clone();
+    let level0 = base.cage_level().clone();
     let features = base.features().clone();
     let mut holes = vec![false; level0.num_faces()];
     for &f in &features.holes {
@@ -759,7 +759,7 @@ fn carry_face_varying<T: Scalar>(
         ..Options::default()
     };
     let fv_base = Refinement::new(&fv_cage, &fv_options)?;
-    let fv_level0 = fv_base.levels()[0].clone();
+    let fv_level0 = fv_base.cage_level().clone();
     let fv_features = fv_base.features().clone();
     let corners = mesh.triangles.as_flattened();
     let mut out = memory::filled(corner_at.len() * channels, T::default())?;
@@ -1181,7 +1181,7 @@ impl LocalLevels {
         let degree = options.degree;
         let ctx: Context<f64> = Context {
             cage: Vec::new(),
-            level0: refinement.levels()[0].clone(),
+            level0: refinement.cage_level().clone(),
             features: refinement.features().clone(),
             scheme: refinement.scheme(),
             degree,

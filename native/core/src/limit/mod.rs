@@ -235,17 +235,7 @@ fn build_stencils(
     let curve_index = |e: u32| curves.edge_index(e);
     let is_curve_edge = |e: u32| curve_index(e).is_some();
 
-    // 1-D masks: odd degrees on curve vertices at offsets -N..=N, even degrees on curve edges
-    // at offsets +-1/2 .. +-(N - 1/2).
-    let curve_mask: Vec<f64> = if primal {
-        (-(n as i64)..=n as i64)
-            .map(|i| cardinal_bspline(degree, i as f64))
-            .collect()
-    } else {
-        (0..2 * n)
-            .map(|i| cardinal_bspline(degree, i as f64 - n as f64 + 0.5))
-            .collect()
-    };
+    let curve_mask = knot_mask(degree, cardinal_bspline);
 
     let mut valences: Vec<usize> = Vec::new();
     // Per vertex: rule and items, or None when not clean.
@@ -1518,11 +1508,7 @@ fn stencil_values<T: Scalar, const N: usize>(
     if !normals {
         return Ok((stencil_positions(st, data, &tiled)?, Vec::new()));
     }
-    // The tangents in T, as the positions (f32 data gives f32 tangents).
-    let at = |x: &[f64; N]| {
-        let x = x.map(|c| T::from_f64(c).to_f64());
-        DVec3::new(x[0], x[1], x[2])
-    };
+    let at = |x: &[f64; N]| rounded::<T>([x[0], x[1], x[2]]);
     gather_pairs_hinted(st.masks_of.len(), |v| match st.masks_of[v] {
         LimitMask::Tiled(slot) => tiled[slot as usize],
         LimitMask::Interior(m) if !st.joint[m as usize].is_empty() => {
@@ -1709,6 +1695,26 @@ fn dart_limit<T: Scalar, const N: usize>(
         );
     }
     out
+}
+
+/// The 1-D B-spline mask of `degree` at a knot, lowest offset first: over the `2N + 1` vertices
+/// at offsets `-N..=N` (odd degrees) or the `2N` edges or cells at `+-1/2 .. +-(N - 1/2)` (even
+/// degrees); `f` is [`cardinal_bspline`] for the value or its derivative for the slope.
+fn knot_mask(degree: u32, f: fn(u32, f64) -> f64) -> Vec<f64> {
+    let n = neighbourhood_size(degree);
+    let (width, shift) = match degree % 2 {
+        1 => (2 * n + 1, 0.0),
+        _ => (2 * n, 0.5),
+    };
+    (0..width)
+        .map(|k| f(degree, k as f64 - n as f64 + shift))
+        .collect()
+}
+
+/// A tangent's three channels rounded to `T`, in f64: f32 data gives f32 tangents, as it gives
+/// f32 positions (the stencils and the tiles alike, so that their normals agree).
+fn rounded<T: Scalar>(x: [f64; 3]) -> DVec3 {
+    DVec3::from_array(x.map(|c| T::from_f64(c).to_f64()))
 }
 
 /// `sum w_i data[items_i]`, accumulated in f64.

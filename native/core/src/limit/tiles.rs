@@ -25,6 +25,7 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
+use super::{knot_mask, rounded};
 use crate::analysis::neighbourhood_size;
 use crate::error::{Error, Result};
 use crate::memory;
@@ -102,23 +103,12 @@ impl Tiles {
         let primal = degree % 2 == 1;
         let t = 1usize << depth;
         let side = t + 1;
-        let data_side = match primal {
-            true => side + 2 * rings,
-            false => side + 2 * rings - 1,
-        };
-        let width = match primal {
-            true => 2 * rings + 1,
-            false => 2 * rings,
-        };
-        // Item k of a mask sits at `k - N` (vertices) or `k - N + 1/2` (face centres) from the
-        // vertex; the slope's sign is the same for both tangents, so the normal does not see it.
-        let offset = |k: usize| k as f64 - rings as f64 + if primal { 0.0 } else { 0.5 };
-        let value: Vec<f64> = (0..width)
-            .map(|k| cardinal_bspline(degree, offset(k)))
-            .collect();
-        let slope: Vec<f64> = (0..width)
-            .map(|k| cardinal_bspline_derivative(degree, offset(k)))
-            .collect();
+        // The slope's sign is the same for both tangents, so the normal does not see it.
+        let value = knot_mask(degree, cardinal_bspline);
+        let slope = knot_mask(degree, cardinal_bspline_derivative);
+        let width = value.len();
+        // An output column's items start at its own column: the window reaches `width - 1` more.
+        let data_side = side + width - 1;
         let faces = level.num_faces();
         let count = faces >> (2 * depth);
         if count << (2 * depth) != faces {
@@ -366,13 +356,8 @@ impl<const K: usize> Kernel<'_, K> {
                     }
                 }
             }
-            // The tangents in T, as the positions (f32 data gives f32 tangents).
             let at = |t: &[[f64; MAX_SIDE]; N], i: usize| {
-                let x: [f64; 3] = std::array::from_fn(|c| match c < N {
-                    true => T::from_f64(t[c][i]).to_f64(),
-                    false => 0.0,
-                });
-                DVec3::from_array(x)
+                rounded::<T>(std::array::from_fn(|c| t.get(c).map_or(0.0, |t| t[i])))
             };
             let mut bits = mine;
             while bits != 0 {
@@ -429,44 +414,47 @@ impl Geometry<'_> {
         let origin = n + 1;
         let mut cells = [NONE; MAX_CELLS * MAX_CELLS];
         let cell = |a: usize, b: usize| b * side + a;
+        // From `from`, `step` as far as it goes, each cell reached written at the next place.
+        let follow = |cells: &mut [u32],
+                      from: u32,
+                      step: &dyn Fn(u32) -> Option<u32>,
+                      places: &mut dyn Iterator<Item = usize>| {
+            let mut c = from;
+            for at in places {
+                let Some(next) = step(c) else { break };
+                c = next;
+                cells[at] = c;
+            }
+        };
         let first = 4 * anchor as u32;
         cells[cell(origin, origin)] = first;
-        let mut c = first;
-        for a in origin + 1..side {
-            match right(c) {
-                Some(next) => c = next,
-                None => break,
-            }
-            cells[cell(a, origin)] = c;
-        }
-        c = first;
-        for a in (0..origin).rev() {
-            match left(c) {
-                Some(next) => c = next,
-                None => break,
-            }
-            cells[cell(a, origin)] = c;
-        }
+        follow(
+            &mut cells,
+            first,
+            &right,
+            &mut (origin + 1..side).map(|a| cell(a, origin)),
+        );
+        follow(
+            &mut cells,
+            first,
+            &left,
+            &mut (0..origin).rev().map(|a| cell(a, origin)),
+        );
         for a in 0..side {
             let base = cells[cell(a, origin)];
-            if base == NONE {
-                continue;
-            }
-            c = base;
-            for b in origin + 1..side {
-                match up(c) {
-                    Some(next) => c = next,
-                    None => break,
-                }
-                cells[cell(a, b)] = c;
-            }
-            c = base;
-            for b in (0..origin).rev() {
-                match down(c) {
-                    Some(next) => c = next,
-                    None => break,
-                }
-                cells[cell(a, b)] = c;
+            if base != NONE {
+                follow(
+                    &mut cells,
+                    base,
+                    &up,
+                    &mut (origin + 1..side).map(|b| cell(a, b)),
+                );
+                follow(
+                    &mut cells,
+                    base,
+                    &down,
+                    &mut (0..origin).rev().map(|b| cell(a, b)),
+                );
             }
         }
         // Vertices (i, j) for i, j in -n ..= t+n, at (i + n, j + n): the corner 0 of cell
