@@ -113,6 +113,13 @@ const MAX_EXTRA_LEVELS: u32 = 8;
 /// cached call on partial levels what the whole plan extended costs).
 const LOCAL_SHARE: usize = 8;
 
+/// The neighbourhood size `N` from which the local extension is made one level at a time
+/// ([`stepwise_local_stencils`]): with `N` of 2 (degrees 4 and 5) the vertices clean one level
+/// down are only the ring 2 away, and the two stages cost 1 % more than one in a cached limit of
+/// the callgrind driver's `limit-ico-4` (4 % more in the first call); from 3 on they cost less
+/// (degree 6 3.5 %, 9 14 %; the first call 4 %, 18 %).
+const STEPWISE_RINGS: usize = 3;
+
 /// Which mask gives the limit at one output vertex.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum LimitMask {
@@ -199,7 +206,8 @@ enum Unclean {
     Refuse,
     /// It gets a [`LimitMask::Local`] stencil, to be built on a local extension, and so do the
     /// curve vertices, corners and valence-2 vertices: their normals come from fans at the
-    /// level where every vertex is clean, as with the whole plan extended (the plan's level).
+    /// level where every vertex is clean, as with the whole plan extended (the plan's level,
+    /// and the local extension's levels before its last).
     LocalWithFans,
     /// It gets a [`LimitMask::Local`] stencil, alone: the fans stay at this level (the first
     /// stage past semi-sharp features, so that a fan's level does not depend on features
@@ -937,16 +945,16 @@ fn build(refinement: &Refinement, local: Option<usize>, tiled: bool) -> Result<S
             let share = share.unwrap_or_default();
             let vertices = &st.local_vertices;
             let rings = local_rings(degree);
-            let local_at = |m: u32, seeds: Vec<u64>, allow_local: bool| {
+            let local_at = |m: u32, seeds: Vec<u64>, unclean: Unclean| {
                 let levels = LocalLevels::new(refinement, &seeds, m, vertices, rings)?;
-                local_stencils(refinement, vertices, m, levels, &semi_corners, allow_local)
+                local_stencils(refinement, vertices, m, levels, &semi_corners, unclean)
             };
             // Past semi-sharp features, the first stage, `clean` levels down (made once).
             let mut first_stage = None;
             for &m in &candidates {
                 if smooth > 0 && m > clean && first_stage.is_none() {
                     let seeds = local_seeds(last, degree, vertices, clean)?;
-                    first_stage = local_at(clean, seeds, true)?;
+                    first_stage = local_at(clean, seeds, Unclean::Local)?;
                 }
                 let built = match first_stage.take() {
                     Some(first)
@@ -976,7 +984,12 @@ fn build(refinement: &Refinement, local: Option<usize>, tiled: bool) -> Result<S
                         if smooth == 0 && share * seeds.len() > last.num_faces() {
                             break;
                         }
-                        local_at(m, seeds, false)?
+                        match smooth == 0 && neighbourhood_size(degree) >= STEPWISE_RINGS {
+                            true => {
+                                stepwise_local_stencils(refinement, vertices, m, &semi_corners)?
+                            }
+                            false => local_at(m, seeds, Unclean::Refuse)?,
+                        }
                     }
                 };
                 let Some(built) = built else {
@@ -1090,15 +1103,15 @@ fn local_rings(degree: u32) -> usize {
 
 /// The stencils of the output vertices `vertices` (of the plan's last level `M_L`, none clean
 /// there) on the last level of `local`, partial levels made around them up to `M_{L+m}`;
-/// `None` when one of them is not clean there either, or with `allow_local`, those listed as
-/// local, for partial levels past these.
+/// the vertices that are not clean there either make it `None` or are listed as local, for
+/// partial levels past these, as `unclean` says.
 fn local_stencils(
     refinement: &Refinement,
     vertices: &[u32],
     m: u32,
     local: LocalLevels,
     semi_corners: &[u32],
-    allow_local: bool,
+    unclean: Unclean,
 ) -> Result<Option<(Box<Stencils>, LocalLevels)>> {
     let last = refinement.last_level();
     let degree = refinement.options().degree;
@@ -1139,10 +1152,6 @@ fn local_stencils(
         index: &index,
     };
     let (level, network) = (local.level(), local.network()?);
-    let unclean = match allow_local {
-        true => Unclean::Local,
-        false => Unclean::Refuse,
-    };
     let built = build_stencils(
         level,
         network,
@@ -1183,7 +1192,71 @@ fn staged_local_stencils(
     let seeds = local_seeds(levels1.level(), degree, &at, m - m1)?;
     let rings = local_rings(degree);
     let levels2 = levels1.extend(refinement, &seeds, m - m1, &rest, rings)?;
-    local_stencils(refinement, &rest, m, levels2, semi_corners, false)
+    local_stencils(refinement, &rest, m, levels2, semi_corners, Unclean::Refuse)
+}
+
+/// The local extension `m` levels past `M_L` one level at a time: the vertices of `vertices`
+/// (of `M_L`, none clean there) that are clean one level down get their stencils there, the
+/// others go on one more level, on partial levels around them alone, and every vertex is clean
+/// at `M_{L+m}` or the result is `None`. A vertex `d` rings from an irregular vertex or a curve
+/// is clean once `2^k d > N`, so most are clean before `m` (at degree 9, `N = 4`: those 3 and 4
+/// rings away one level down, 2 rings two levels down, only the nearest ring three levels
+/// down), and each level is made around fewer of them. Curve vertices, corners and valence-2
+/// vertices go on with the others while some are not clean: their fans are at the level where
+/// every vertex is, as in one stage.
+fn stepwise_local_stencils(
+    refinement: &Refinement,
+    vertices: &[u32],
+    m: u32,
+    semi_corners: &[u32],
+) -> Result<Option<(Box<Stencils>, LocalLevels)>> {
+    let last = refinement.last_level();
+    let degree = refinement.options().degree;
+    let rings = local_rings(degree);
+    let mut stages: Vec<(Box<Stencils>, LocalLevels)> = Vec::new();
+    let mut rest = vertices.to_vec();
+    for k in 1..=m {
+        let levels = match stages.last() {
+            None => {
+                let seeds = local_seeds(last, degree, &rest, 1)?;
+                LocalLevels::new(refinement, &seeds, 1, &rest, rings)?
+            }
+            Some((_, before)) => {
+                let mut at = Vec::with_capacity(rest.len());
+                for &v in &rest {
+                    match before.vert_uid().binary_search(&(v as u64)) {
+                        Ok(w) => at.push(w as u32),
+                        Err(_) => return Ok(None),
+                    }
+                }
+                let seeds = local_seeds(before.level(), degree, &at, 1)?;
+                before.extend(refinement, &seeds, 1, &rest, rings)?
+            }
+        };
+        let unclean = match k == m {
+            true => Unclean::Refuse,
+            false => Unclean::LocalWithFans,
+        };
+        let Some(stage) = local_stencils(refinement, &rest, k, levels, semi_corners, unclean)?
+        else {
+            return Ok(None);
+        };
+        let next: Vec<u32> = (stage.0.local_vertices.iter())
+            .map(|&i| rest[i as usize])
+            .collect();
+        stages.push(stage);
+        if next.is_empty() {
+            break;
+        }
+        rest = next;
+    }
+    // Each stage holds the next.
+    let mut chain = None;
+    while let Some(mut stage) = stages.pop() {
+        stage.0.local = chain;
+        chain = Some(stage);
+    }
+    Ok(chain)
 }
 
 /// How the limit of `refinement` is found, or why it cannot be (`normals`: normals too).
@@ -2147,7 +2220,7 @@ mod tests {
             ("grid", grid, grid_points.clone()),
             ("creased grid", crease, grid_points),
         ];
-        let mut engaged = 0;
+        let (mut engaged, mut stepwise) = (0, 0);
         for (name, cage, points) in &cases {
             for degree in 2..=9 {
                 for levels in 1..=2 {
@@ -2161,6 +2234,8 @@ mod tests {
                     let (st, _, dp, [n, m]) = local_and_whole(&refinement, points, &case);
                     let dn = worst(&n, &m);
                     engaged += usize::from(st.local.is_some());
+                    // A local extension made one level at a time (degrees 6 to 9).
+                    stepwise += usize::from(st.local.as_ref().is_some_and(|l| l.0.local.is_some()));
                     assert!(st.extended.is_none(), "{case}: whole extension");
                     assert!(
                         dp < 1e-12 && dn < 1e-11,
@@ -2172,6 +2247,10 @@ mod tests {
         assert!(
             engaged >= 40,
             "the local extension was used {engaged} times of 48"
+        );
+        assert!(
+            stepwise >= 20,
+            "the local extension was made level by level {stepwise} times of 24"
         );
     }
 
