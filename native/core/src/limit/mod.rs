@@ -2209,6 +2209,57 @@ mod tests {
     /// vertices clean at the plan's level are other masks of the same limit: equal to rounding;
     /// the others, curve normals included, are the same sums).
     #[test]
+    fn wide_vectors_give_the_same_tiles() {
+        if !tiles::wide_vectors() {
+            eprintln!("no AVX2 here: the four-lane kernel is not compared");
+            return;
+        }
+        let (sphere, points) = ico_quads(3);
+        let single: Vec<f32> = points.iter().map(|&x| x as f32).collect();
+        let mut compared = 0;
+        for degree in 2..=9 {
+            let options = Options {
+                degree,
+                levels: 3,
+                ..Options::default()
+            };
+            let refinement = Refinement::new(&sphere, &options).unwrap();
+            let (scratch, cache) = (Scratch::default(), LimitCache::default());
+            let limit = Limit {
+                refinement: &refinement,
+                scratch: &scratch,
+                cache: &cache,
+                rule: check(&refinement, true).unwrap(),
+            };
+            let st = stencils(&refinement, &cache).unwrap();
+            // A sphere this small is extended whole at some degrees: no tiles there.
+            let Some(tiles) = st.tiles.as_ref() else {
+                continue;
+            };
+            compared += 1;
+            fn same<T: Scalar>(tiles: &Tiles, data: &[[T; 3]], normals: bool) -> bool {
+                let narrow = tiles.values_on(data, normals, false).unwrap();
+                let wide = tiles.values_on(data, normals, true).unwrap();
+                let bits = |x: &[([T; 3], [T; 3])]| {
+                    (x.iter().flat_map(|(p, n)| p.iter().chain(n)))
+                        .map(|v| v.to_f64().to_bits())
+                        .collect::<Vec<_>>()
+                };
+                bits(&narrow) == bits(&wide)
+            }
+            let compact = refinement.compact(points.as_chunks::<3>().0);
+            let (data, _) = limit.limit_data(&st, &compact).unwrap();
+            let compact32 = refinement.compact(single.as_chunks::<3>().0);
+            let (data32, _) = limit.limit_data(&st, &compact32).unwrap();
+            for normals in [false, true] {
+                assert!(same(tiles, &data, normals), "degree {degree} f64");
+                assert!(same(tiles, &data32, normals), "degree {degree} f32");
+            }
+        }
+        assert!(compared >= 6, "tiles at {compared} degrees of 8");
+    }
+
+    #[test]
     fn local_extension_matches_the_whole_plan_extended() {
         let (grid, grid_points) = grid(5);
         let crease = grid

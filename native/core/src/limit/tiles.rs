@@ -191,23 +191,34 @@ impl Tiles {
         data: &[[T; N]],
         normals: bool,
     ) -> Result<Vec<([T; N], [T; 3])>> {
+        self.values_on(data, normals, wide_vectors())
+    }
+
+    /// [`Tiles::values`], in four-lane vectors when `wide` (the processor must have AVX2).
+    pub(super) fn values_on<T: Scalar, const N: usize>(
+        &self,
+        data: &[[T; N]],
+        normals: bool,
+        wide: bool,
+    ) -> Result<Vec<([T; N], [T; 3])>> {
         match self.width {
-            2 => self.values_with::<T, N, 2>(data, normals),
-            3 => self.values_with::<T, N, 3>(data, normals),
-            4 => self.values_with::<T, N, 4>(data, normals),
-            5 => self.values_with::<T, N, 5>(data, normals),
-            6 => self.values_with::<T, N, 6>(data, normals),
-            7 => self.values_with::<T, N, 7>(data, normals),
-            8 => self.values_with::<T, N, 8>(data, normals),
-            _ => self.values_with::<T, N, 9>(data, normals),
+            2 => self.values_with::<T, N, 2>(data, normals, wide),
+            3 => self.values_with::<T, N, 3>(data, normals, wide),
+            4 => self.values_with::<T, N, 4>(data, normals, wide),
+            5 => self.values_with::<T, N, 5>(data, normals, wide),
+            6 => self.values_with::<T, N, 6>(data, normals, wide),
+            7 => self.values_with::<T, N, 7>(data, normals, wide),
+            8 => self.values_with::<T, N, 8>(data, normals, wide),
+            _ => self.values_with::<T, N, 9>(data, normals, wide),
         }
     }
 
-    /// [`Tiles::values`] with the masks' width `K` a constant.
+    /// [`Tiles::values_on`] with the masks' width `K` a constant.
     fn values_with<T: Scalar, const N: usize, const K: usize>(
         &self,
         data: &[[T; N]],
         normals: bool,
+        wide: bool,
     ) -> Result<Vec<([T; N], [T; 3])>> {
         if self.width != K || self.data_side > MAX_DATA || self.side > MAX_SIDE {
             return Err(Error::Internal(
@@ -231,6 +242,13 @@ impl Tiles {
         }
         let value: [f64; K] = std::array::from_fn(|k| self.value[k]);
         let slope: [f64; K] = std::array::from_fn(|k| self.slope[k]);
+        let kernel = Kernel {
+            tiles: self,
+            value: &value,
+            slope: &slope,
+            normals,
+        };
+        let wide = wide && wide_vectors();
         pieces.into_par_iter().try_for_each(|(start, end, piece)| {
             // Every tile overwrites what it reads of these (the columns past a small tile's side
             // hold finite leftovers, filtered into sums no vertex reads).
@@ -239,19 +257,29 @@ impl Tiles {
                 by_value: [[[0.0; MAX_SIDE]; MAX_DATA]; N],
                 by_slope: [[[0.0; MAX_SIDE]; MAX_DATA]; N],
             });
-            let mut at = 0;
-            for tile in start..end {
-                let kernel = Kernel {
-                    tiles: self,
-                    value: &value,
-                    slope: &slope,
-                    normals,
-                };
-                at += kernel.tile(tile, data, &mut rows, &mut piece[at..])?;
+            let tiles = start..end;
+            #[cfg(target_arch = "x86_64")]
+            if wide {
+                // SAFETY: `wide_vectors` found AVX2 on this processor.
+                return unsafe { kernel.tiles_avx2(tiles, data, &mut rows, piece) };
             }
-            Ok(())
+            let _ = wide;
+            kernel.tiles(tiles, data, &mut rows, piece)
         })?;
         Ok(out)
+    }
+}
+
+/// Whether the processor has AVX2 (four-lane `f64` vectors) for the kernel: the same products
+/// and sums lane by lane (no fused multiply-add), so the values are bitwise those of two lanes.
+pub(super) fn wide_vectors() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
     }
 }
 
@@ -272,9 +300,42 @@ struct Kernel<'a, const K: usize> {
 }
 
 impl<const K: usize> Kernel<'_, K> {
+    /// Writes the values of the tiles `tiles` into `out` in slot order.
+    #[inline(always)]
+    fn tiles<T: Scalar, const N: usize>(
+        &self,
+        tiles: std::ops::Range<usize>,
+        data: &[[T; N]],
+        rows: &mut Rows<N>,
+        out: &mut [([T; N], [T; 3])],
+    ) -> Result<()> {
+        let mut at = 0;
+        for tile in tiles {
+            at += self.tile(tile, data, rows, &mut out[at..])?;
+        }
+        Ok(())
+    }
+
+    /// [`Kernel::tiles`] compiled for AVX2.
+    ///
+    /// # Safety
+    /// The processor must have AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn tiles_avx2<T: Scalar, const N: usize>(
+        &self,
+        tiles: std::ops::Range<usize>,
+        data: &[[T; N]],
+        rows: &mut Rows<N>,
+        out: &mut [([T; N], [T; 3])],
+    ) -> Result<()> {
+        self.tiles(tiles, data, rows, out)
+    }
+
     /// Writes the values of `tile`'s vertices into `out` in slot order; returns their number.
     /// Rows first, for all output columns at once (each a sum over `K` window columns), then
     /// per output row the three column sums; the vertices the tile owns are picked from them.
+    #[inline(always)]
     fn tile<T: Scalar, const N: usize>(
         &self,
         tile: usize,
