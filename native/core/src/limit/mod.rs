@@ -1965,6 +1965,29 @@ mod tests {
         (Cage::from_indices(8, &[4; 6], &indices).unwrap(), points)
     }
 
+    /// Calls `check` with a refinement of every case (name, cage, points) at every degree from
+    /// 2 to 9 and every level of `levels`, and the case's name for messages.
+    fn for_each_refinement<P: AsRef<[f64]>>(
+        cases: &[(&str, Cage, P)],
+        levels: std::ops::RangeInclusive<u32>,
+        mut check: impl FnMut(&Refinement, &[f64], &str),
+    ) {
+        for (name, cage, points) in cases {
+            for degree in 2..=9 {
+                for levels in levels.clone() {
+                    let options = Options {
+                        degree,
+                        levels,
+                        ..Options::default()
+                    };
+                    let refinement = Refinement::new(cage, &options).unwrap();
+                    let case = format!("{name}, degree {degree}, level {levels}");
+                    check(&refinement, points.as_ref(), &case);
+                }
+            }
+        }
+    }
+
     /// The largest gap between `a` and `b`.
     fn worst(a: &[f64], b: &[f64]) -> f64 {
         (a.iter().zip(b))
@@ -2140,65 +2163,55 @@ mod tests {
             ("cube", cube().0, cube().1),
         ];
         let mut engaged = 0;
-        for (name, cage, points) in &cases {
-            for degree in 2..=9 {
-                for levels in 1..=3 {
-                    let options = Options {
-                        degree,
-                        levels,
-                        ..Options::default()
-                    };
-                    let refinement = Refinement::new(cage, &options).unwrap();
-                    let case = format!("{name} degree {degree} level {levels}");
-                    let with = |tiled: bool, cache: &LimitCache| {
-                        let st = build(&refinement, Some(LOCAL_SHARE), tiled).unwrap();
-                        *cache.0.lock().unwrap() = Some(Arc::new(st));
-                        let scratch = Scratch::default();
-                        let (p, n) = surface(&refinement, &scratch, cache, points).unwrap();
-                        let q = positions(&refinement, &scratch, cache, points, 3).unwrap();
-                        assert_eq!(p, q, "{case}: positions alone");
-                        let single: Vec<f32> = points.iter().map(|&x| x as f32).collect();
-                        let (p32, n32) = surface(&refinement, &scratch, cache, &single).unwrap();
-                        let widen = |x: Vec<f32>| x.into_iter().map(f64::from).collect::<Vec<_>>();
-                        (p, n, widen(p32), widen(n32))
-                    };
-                    let tiled_vertices = |cache: &LimitCache| {
-                        let st = cache.0.lock().unwrap().clone().unwrap();
-                        let tiled = (st.masks_of.iter())
-                            .filter(|m| matches!(m, LimitMask::Tiled(_)))
-                            .count();
-                        (tiled, st.extended.is_none())
-                    };
-                    let (tiles, stencils) = (LimitCache::default(), LimitCache::default());
-                    let (p, n, p32, n32) = with(true, &tiles);
-                    let (q, m, q32, m32) = with(false, &stencils);
-                    let ((tiled, at_level), (none, _)) =
-                        (tiled_vertices(&tiles), tiled_vertices(&stencils));
-                    assert_eq!(none, 0);
-                    let scale = p.iter().fold(0.0f64, |x, y| x.max(y.abs()));
-                    let (dp, dn) = (worst(&p, &q), worst(&n, &m));
-                    assert!(
-                        dp < 1e-13 * scale && dn < 1e-11,
-                        "{case}: positions {dp:e}, normals {dn:e}"
-                    );
-                    // In f32: the same sums in f64, rounded once (a few ulps at most).
-                    let (dp, dn) = (worst(&p32, &q32), worst(&n32, &m32));
-                    assert!(
-                        dp < 1e-6 * scale && dn < 1e-5,
-                        "{case} (f32): positions {dp:e}, normals {dn:e}"
-                    );
-                    // Most vertices of the sphere are far from its irregular ones.
-                    let outputs = refinement.last_level().num_vertices;
-                    if name == &"sphere" && levels >= 3 && at_level {
-                        engaged += 1;
-                        assert!(
-                            tiled * 10 >= outputs * 7,
-                            "{case}: {tiled} of {outputs} vertices tiled"
-                        );
-                    }
-                }
+        for_each_refinement(&cases, 1..=3, |refinement, points, case| {
+            let with = |tiled: bool, cache: &LimitCache| {
+                let st = build(&refinement, Some(LOCAL_SHARE), tiled).unwrap();
+                *cache.0.lock().unwrap() = Some(Arc::new(st));
+                let scratch = Scratch::default();
+                let (p, n) = surface(&refinement, &scratch, cache, points).unwrap();
+                let q = positions(&refinement, &scratch, cache, points, 3).unwrap();
+                assert_eq!(p, q, "{case}: positions alone");
+                let single: Vec<f32> = points.iter().map(|&x| x as f32).collect();
+                let (p32, n32) = surface(&refinement, &scratch, cache, &single).unwrap();
+                let widen = |x: Vec<f32>| x.into_iter().map(f64::from).collect::<Vec<_>>();
+                (p, n, widen(p32), widen(n32))
+            };
+            let tiled_vertices = |cache: &LimitCache| {
+                let st = cache.0.lock().unwrap().clone().unwrap();
+                let tiled = (st.masks_of.iter())
+                    .filter(|m| matches!(m, LimitMask::Tiled(_)))
+                    .count();
+                (tiled, st.extended.is_none())
+            };
+            let (tiles, stencils) = (LimitCache::default(), LimitCache::default());
+            let (p, n, p32, n32) = with(true, &tiles);
+            let (q, m, q32, m32) = with(false, &stencils);
+            let ((tiled, at_level), (none, _)) =
+                (tiled_vertices(&tiles), tiled_vertices(&stencils));
+            assert_eq!(none, 0);
+            let scale = p.iter().fold(0.0f64, |x, y| x.max(y.abs()));
+            let (dp, dn) = (worst(&p, &q), worst(&n, &m));
+            assert!(
+                dp < 1e-13 * scale && dn < 1e-11,
+                "{case}: positions {dp:e}, normals {dn:e}"
+            );
+            // In f32: the same sums in f64, rounded once (a few ulps at most).
+            let (dp, dn) = (worst(&p32, &q32), worst(&n32, &m32));
+            assert!(
+                dp < 1e-6 * scale && dn < 1e-5,
+                "{case} (f32): positions {dp:e}, normals {dn:e}"
+            );
+            // Most vertices of the sphere are far from its irregular ones.
+            let outputs = refinement.last_level().num_vertices;
+            let levels = refinement.options().levels;
+            if case.starts_with("sphere") && levels >= 3 && at_level {
+                engaged += 1;
+                assert!(
+                    tiled * 10 >= outputs * 7,
+                    "{case}: {tiled} of {outputs} vertices tiled"
+                );
             }
-        }
+        });
         assert!(
             engaged >= 6,
             "the sphere was tiled at level 3 for {engaged} degrees of 8"
@@ -2272,29 +2285,18 @@ mod tests {
             ("creased grid", crease, grid_points),
         ];
         let (mut engaged, mut stepwise) = (0, 0);
-        for (name, cage, points) in &cases {
-            for degree in 2..=9 {
-                for levels in 1..=2 {
-                    let options = Options {
-                        degree,
-                        levels,
-                        ..Options::default()
-                    };
-                    let refinement = Refinement::new(cage, &options).unwrap();
-                    let case = format!("{name} degree {degree} level {levels}");
-                    let (st, _, dp, [n, m]) = local_and_whole(&refinement, points, &case);
-                    let dn = worst(&n, &m);
-                    engaged += usize::from(st.local.is_some());
-                    // A local extension made one level at a time (degrees 6 to 9).
-                    stepwise += usize::from(st.local.as_ref().is_some_and(|l| l.0.local.is_some()));
-                    assert!(st.extended.is_none(), "{case}: whole extension");
-                    assert!(
-                        dp < 1e-12 && dn < 1e-11,
-                        "{case}: positions {dp:e}, normals {dn:e}"
-                    );
-                }
-            }
-        }
+        for_each_refinement(&cases, 1..=2, |refinement, points, case| {
+            let (st, _, dp, [n, m]) = local_and_whole(refinement, points, case);
+            let dn = worst(&n, &m);
+            engaged += usize::from(st.local.is_some());
+            // A local extension made one level at a time (degrees 6 to 9).
+            stepwise += usize::from(st.local.as_ref().is_some_and(|l| l.0.local.is_some()));
+            assert!(st.extended.is_none(), "{case}: whole extension");
+            assert!(
+                dp < 1e-12 && dn < 1e-11,
+                "{case}: positions {dp:e}, normals {dn:e}"
+            );
+        });
         assert!(
             engaged >= 40,
             "the local extension was used {engaged} times of 48"
@@ -2352,53 +2354,41 @@ mod tests {
         ];
         // Cases in two stages (some vertices clean before the features are smooth).
         let mut staged = 0;
-        for (name, cage, points) in &cases {
-            for degree in 2..=9 {
-                for levels in 1..=2 {
-                    let options = Options {
-                        degree,
-                        levels,
-                        ..Options::default()
-                    };
-                    let refinement = Refinement::new(cage, &options).unwrap();
-                    let case = format!("{name}, degree {degree}, level {levels}");
-                    let (st, whole, dp, [mut n, mut m]) =
-                        local_and_whole(&refinement, points, &case);
-                    assert!(
-                        st.local.is_some() && st.extended.is_none(),
-                        "{case}: not local"
-                    );
-                    assert!(whole.extended.is_some());
-                    // Two stages: the corners of the first stage's fans against the whole
-                    // plan's fans at its level, the others against the whole plan extended.
-                    let mut dfans = 0.0;
-                    if let Some((first, _)) = st.local.as_ref().filter(|l| l.0.local.is_some()) {
-                        staged += 1;
-                        let m1 = clean_levels(degree);
-                        let fans = whole_fans(&refinement, points, m1);
-                        let last = refinement.last_level();
-                        // A fan per side of a curve: its vertex once.
-                        let mut fan_vertices = first.fan_vertex.clone();
-                        fan_vertices.sort_unstable();
-                        fan_vertices.dedup();
-                        for &i in &fan_vertices {
-                            let v = st.local_vertices[i as usize] as usize;
-                            for &c in last.corners_of_vertex(v) {
-                                let at = 3 * c as usize..3 * c as usize + 3;
-                                dfans = worst(&n[at.clone()], &fans[at.clone()]).max(dfans);
-                                n[at.clone()].fill(0.0);
-                                m[at].fill(0.0);
-                            }
-                        }
+        for_each_refinement(&cases, 1..=2, |refinement, points, case| {
+            let (st, whole, dp, [mut n, mut m]) = local_and_whole(refinement, points, case);
+            assert!(
+                st.local.is_some() && st.extended.is_none(),
+                "{case}: not local"
+            );
+            assert!(whole.extended.is_some());
+            // Two stages: the corners of the first stage's fans against the whole
+            // plan's fans at its level, the others against the whole plan extended.
+            let mut dfans = 0.0;
+            if let Some((first, _)) = st.local.as_ref().filter(|l| l.0.local.is_some()) {
+                staged += 1;
+                let m1 = clean_levels(refinement.options().degree);
+                let fans = whole_fans(refinement, points, m1);
+                let last = refinement.last_level();
+                // A fan per side of a curve: its vertex once.
+                let mut fan_vertices = first.fan_vertex.clone();
+                fan_vertices.sort_unstable();
+                fan_vertices.dedup();
+                for &i in &fan_vertices {
+                    let v = st.local_vertices[i as usize] as usize;
+                    for &c in last.corners_of_vertex(v) {
+                        let at = 3 * c as usize..3 * c as usize + 3;
+                        dfans = worst(&n[at.clone()], &fans[at.clone()]).max(dfans);
+                        n[at.clone()].fill(0.0);
+                        m[at].fill(0.0);
                     }
-                    let dn = worst(&n, &m);
-                    assert!(
-                        dp < 1e-12 && dn < 1e-11 && dfans < 1e-11,
-                        "{case}: positions {dp:e}, normals {dn:e}, first-stage fans {dfans:e}"
-                    );
                 }
             }
-        }
+            let dn = worst(&n, &m);
+            assert!(
+                dp < 1e-12 && dn < 1e-11 && dfans < 1e-11,
+                "{case}: positions {dp:e}, normals {dn:e}, first-stage fans {dfans:e}"
+            );
+        });
         assert!(staged >= 20, "{staged} of 112 cases in two stages");
     }
 
