@@ -2165,14 +2165,14 @@ mod tests {
         let mut engaged = 0;
         for_each_refinement(&cases, 1..=3, |refinement, points, case| {
             let with = |tiled: bool, cache: &LimitCache| {
-                let st = build(&refinement, Some(LOCAL_SHARE), tiled).unwrap();
+                let st = build(refinement, Some(LOCAL_SHARE), tiled).unwrap();
                 *cache.0.lock().unwrap() = Some(Arc::new(st));
                 let scratch = Scratch::default();
-                let (p, n) = surface(&refinement, &scratch, cache, points).unwrap();
-                let q = positions(&refinement, &scratch, cache, points, 3).unwrap();
+                let (p, n) = surface(refinement, &scratch, cache, points).unwrap();
+                let q = positions(refinement, &scratch, cache, points, 3).unwrap();
                 assert_eq!(p, q, "{case}: positions alone");
                 let single: Vec<f32> = points.iter().map(|&x| x as f32).collect();
-                let (p32, n32) = surface(&refinement, &scratch, cache, &single).unwrap();
+                let (p32, n32) = surface(refinement, &scratch, cache, &single).unwrap();
                 let widen = |x: Vec<f32>| x.into_iter().map(f64::from).collect::<Vec<_>>();
                 (p, n, widen(p32), widen(n32))
             };
