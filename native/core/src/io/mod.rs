@@ -8,7 +8,7 @@
 //!   `t creasemethod`). Normals, groups, objects, smoothing groups, materials and comments are
 //!   skipped; unknown statements, free-form geometry and other tags are skipped with one
 //!   warning per kind ([`ObjMesh::warnings`]). A file is streamed under a byte limit.
-//! - [`write_obj`] ([`write`]) writes a polygon mesh (with optional face-varying UVs and
+//! - [`write_obj`] ([`write`](mod@write)) writes a polygon mesh (with optional face-varying UVs and
 //!   normals), formatting in parallel into large buffers, atomically.
 //!
 //! Malformed input is refused with [`Error::Io`](crate::Error::Io) carrying
