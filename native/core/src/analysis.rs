@@ -532,7 +532,7 @@ fn planar(label: (usize, usize, usize), valence: usize, primal: bool) -> [f64; 2
 
 /// Computes the masks of `degree` at valence `valence` from the engine's subdivision matrix
 /// (its Fourier blocks 0 and 1, built from the centre's and one sector's columns,
-/// [`SectorColumns`]). Every eigenvector is checked against the measured columns.
+/// `SectorColumns`). Every eigenvector is checked against the measured columns.
 ///
 /// Valence 2 (an interior vertex on two faces) gives the position mask only: there the leading
 /// eigenvalue after 1 is 1/4 three times over (twice in mode 1, which is real, once in mode 0;
