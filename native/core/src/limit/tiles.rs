@@ -554,14 +554,18 @@ impl Geometry<'_> {
         let seen = &mut seen[..count];
         seen.sort_unstable();
         let distinct = seen.windows(2).all(|w| w[0] != w[1]);
-        // Bad vertices counted over each box of N rings by prefix sums.
+        // Bad vertices counted over each box of N rings by prefix sums (most windows have none:
+        // then every output is valid).
+        let all_good = count == vside * vside;
         let ps = vside + 1;
         let mut bad = [0u16; (MAX_DATA + 1) * (MAX_DATA + 1)];
-        for j in 0..vside {
-            for i in 0..vside {
-                bad[(j + 1) * ps + i + 1] = bad[j * ps + i + 1] + bad[(j + 1) * ps + i]
-                    - bad[j * ps + i]
-                    + u16::from(!good[j * vside + i]);
+        if !all_good {
+            for j in 0..vside {
+                for i in 0..vside {
+                    bad[(j + 1) * ps + i + 1] = bad[j * ps + i + 1] + bad[(j + 1) * ps + i]
+                        - bad[j * ps + i]
+                        + u16::from(!good[j * vside + i]);
+                }
             }
         }
         let mut valid = 0u128;
@@ -571,11 +575,12 @@ impl Geometry<'_> {
             for i in 0..out_side {
                 // The box of output (i, j) is vertices i ..= i + 2n (shifted by n).
                 let (x0, y0, x1, y1) = (i, j, i + 2 * n + 1, j + 2 * n + 1);
-                let count =
-                    bad[y1 * ps + x1] + bad[y0 * ps + x0] - bad[y0 * ps + x1] - bad[y1 * ps + x0];
+                let clean = all_good
+                    || bad[y1 * ps + x1] + bad[y0 * ps + x0]
+                        == bad[y0 * ps + x1] + bad[y1 * ps + x0];
                 let v = vertex[(j + n) * vside + i + n];
                 outputs[j * out_side + i] = v;
-                if distinct && count == 0 {
+                if distinct && clean {
                     valid |= 1 << (j * out_side + i);
                 }
             }
