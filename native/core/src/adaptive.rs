@@ -460,12 +460,9 @@ fn adaptive_in_pool<T: Scalar>(
         // nodes that the restriction criterion adds below level j for them are known before
         // level j + 1 is made, and the levels they change are made again first (not after
         // level j + 1 was made on the old ones, to be made again in the next decision).
-        let mut lowest = j;
-        for (&node, &d) in nodes.iter().zip(&decided) {
-            if d == Some(true) {
-                lowest = lowest.min(restrict_refine(&parts, &mut refined, j, node)?);
-            }
-        }
+        let above =
+            (nodes.iter().zip(&decided)).filter_map(|(&u, &d)| (d == Some(true)).then_some(u));
+        let lowest = restrict_refine(&parts, &mut refined, j, above)?;
         if lowest < j {
             parts.truncate(lowest + 1);
             seeds = seeds_to(&refined, j)?;
@@ -484,12 +481,9 @@ fn adaptive_in_pool<T: Scalar>(
         extend_pass(&ctx, &mut parts, &seeds, held)?;
         let undecided = pick(|d| d.is_none());
         let errors = measure(&ctx, &parts, j, &undecided)?;
-        let mut lowest = j;
-        for (&node, &error) in undecided.iter().zip(&errors) {
-            if error > options.tolerance {
-                lowest = lowest.min(restrict_refine(&parts, &mut refined, j, node)?);
-            }
-        }
+        let above = (undecided.iter().zip(&errors))
+            .filter_map(|(&u, &error)| (error > options.tolerance).then_some(u));
+        let lowest = restrict_refine(&parts, &mut refined, j, above)?;
         if lowest < j {
             parts.truncate(lowest + 1);
         }
@@ -2238,17 +2232,18 @@ fn scale_of<T>(ctx: &Context<T>) -> f64 {
     }
 }
 
-/// Refines node `node` of level `t` and, by the vertex restriction criterion, every leaf parent
-/// of a face sharing a vertex with a refined node, down to the roots. Returns the lowest level
-/// at which a node was refined.
+/// Refines the nodes `nodes` of level `t` and, by the vertex restriction criterion, every leaf
+/// parent of a face sharing a vertex with a refined node, down to the roots. Returns the lowest
+/// level at which a node was refined (`t` if none).
 fn restrict_refine<T>(
     parts: &[Part<T>],
     refined: &mut [IdSet],
     t: usize,
-    node: u64,
+    nodes: impl Iterator<Item = u64>,
 ) -> Result<usize> {
     let mut lowest = t;
-    let mut stack = vec![(t, node)];
+    let mut stack: Vec<(usize, u64)> = nodes.map(|u| (t, u)).collect();
+    stack.reverse();
     while let Some((s, x)) = stack.pop() {
         reserve_set(&mut refined[s], 1)?;
         if !refined[s].insert(x) {
@@ -2262,6 +2257,9 @@ fn restrict_refine<T>(
         let f = part.face_of_uid(x).ok_or_else(|| {
             Error::Internal(format!("adaptive: node {x} of level {s} outside its level"))
         })?;
+        // The faces around the node's corners have few parents, met in runs, and one of them
+        // is the node's own (refined): each other one is looked up once per run.
+        let mut last = x >> 2;
         for k in 4 * f..4 * f + 4 {
             let v = part.level.corner_verts[k] as usize;
             if !part.is_complete(v) {
@@ -2272,9 +2270,10 @@ fn restrict_refine<T>(
             }
             for &d in part.level.corners_of_vertex(v) {
                 let parent = part.face_uid[(d >> 2) as usize] >> 2;
-                if !refined[s - 1].contains(&parent) {
+                if parent != last && parent != x >> 2 && !refined[s - 1].contains(&parent) {
                     stack.push((s - 1, parent));
                 }
+                last = parent;
             }
         }
     }
@@ -2299,17 +2298,17 @@ pub fn triangle_template(mask: u8) -> Vec<[u8; 3]> {
         .collect()
 }
 
-/// The cage edge that edge `uid` of the uniform level `t` lies on (its parents' halves down
-/// to `M_0`: edge `e` of `M_j` has the halves `2e`, `2e + 1` in `M_{j+1}`, the edges after
-/// them are inside faces), or `NONE`.
-fn cage_edge_of<T>(parts: &[Part<T>], t: usize, mut uid: u64) -> u32 {
-    for j in (1..=t).rev() {
-        if uid >= 2 * parts[j - 1].counts[1] {
-            return NONE;
-        }
-        uid >>= 1;
+/// The cage edge that edge `uid` of the uniform level `t` lies on, or `NONE`. Edge `e` of
+/// `M_j` has the halves `2e`, `2e + 1` in `M_{j+1}` and the edges after them are inside
+/// faces, and `M_j` has at least `2^j` times the cage's edges: the first `E_0 2^t` edges of
+/// `M_t` are the halves down to the cage's `E_0` edges, edge `uid` on cage edge `uid >> t`.
+fn cage_edge_of<T>(parts: &[Part<T>], t: usize, uid: u64) -> u32 {
+    let cage = uid >> t;
+    if cage < parts[0].counts[1] {
+        cage as u32
+    } else {
+        NONE
     }
-    uid as u32
 }
 
 /// The output mesh and where its vertices and triangle corners are in the partial levels.
