@@ -418,6 +418,7 @@ fn adaptive_in_pool<T: Scalar>(
     let grid = Grid::new::<T>(&ctx);
     // refined[j]: uniform ids of the refined nodes at level j (1 <= j < max_level).
     let mut refined: Vec<IdSet> = vec![IdSet::default(); max_level];
+    let mut node_lists = NodeLists::default();
     // Partial levels kept from decision to decision: level j + 1 is made for the children of
     // every node of level j, a superset of the nodes it ends up with, so it stays exact unless
     // the restriction criterion adds nodes below (then the levels above are made again).
@@ -443,17 +444,14 @@ fn adaptive_in_pool<T: Scalar>(
             retained(&parts) + BYTES_PER_NODE * held as f64 + 4.0 * BYTES_PER_FACE * count as f64,
             4.0 * count as f64,
         )?;
-        let mut nodes = nodes_at(&refined, roots, j)?;
+        let mut nodes = node_lists.upto(&refined, roots, j)?[j].clone();
         // Holes are refined only where the restriction criterion asks.
         nodes.retain(|&u| !ctx.is_hole(j, u));
         if options.tolerance == 0.0 {
             try_insert(&mut refined[j], &nodes)?;
             continue;
         }
-        let seeds_to = |refined: &[IdSet], top: usize| -> Result<Vec<Vec<u64>>> {
-            (0..=top).map(|t| nodes_at(refined, roots, t)).collect()
-        };
-        let mut seeds = seeds_to(&refined, j)?;
+        let mut seeds = node_lists.upto(&refined, roots, j)?.to_vec();
         extend_pass(&ctx, &mut parts, &seeds, held)?;
         let decided = decide(&ctx, &grid, j, &parts[j], &nodes, options.tolerance)?;
         // The nodes decided above the tolerance are refined whatever the measurements say: the
@@ -465,7 +463,7 @@ fn adaptive_in_pool<T: Scalar>(
         let lowest = restrict_refine(&parts, &mut refined, j, above)?;
         if lowest < j {
             parts.truncate(lowest + 1);
-            seeds = seeds_to(&refined, j)?;
+            seeds = node_lists.upto(&refined, roots, j)?.to_vec();
             extend_pass(&ctx, &mut parts, &seeds, held)?;
         }
         // The nodes that the grid's closed form decides need no children; the others' children
@@ -489,9 +487,7 @@ fn adaptive_in_pool<T: Scalar>(
         }
     }
 
-    let mut seeds: Vec<Vec<u64>> = (0..=max_level)
-        .map(|t| nodes_at(&refined, roots, t))
-        .collect::<Result<_>>()?;
+    let mut seeds = node_lists.upto(&refined, roots, max_level)?.to_vec();
     let leaves: Vec<Vec<u64>> = (0..=max_level)
         .map(|t| {
             if t == 0 {
@@ -875,28 +871,51 @@ fn follow_pass<T: Scalar>(
     Ok(parts)
 }
 
-/// The nodes at level `t` (sorted uniform ids): every face of `M_1` at level 1, the children of
-/// the refined nodes of level `t - 1` above.
-fn nodes_at(refined: &[IdSet], roots: u64, t: usize) -> Result<Vec<u64>> {
-    match t {
-        0 => Ok(Vec::new()),
-        1 => {
-            let mut nodes = try_vec(roots)?;
-            nodes.extend(0..roots);
-            Ok(nodes)
+/// The nodes of every level (sorted uniform ids), kept from decision to decision: every face
+/// of `M_1` at level 1, the children of the refined nodes of level `t - 1` above. The refined
+/// sets only grow, so a level's list is made again (its parents sorted) only when the set of
+/// its parents has grown, not on every request.
+#[derive(Default)]
+struct NodeLists {
+    lists: Vec<Vec<u64>>,
+    /// Per level: the size of the parents' refined set when its list was made.
+    made_from: Vec<Option<usize>>,
+}
+
+impl NodeLists {
+    /// The nodes of levels `0..=top`.
+    fn upto(&mut self, refined: &[IdSet], roots: u64, top: usize) -> Result<&[Vec<u64>]> {
+        if self.lists.len() <= top {
+            self.lists.resize(top + 1, Vec::new());
+            self.made_from.resize(top + 1, None);
         }
-        _ => {
-            let mut parents: Vec<u64> = match refined.get(t - 1) {
-                Some(r) => {
-                    let mut parents = try_vec(r.len() as u64)?;
-                    parents.extend(r.iter().copied());
-                    parents
-                }
-                None => Vec::new(),
+        for t in 0..=top {
+            let parents = match t {
+                0 | 1 => 0,
+                _ => refined.get(t - 1).map_or(0, |r| r.len()),
             };
-            parents.sort_unstable();
-            children(&parents)
+            if self.made_from[t] == Some(parents) {
+                continue;
+            }
+            self.lists[t] = match t {
+                0 => Vec::new(),
+                1 => {
+                    let mut nodes = try_vec(roots)?;
+                    nodes.extend(0..roots);
+                    nodes
+                }
+                _ => {
+                    let mut sorted = try_vec(parents as u64)?;
+                    if let Some(r) = refined.get(t - 1) {
+                        sorted.extend(r.iter().copied());
+                    }
+                    sorted.sort_unstable();
+                    children(&sorted)?
+                }
+            };
+            self.made_from[t] = Some(parents);
         }
+        Ok(&self.lists[..=top])
     }
 }
 
@@ -1996,7 +2015,7 @@ fn decide<T: Scalar>(
     let Some(grid) = grid else {
         return memory::filled(nodes.len(), None);
     };
-    let regular = regular_flags(ctx, part)?;
+    let regular = regular_faces(ctx, part)?;
     let twins = grid_twins(part)?;
     // Blocks of nodes: the four siblings from level 2 on (always all four: nodes are the
     // children of refined nodes, and holes are whole cage faces), single nodes at level 1.
@@ -2031,9 +2050,11 @@ fn decide<T: Scalar>(
     )
 }
 
-/// Per vertex of `part`: whether it can be inside a grid (complete, interior, manifold, of
-/// valence 4, on no curve edge of the step and no tagged corner).
-fn regular_flags<T: Scalar>(ctx: &Context<T>, part: &Part<T>) -> Result<Vec<bool>> {
+/// Per face of `part`: whether its four vertices can all be inside a grid (complete, interior,
+/// manifold, of valence 4, on no curve edge of the step and no tagged corner). A grid's
+/// vertices are the corners of a square of cells, so [`block_errors`] checks the cells, one
+/// lookup each, rather than every vertex.
+fn regular_faces<T: Scalar>(ctx: &Context<T>, part: &Part<T>) -> Result<Vec<bool>> {
     let level = &part.level;
     let mut on_curve = memory::filled(level.num_vertices, false)?;
     let mut curve_edge = memory::filled(level.num_edges(), false)?;
@@ -2047,7 +2068,7 @@ fn regular_flags<T: Scalar>(ctx: &Context<T>, part: &Part<T>) -> Result<Vec<bool
     let corners = &ctx.features.corners;
     let (offsets, vertex_corners) = level.vertex_corner_table();
     let corner_edges = level.corner_edges();
-    gather_hinted(level.num_vertices, |v| {
+    let regular = gather_hinted(level.num_vertices, |v| {
         let at = &vertex_corners[offsets[v] as usize..offsets[v + 1] as usize];
         let uid = part.vert_uid[v];
         at.len() == 4
@@ -2063,6 +2084,9 @@ fn regular_flags<T: Scalar>(ctx: &Context<T>, part: &Part<T>) -> Result<Vec<bool
                     && !curve_edge[e as usize]
                     && !curve_edge[d as usize]
             })
+    })?;
+    gather_hinted(level.num_faces(), |f| {
+        (level.corner_verts[4 * f..4 * f + 4].iter()).all(|&v| regular[v as usize])
     })
 }
 
@@ -2091,8 +2115,8 @@ fn grid_twins<T: Sync>(part: &Part<T>) -> Result<Vec<u32>> {
 }
 
 /// The closed-form errors (absolute) and their rounding bounds of the nodes of `block` (one
-/// node, or four siblings in their order), `None` unless a grid holds them all; `twins` is
-/// [`grid_twins`] of `part`.
+/// node, or four siblings in their order), `None` unless a grid holds them all; `regular` is
+/// [`regular_faces`] and `twins` [`grid_twins`] of `part`.
 fn block_errors<T: Scalar>(
     grid: &Grid,
     part: &Part<T>,
@@ -2164,10 +2188,11 @@ fn block_errors<T: Scalar>(
         let fc = cells[at(a, b)];
         level.corner_verts[((fc & !3) | ((fc + k) & 3)) as usize] as usize
     };
+    // Vertices -inner..=inner + span: the corners of cells -inner..inner + span.
     let inner = grid.inner;
-    for y in -inner..=inner + span as i32 {
-        for x in -inner..=inner + span as i32 {
-            if !regular[vertex(x, y)] {
+    for b in -inner..inner + span as i32 {
+        for a in -inner..inner + span as i32 {
+            if !regular[(cells[at(a, b)] >> 2) as usize] {
                 return None;
             }
         }
@@ -2722,7 +2747,7 @@ mod tests {
                     let nodes = &seeds[t];
                     let exact = measure(&ctx, &parts, t, nodes).unwrap();
                     let span = if t >= 2 { 2 } else { 1 };
-                    let regular = regular_flags(&ctx, part).unwrap();
+                    let regular = regular_faces(&ctx, part).unwrap();
                     let twins = grid_twins(part).unwrap();
                     for (i, block) in nodes.chunks(span * span).enumerate() {
                         total += block.len();
