@@ -488,18 +488,32 @@ fn adaptive_in_pool<T: Scalar>(
     }
 
     let mut seeds = node_lists.upto(&refined, roots, max_level)?.to_vec();
+    // The refined nodes of every level, sorted: the parents of the next level's nodes (every
+    // fourth one).
+    let refined: Vec<Vec<u64>> = (0..=max_level)
+        .map(|t| match seeds.get(t + 1) {
+            Some(children) if t >= 1 => {
+                memory::collect(children.iter().step_by(4).map(|&c| c >> 2))
+            }
+            _ => Ok(Vec::new()),
+        })
+        .collect::<Result<_>>()?;
+    // The leaves: the nodes not refined (both lists sorted: a merge walk) and not in holes.
     let leaves: Vec<Vec<u64>> = (0..=max_level)
         .map(|t| {
             if t == 0 {
-                Vec::new()
-            } else {
-                let r = refined.get(t);
-                seeds[t]
-                    .iter()
-                    .copied()
-                    .filter(|&u| r.is_none_or(|r| !r.contains(&u)) && !ctx.is_hole(t, u))
-                    .collect()
+                return Vec::new();
             }
+            let r = &refined[t];
+            let mut i = 0;
+            (seeds[t].iter().copied())
+                .filter(|&u| {
+                    while i < r.len() && r[i] < u {
+                        i += 1;
+                    }
+                    r.get(i) != Some(&u) && !ctx.is_hole(t, u)
+                })
+                .collect()
         })
         .collect();
     let mut max_error = None;
@@ -2397,11 +2411,12 @@ impl<'a> LeafChunk<'a> {
 }
 
 /// The output mesh: leaves (hole leaves are none) triangulated by the templates, shared
-/// vertices drawn at the finest level around them.
+/// vertices drawn at the finest level around them; `refined` and `leaves` are the refined
+/// nodes and the leaves of every level (sorted uniform ids).
 fn triangulate<T: Scalar>(
     ctx: &Context<T>,
     parts: &[Part<T>],
-    refined: &[IdSet],
+    refined: &[Vec<u64>],
     leaves: &[Vec<u64>],
 ) -> Result<Drawn<T>> {
     let max_level = parts.len() - 1;
@@ -2469,13 +2484,18 @@ fn triangulate<T: Scalar>(
         }
         drawn_as[t] = here;
     }
-    // Per level below the last, the faces of its partial level that are refined.
+    // Per level below the last, the faces of its partial level that are refined (`refined`:
+    // sorted uniform ids per level, a merge walk).
     let mut is_refined: Vec<Vec<bool>> = vec![Vec::new(); max_level + 1];
     for t in 1..max_level {
-        let part = &parts[t];
-        let mut flags = memory::filled(part.face_uid.len(), false)?;
+        let face_uid = &parts[t].face_uid;
+        let mut flags = memory::filled(face_uid.len(), false)?;
+        let mut f = 0;
         for &u in &refined[t] {
-            if let Some(f) = part.face_of_uid(u) {
+            while f < face_uid.len() && face_uid[f] < u {
+                f += 1;
+            }
+            if face_uid.get(f) == Some(&u) {
                 flags[f] = true;
             }
         }
