@@ -55,7 +55,15 @@
 //! chunks ([`crate::parallel`]): parallel, with results that do not depend on the number of
 //! threads.
 //! Lookups by uniform id go through the sorted id lists (merge walks) and flat per-level tables,
-//! not hash maps; the refined sets are the only ones.
+//! not hash maps; the refined sets are the only ones, read by the restriction criterion (the
+//! node lists are made from them only when they grow).
+//!
+//! Measured (instruction counts on the callgrind driver `examples/callgrind.rs`, one thread,
+//! 2026-12-03): `adaptive-flat-4-6` 409M against 715M for `adaptive-uniform-4-6` (0.57x; 0.66x
+//! for 3-5, 0.60x for 4-5). Of the 409M, the partial levels take 176M (refinement 52M, steps
+//! and their windows 41M, the cut around the parents 54M), the closed-form decisions 122M
+//! (about 8k instructions per sibling block), the triangulation 74M and the restriction
+//! criterion 24M (serial).
 //!
 //! # Refinement
 //! Levels are decided one at a time: level j's nodes are evaluated together with their children
@@ -280,6 +288,7 @@ impl<T> Part<T> {
 
     /// True when every uniform face around vertex `v` is present (every sheet of a
     /// non-manifold vertex included).
+    #[inline]
     fn is_complete(&self, v: usize) -> bool {
         self.level.corners_of_vertex(v).len() == self.vert_faces[v] as usize
     }
@@ -418,6 +427,7 @@ fn adaptive_in_pool<T: Scalar>(
     let grid = Grid::new::<T>(&ctx);
     // refined[j]: uniform ids of the refined nodes at level j (1 <= j < max_level).
     let mut refined: Vec<IdSet> = vec![IdSet::default(); max_level];
+    let mut node_lists = NodeLists::default();
     // Partial levels kept from decision to decision: level j + 1 is made for the children of
     // every node of level j, a superset of the nodes it ends up with, so it stays exact unless
     // the restriction criterion adds nodes below (then the levels above are made again).
@@ -443,32 +453,26 @@ fn adaptive_in_pool<T: Scalar>(
             retained(&parts) + BYTES_PER_NODE * held as f64 + 4.0 * BYTES_PER_FACE * count as f64,
             4.0 * count as f64,
         )?;
-        let mut nodes = nodes_at(&refined, roots, j)?;
+        let mut nodes = node_lists.upto(&refined, roots, j)?[j].clone();
         // Holes are refined only where the restriction criterion asks.
         nodes.retain(|&u| !ctx.is_hole(j, u));
         if options.tolerance == 0.0 {
             try_insert(&mut refined[j], &nodes)?;
             continue;
         }
-        let seeds_to = |refined: &[IdSet], top: usize| -> Result<Vec<Vec<u64>>> {
-            (0..=top).map(|t| nodes_at(refined, roots, t)).collect()
-        };
-        let mut seeds = seeds_to(&refined, j)?;
+        let mut seeds = node_lists.upto(&refined, roots, j)?.to_vec();
         extend_pass(&ctx, &mut parts, &seeds, held)?;
         let decided = decide(&ctx, &grid, j, &parts[j], &nodes, options.tolerance)?;
         // The nodes decided above the tolerance are refined whatever the measurements say: the
         // nodes that the restriction criterion adds below level j for them are known before
         // level j + 1 is made, and the levels they change are made again first (not after
         // level j + 1 was made on the old ones, to be made again in the next decision).
-        let mut lowest = j;
-        for (&node, &d) in nodes.iter().zip(&decided) {
-            if d == Some(true) {
-                lowest = lowest.min(restrict_refine(&parts, &mut refined, j, node)?);
-            }
-        }
+        let above =
+            (nodes.iter().zip(&decided)).filter_map(|(&u, &d)| (d == Some(true)).then_some(u));
+        let lowest = restrict_refine(&parts, &mut refined, j, above)?;
         if lowest < j {
             parts.truncate(lowest + 1);
-            seeds = seeds_to(&refined, j)?;
+            seeds = node_lists.upto(&refined, roots, j)?.to_vec();
             extend_pass(&ctx, &mut parts, &seeds, held)?;
         }
         // The nodes that the grid's closed form decides need no children; the others' children
@@ -484,32 +488,41 @@ fn adaptive_in_pool<T: Scalar>(
         extend_pass(&ctx, &mut parts, &seeds, held)?;
         let undecided = pick(|d| d.is_none());
         let errors = measure(&ctx, &parts, j, &undecided)?;
-        let mut lowest = j;
-        for (&node, &error) in undecided.iter().zip(&errors) {
-            if error > options.tolerance {
-                lowest = lowest.min(restrict_refine(&parts, &mut refined, j, node)?);
-            }
-        }
+        let above = (undecided.iter().zip(&errors))
+            .filter_map(|(&u, &error)| (error > options.tolerance).then_some(u));
+        let lowest = restrict_refine(&parts, &mut refined, j, above)?;
         if lowest < j {
             parts.truncate(lowest + 1);
         }
     }
 
-    let mut seeds: Vec<Vec<u64>> = (0..=max_level)
-        .map(|t| nodes_at(&refined, roots, t))
+    let mut seeds = node_lists.upto(&refined, roots, max_level)?.to_vec();
+    // The refined nodes of every level, sorted: the parents of the next level's nodes (every
+    // fourth one).
+    let refined: Vec<Vec<u64>> = (0..=max_level)
+        .map(|t| match seeds.get(t + 1) {
+            Some(children) if t >= 1 => {
+                memory::collect(children.iter().step_by(4).map(|&c| c >> 2))
+            }
+            _ => Ok(Vec::new()),
+        })
         .collect::<Result<_>>()?;
+    // The leaves: the nodes not refined (both lists sorted: a merge walk) and not in holes.
     let leaves: Vec<Vec<u64>> = (0..=max_level)
         .map(|t| {
             if t == 0 {
-                Vec::new()
-            } else {
-                let r = refined.get(t);
-                seeds[t]
-                    .iter()
-                    .copied()
-                    .filter(|&u| r.is_none_or(|r| !r.contains(&u)) && !ctx.is_hole(t, u))
-                    .collect()
+                return Vec::new();
             }
+            let r = &refined[t];
+            let mut i = 0;
+            (seeds[t].iter().copied())
+                .filter(|&u| {
+                    while i < r.len() && r[i] < u {
+                        i += 1;
+                    }
+                    r.get(i) != Some(&u) && !ctx.is_hole(t, u)
+                })
+                .collect()
         })
         .collect();
     let mut max_error = None;
@@ -881,28 +894,51 @@ fn follow_pass<T: Scalar>(
     Ok(parts)
 }
 
-/// The nodes at level `t` (sorted uniform ids): every face of `M_1` at level 1, the children of
-/// the refined nodes of level `t - 1` above.
-fn nodes_at(refined: &[IdSet], roots: u64, t: usize) -> Result<Vec<u64>> {
-    match t {
-        0 => Ok(Vec::new()),
-        1 => {
-            let mut nodes = try_vec(roots)?;
-            nodes.extend(0..roots);
-            Ok(nodes)
+/// The nodes of every level (sorted uniform ids), kept from decision to decision: every face
+/// of `M_1` at level 1, the children of the refined nodes of level `t - 1` above. The refined
+/// sets only grow, so a level's list is made again (its parents sorted) only when the set of
+/// its parents has grown, not on every request.
+#[derive(Default)]
+struct NodeLists {
+    lists: Vec<Vec<u64>>,
+    /// Per level: the size of the parents' refined set when its list was made.
+    made_from: Vec<Option<usize>>,
+}
+
+impl NodeLists {
+    /// The nodes of levels `0..=top`.
+    fn upto(&mut self, refined: &[IdSet], roots: u64, top: usize) -> Result<&[Vec<u64>]> {
+        if self.lists.len() <= top {
+            self.lists.resize(top + 1, Vec::new());
+            self.made_from.resize(top + 1, None);
         }
-        _ => {
-            let mut parents: Vec<u64> = match refined.get(t - 1) {
-                Some(r) => {
-                    let mut parents = try_vec(r.len() as u64)?;
-                    parents.extend(r.iter().copied());
-                    parents
-                }
-                None => Vec::new(),
+        for t in 0..=top {
+            let parents = match t {
+                0 | 1 => 0,
+                _ => refined.get(t - 1).map_or(0, |r| r.len()),
             };
-            parents.sort_unstable();
-            children(&parents)
+            if self.made_from[t] == Some(parents) {
+                continue;
+            }
+            self.lists[t] = match t {
+                0 => Vec::new(),
+                1 => {
+                    let mut nodes = try_vec(roots)?;
+                    nodes.extend(0..roots);
+                    nodes
+                }
+                _ => {
+                    let mut sorted = try_vec(parents as u64)?;
+                    if let Some(r) = refined.get(t - 1) {
+                        sorted.extend(r.iter().copied());
+                    }
+                    sorted.sort_unstable();
+                    children(&sorted)?
+                }
+            };
+            self.made_from[t] = Some(parents);
         }
+        Ok(&self.lists[..=top])
     }
 }
 
@@ -2002,7 +2038,7 @@ fn decide<T: Scalar>(
     let Some(grid) = grid else {
         return memory::filled(nodes.len(), None);
     };
-    let regular = regular_flags(ctx, part)?;
+    let regular = regular_faces(ctx, part)?;
     let twins = grid_twins(part)?;
     // Blocks of nodes: the four siblings from level 2 on (always all four: nodes are the
     // children of refined nodes, and holes are whole cage faces), single nodes at level 1.
@@ -2037,9 +2073,11 @@ fn decide<T: Scalar>(
     )
 }
 
-/// Per vertex of `part`: whether it can be inside a grid (complete, interior, manifold, of
-/// valence 4, on no curve edge of the step and no tagged corner).
-fn regular_flags<T: Scalar>(ctx: &Context<T>, part: &Part<T>) -> Result<Vec<bool>> {
+/// Per face of `part`: whether its four vertices can all be inside a grid (complete, interior,
+/// manifold, of valence 4, on no curve edge of the step and no tagged corner). A grid's
+/// vertices are the corners of a square of cells, so [`block_errors`] checks the cells, one
+/// lookup each, rather than every vertex.
+fn regular_faces<T: Scalar>(ctx: &Context<T>, part: &Part<T>) -> Result<Vec<bool>> {
     let level = &part.level;
     let mut on_curve = memory::filled(level.num_vertices, false)?;
     let mut curve_edge = memory::filled(level.num_edges(), false)?;
@@ -2053,7 +2091,7 @@ fn regular_flags<T: Scalar>(ctx: &Context<T>, part: &Part<T>) -> Result<Vec<bool
     let corners = &ctx.features.corners;
     let (offsets, vertex_corners) = level.vertex_corner_table();
     let corner_edges = level.corner_edges();
-    gather_hinted(level.num_vertices, |v| {
+    let regular = gather_hinted(level.num_vertices, |v| {
         let at = &vertex_corners[offsets[v] as usize..offsets[v + 1] as usize];
         let uid = part.vert_uid[v];
         at.len() == 4
@@ -2069,6 +2107,9 @@ fn regular_flags<T: Scalar>(ctx: &Context<T>, part: &Part<T>) -> Result<Vec<bool
                     && !curve_edge[e as usize]
                     && !curve_edge[d as usize]
             })
+    })?;
+    gather_hinted(level.num_faces(), |f| {
+        (level.corner_verts[4 * f..4 * f + 4].iter()).all(|&v| regular[v as usize])
     })
 }
 
@@ -2097,8 +2138,8 @@ fn grid_twins<T: Sync>(part: &Part<T>) -> Result<Vec<u32>> {
 }
 
 /// The closed-form errors (absolute) and their rounding bounds of the nodes of `block` (one
-/// node, or four siblings in their order), `None` unless a grid holds them all; `twins` is
-/// [`grid_twins`] of `part`.
+/// node, or four siblings in their order), `None` unless a grid holds them all; `regular` is
+/// [`regular_faces`] and `twins` [`grid_twins`] of `part`.
 fn block_errors<T: Scalar>(
     grid: &Grid,
     part: &Part<T>,
@@ -2170,10 +2211,11 @@ fn block_errors<T: Scalar>(
         let fc = cells[at(a, b)];
         level.corner_verts[((fc & !3) | ((fc + k) & 3)) as usize] as usize
     };
+    // Vertices -inner..=inner + span: the corners of cells -inner..inner + span.
     let inner = grid.inner;
-    for y in -inner..=inner + span as i32 {
-        for x in -inner..=inner + span as i32 {
-            if !regular[vertex(x, y)] {
+    for b in -inner..inner + span as i32 {
+        for a in -inner..inner + span as i32 {
+            if !regular[(cells[at(a, b)] >> 2) as usize] {
                 return None;
             }
         }
@@ -2238,17 +2280,18 @@ fn scale_of<T>(ctx: &Context<T>) -> f64 {
     }
 }
 
-/// Refines node `node` of level `t` and, by the vertex restriction criterion, every leaf parent
-/// of a face sharing a vertex with a refined node, down to the roots. Returns the lowest level
-/// at which a node was refined.
+/// Refines the nodes `nodes` of level `t` and, by the vertex restriction criterion, every leaf
+/// parent of a face sharing a vertex with a refined node, down to the roots. Returns the lowest
+/// level at which a node was refined (`t` if none).
 fn restrict_refine<T>(
     parts: &[Part<T>],
     refined: &mut [IdSet],
     t: usize,
-    node: u64,
+    nodes: impl Iterator<Item = u64>,
 ) -> Result<usize> {
     let mut lowest = t;
-    let mut stack = vec![(t, node)];
+    let mut stack: Vec<(usize, u64)> = nodes.map(|u| (t, u)).collect();
+    stack.reverse();
     while let Some((s, x)) = stack.pop() {
         reserve_set(&mut refined[s], 1)?;
         if !refined[s].insert(x) {
@@ -2262,6 +2305,9 @@ fn restrict_refine<T>(
         let f = part.face_of_uid(x).ok_or_else(|| {
             Error::Internal(format!("adaptive: node {x} of level {s} outside its level"))
         })?;
+        // The faces around the node's corners have few parents, met in runs, and one of them
+        // is the node's own (refined): each other one is looked up once per run.
+        let mut last = x >> 2;
         for k in 4 * f..4 * f + 4 {
             let v = part.level.corner_verts[k] as usize;
             if !part.is_complete(v) {
@@ -2272,9 +2318,10 @@ fn restrict_refine<T>(
             }
             for &d in part.level.corners_of_vertex(v) {
                 let parent = part.face_uid[(d >> 2) as usize] >> 2;
-                if !refined[s - 1].contains(&parent) {
+                if parent != last && parent != x >> 2 && !refined[s - 1].contains(&parent) {
                     stack.push((s - 1, parent));
                 }
+                last = parent;
             }
         }
     }
@@ -2299,17 +2346,17 @@ pub fn triangle_template(mask: u8) -> Vec<[u8; 3]> {
         .collect()
 }
 
-/// The cage edge that edge `uid` of the uniform level `t` lies on (its parents' halves down
-/// to `M_0`: edge `e` of `M_j` has the halves `2e`, `2e + 1` in `M_{j+1}`, the edges after
-/// them are inside faces), or `NONE`.
-fn cage_edge_of<T>(parts: &[Part<T>], t: usize, mut uid: u64) -> u32 {
-    for j in (1..=t).rev() {
-        if uid >= 2 * parts[j - 1].counts[1] {
-            return NONE;
-        }
-        uid >>= 1;
+/// The cage edge that edge `uid` of the uniform level `t` lies on, or `NONE`. Edge `e` of
+/// `M_j` has the halves `2e`, `2e + 1` in `M_{j+1}` and the edges after them are inside
+/// faces, and `M_j` has at least `2^j` times the cage's edges: the first `E_0 2^t` edges of
+/// `M_t` are the halves down to the cage's `E_0` edges, edge `uid` on cage edge `uid >> t`.
+fn cage_edge_of<T>(parts: &[Part<T>], t: usize, uid: u64) -> u32 {
+    let cage = uid >> t;
+    if cage < parts[0].counts[1] {
+        cage as u32
+    } else {
+        NONE
     }
-    uid as u32
 }
 
 /// The output mesh and where its vertices and triangle corners are in the partial levels.
@@ -2373,11 +2420,12 @@ impl<'a> LeafChunk<'a> {
 }
 
 /// The output mesh: leaves (hole leaves are none) triangulated by the templates, shared
-/// vertices drawn at the finest level around them.
+/// vertices drawn at the finest level around them; `refined` and `leaves` are the refined
+/// nodes and the leaves of every level (sorted uniform ids).
 fn triangulate<T: Scalar>(
     ctx: &Context<T>,
     parts: &[Part<T>],
-    refined: &[IdSet],
+    refined: &[Vec<u64>],
     leaves: &[Vec<u64>],
 ) -> Result<Drawn<T>> {
     let max_level = parts.len() - 1;
@@ -2445,13 +2493,18 @@ fn triangulate<T: Scalar>(
         }
         drawn_as[t] = here;
     }
-    // Per level below the last, the faces of its partial level that are refined.
+    // Per level below the last, the faces of its partial level that are refined (`refined`:
+    // sorted uniform ids per level, a merge walk).
     let mut is_refined: Vec<Vec<bool>> = vec![Vec::new(); max_level + 1];
     for t in 1..max_level {
-        let part = &parts[t];
-        let mut flags = memory::filled(part.face_uid.len(), false)?;
+        let face_uid = &parts[t].face_uid;
+        let mut flags = memory::filled(face_uid.len(), false)?;
+        let mut f = 0;
         for &u in &refined[t] {
-            if let Some(f) = part.face_of_uid(u) {
+            while f < face_uid.len() && face_uid[f] < u {
+                f += 1;
+            }
+            if face_uid.get(f) == Some(&u) {
                 flags[f] = true;
             }
         }
@@ -2723,7 +2776,7 @@ mod tests {
                     let nodes = &seeds[t];
                     let exact = measure(&ctx, &parts, t, nodes).unwrap();
                     let span = if t >= 2 { 2 } else { 1 };
-                    let regular = regular_flags(&ctx, part).unwrap();
+                    let regular = regular_faces(&ctx, part).unwrap();
                     let twins = grid_twins(part).unwrap();
                     for (i, block) in nodes.chunks(span * span).enumerate() {
                         total += block.len();
