@@ -1176,12 +1176,12 @@ impl LocalLevels {
         targets: &[u32],
         rings: usize,
     ) -> Result<LocalLevels> {
-        let last = refinement
-            .try_levels()?
+        let levels = refinement.try_levels()?;
+        let last = levels
             .last()
             .ok_or_else(|| Error::Internal("local levels: a refinement without levels".into()))?;
         let network = refinement.last_network("the local levels")?;
-        let top = refinement.levels().len() - 1;
+        let top = levels.len() - 1;
         let from = (last, network, None, top);
         LocalLevels::grow(refinement, from, seeds, extra, targets, rings)
     }
