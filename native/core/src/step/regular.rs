@@ -65,6 +65,8 @@ pub(crate) struct Windows {
     /// its net, row after row in its frame (0 where the walk placed none: no child weighs it);
     /// read only for faces with kernel children.
     nets: Vec<u32>,
+    /// Per coarse face, the earlier face whose filtered rows it reuses ([`Share`]).
+    shares: Vec<Share>,
     /// What the passes still compute.
     zone: Zone,
 }
@@ -85,6 +87,33 @@ const MIN_AVERAGES: u32 = 4;
 const MAX_AVERAGES: u32 = 8;
 /// Largest net side (8 averages of primal input: vertices `-2..=3`, cells `-2..=2`).
 const MAX_SIDE: usize = 6;
+/// Faces back (in the order of the level, within a chunk) that a face looks for one whose rows
+/// it shares; the kernel keeps the filtered rows of the last `SHARE_BACK + 1` faces. A cage
+/// quad's descendants at a level are consecutive (16 of them two steps down), and the
+/// same-frame pairs among them at most 13 apart.
+const SHARE_BACK: usize = 15;
+/// Rows between two faces that share rows: children sit at the corner of their parent that
+/// their frame's corner 0 is at, so at a refined level a face's frame is fixed by the parity of
+/// its place in its cage face's grid, and faces of one frame lie two rows (or columns) apart.
+const SHARE_SHIFT: usize = 2;
+
+/// A face's share of an earlier face's filtered rows: 0 for none, else how many faces back
+/// that face is (1 to [`SHARE_BACK`]) with [`Share::BELOW`] set when the face lies
+/// [`SHARE_SHIFT`] rows below it (its row `j` is the other's `j - SHARE_SHIFT`), clear when it
+/// lies as far above (its row `j` is the other's `j + SHARE_SHIFT`). Rows of the same coarse
+/// ids filtered by the same weights are the same sums in the same order: sharing them changes
+/// no bit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct Share(u8);
+
+impl Share {
+    const BELOW: u8 = 0x10;
+
+    /// The face `back` faces back and whether this face lies below it, if any.
+    fn of(self) -> Option<(usize, bool)> {
+        (self.0 != 0).then_some(((self.0 & 0xf) as usize, self.0 & Share::BELOW != 0))
+    }
+}
 
 impl Windows {
     /// [`Windows::build`] for step `j` of a run from the cage: the cage's points are primal,
@@ -136,6 +165,7 @@ impl Windows {
             return Ok(None);
         }
         let zone = Zone::of(coarse, fine, averages, &masks)?;
+        let shares = shares(&masks, &nets, side)?;
         Ok(Some(Windows {
             degree,
             averages,
@@ -144,6 +174,7 @@ impl Windows {
             side,
             masks,
             nets,
+            shares,
             zone,
         }))
     }
@@ -191,8 +222,9 @@ impl Windows {
         Ok(())
     }
 
-    /// [`Windows::apply`] with the net's side `S` a constant: each face's net is read once,
-    /// filtered along its rows for both child columns, then along its columns for each child.
+    /// [`Windows::apply`] with the net's side `S` a constant: each face's net is read row by
+    /// row, each row filtered for both child columns (unless an earlier face of the chunk
+    /// filtered it: [`Share`]), then the rows along the columns for each child.
     fn apply_with<T: Scalar, const N: usize, const S: usize>(
         &self,
         x: &[Value<T, N>],
@@ -205,28 +237,47 @@ impl Windows {
             .par_chunks_mut(4 * CHUNK)
             .enumerate()
             .for_each(|(chunk, children)| {
+                // The filtered rows of the chunk's last faces (`rows[p][j]`: row j of the net
+                // filtered for the child column p), by place in the chunk modulo their number.
+                let mut kept = [[[zero::<T, N>(); S]; 2]; SHARE_BACK + 1];
                 for (i, children) in children.chunks_exact_mut(4).enumerate() {
                     let f = chunk * CHUNK + i;
                     let mask = self.masks[f];
                     if mask == 0 {
                         continue;
                     }
-                    let ids = &self.nets[f * S * S..(f + 1) * S * S];
-                    let mut net = [[zero::<T, N>(); S]; S];
-                    for (row, ids) in net.iter_mut().zip(ids.chunks_exact(S)) {
-                        for (value, &id) in row.iter_mut().zip(ids) {
-                            *value = x[id as usize];
+                    let slot = i % (SHARE_BACK + 1);
+                    // The rows to filter here; the others are copied from the earlier face.
+                    let filtered = match self.shares[f].of() {
+                        None => 0..S,
+                        Some((back, below)) => {
+                            let earlier = kept[(i - back) % (SHARE_BACK + 1)];
+                            for (rows, earlier) in kept[slot].iter_mut().zip(&earlier) {
+                                if below {
+                                    rows[SHARE_SHIFT..]
+                                        .copy_from_slice(&earlier[..S - SHARE_SHIFT]);
+                                } else {
+                                    rows[..S - SHARE_SHIFT]
+                                        .copy_from_slice(&earlier[SHARE_SHIFT..]);
+                                }
+                            }
+                            match below {
+                                true => 0..SHARE_SHIFT,
+                                false => S - SHARE_SHIFT..S,
+                            }
                         }
-                    }
-                    // rows[p][j]: row j of the net filtered for the child column p.
-                    let mut rows = [[zero::<T, N>(); S]; 2];
-                    for (p, rows) in rows.iter_mut().enumerate() {
-                        for (row, net) in rows.iter_mut().zip(&net) {
+                    };
+                    let ids = &self.nets[f * S * S..(f + 1) * S * S];
+                    let rows = &mut kept[slot];
+                    for j in filtered {
+                        let ids = &ids[j * S..(j + 1) * S];
+                        let row: [Value<T, N>; S] = std::array::from_fn(|t| x[ids[t] as usize]);
+                        for (rows, weights) in rows.iter_mut().zip(&weights) {
                             let mut sum = zero();
-                            for (&value, &w) in net.iter().zip(&weights[p]) {
+                            for (&value, &w) in row.iter().zip(weights) {
                                 sum = mad(sum, w, value);
                             }
-                            *row = sum;
+                            rows[j] = sum;
                         }
                     }
                     // Child k of the face sits at column px, row py of its frame.
@@ -242,6 +293,45 @@ impl Windows {
                 }
             });
     }
+}
+
+/// Per coarse face with kernel children, the nearest earlier face of its chunk, at most
+/// [`SHARE_BACK`] back and with kernel children, whose net holds its rows but the last (or
+/// first) [`SHARE_SHIFT`] ones, [`SHARE_SHIFT`] rows further along (module documentation).
+/// A first id is compared before a whole block of rows, so a face costs a few dozen reads.
+fn shares(masks: &[u8], nets: &[u32], side: usize) -> Result<Vec<Share>> {
+    let n = side * side;
+    let shift = SHARE_SHIFT * side;
+    let mut shares: Vec<Share> = memory::filled(masks.len(), Share::default())?;
+    shares
+        .par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(chunk, shares)| {
+            for (i, share) in shares.iter_mut().enumerate() {
+                let h = chunk * CHUNK + i;
+                if masks[h] == 0 {
+                    continue;
+                }
+                let net = &nets[h * n..(h + 1) * n];
+                for back in 1..=i.min(SHARE_BACK) {
+                    let f = h - back;
+                    if masks[f] == 0 {
+                        continue;
+                    }
+                    let other = &nets[f * n..(f + 1) * n];
+                    // Above: this face's row j is the other's j + SHARE_SHIFT.
+                    if net[0] == other[shift] && net[..n - shift] == other[shift..] {
+                        *share = Share(back as u8);
+                        break;
+                    }
+                    if net[shift] == other[0] && net[shift..] == other[..n - shift] {
+                        *share = Share(back as u8 | Share::BELOW);
+                        break;
+                    }
+                }
+            }
+        });
+    Ok(shares)
 }
 
 /// The grid of an even number of averages m on primal or dual input: where a face's net lies
