@@ -203,6 +203,11 @@ impl Windows {
     /// vertex or per face, as the windows were built for); the other children are left as they
     /// are. `out` must have a child per coarse corner (an [`Error::Internal`] otherwise: the
     /// buffers come from the crate).
+    ///
+    /// Not inlined: inlined into the step, the kernel's code made LLVM lower the step's zero
+    /// fill of the fine vertices (`Vec::resize`) to a `memset` call, 5.7M instructions a cached
+    /// evaluation on the callgrind driver's sphere.
+    #[inline(never)]
     pub(super) fn apply<T: Scalar, const N: usize>(
         &self,
         x: &[Value<T, N>],
