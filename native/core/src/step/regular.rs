@@ -217,9 +217,10 @@ impl Windows {
     /// are. `out` must have a child per coarse corner (an [`Error::Internal`] otherwise: the
     /// buffers come from the crate).
     ///
-    /// Not inlined: inlined into the step, the kernel's code made LLVM lower the step's zero
-    /// fill of the fine vertices (`Vec::resize`) to a `memset` call, 5.7M instructions a cached
-    /// evaluation on the callgrind driver's sphere.
+    /// Not inlined: in a build where it was, LLVM lowered the step's zero fill of the fine
+    /// vertices (`Vec::resize`) to a `memset` call, which callgrind counts by the byte (5.7M
+    /// instructions a cached evaluation on its driver's sphere). Such lowering follows the
+    /// inlining of the whole crate: compare counts of builds, not of functions.
     #[inline(never)]
     pub(super) fn apply<T: Scalar, const N: usize>(
         &self,
