@@ -26,8 +26,18 @@
 //! 346.5M (first walk) -> 225.2M, 9 219.5M -> 430.2M -> 256.9M; adaptive 177.9M -> 200.2M ->
 //! 188.5M (flat cage, degree 4, level 5) and 565.2M -> 620.2M -> 563.2M (degree 4). For 2 or 3
 //! averages the per-face filter cost more than the passes it saves (degree 3 cached 36M -> 67M
-//! instructions in a first version), so those keep the passes. Left to do: rows shared between
-//! neighbouring faces (tiles), for the walk of degrees 8 and 9 (25 cells, 36 vertices a face).
+//! instructions in a first version), so those keep the passes.
+//!
+//! Rows shared (2026-12-03; instruction counts on the callgrind driver, same sphere, level 3,
+//! one thread): at a refined level a face's frame is fixed by the parity of its place in its
+//! cage quad's grid, so faces of one frame lie two rows apart, and a face whose net holds an
+//! earlier face's rows two rows along copies their filtered values instead of gathering and
+//! filtering them again ([`Share`]; the same sums, so no bit changes). Cached degree 4 43.0M ->
+//! 43.8M (a net of 3 rows shares one), 5 62.4M -> 57.3M, 6 82.4M -> 64.5M, 7 64.9M -> 59.9M, 8
+//! 86.8M -> 69.1M, 9 105.9M -> 80.9M; a new plan (finding the shares): degree 4 158.6M ->
+//! 166.9M, 9 252.6M -> 236.4M; adaptive-flat-4-6 441.9M -> 445.1M. Left to do: the columns
+//! are filtered per face (a same-frame face two columns along reads another window), and the
+//! gather and filters, scalar over a point's channels, are still most of cached degree 9.
 //!
 //! [`Windows`] holds, per step, what the kernel needs (per coarse face, the ids of its net in
 //! its frame and the children it writes) and the zone that the passes must still compute: the
@@ -65,6 +75,8 @@ pub(crate) struct Windows {
     /// its net, row after row in its frame (0 where the walk placed none: no child weighs it);
     /// read only for faces with kernel children.
     nets: Vec<u32>,
+    /// Per coarse face, the earlier face whose filtered rows it reuses ([`Share`]).
+    shares: Vec<u8>,
     /// What the passes still compute.
     zone: Zone,
 }
@@ -85,6 +97,36 @@ const MIN_AVERAGES: u32 = 4;
 const MAX_AVERAGES: u32 = 8;
 /// Largest net side (8 averages of primal input: vertices `-2..=3`, cells `-2..=2`).
 const MAX_SIDE: usize = 6;
+/// Faces back (in the order of the level, within a chunk) that a face looks for one whose rows
+/// it shares; the kernel keeps the filtered rows of the last `SHARE_BACK + 1` faces. A cage
+/// quad's descendants at a level are consecutive (16 of them two steps down, 64 three steps
+/// down), so the same-frame faces of its grid are at most 63 apart.
+const SHARE_BACK: usize = 63;
+/// Bits of the hash of a row's first id that finds a face's candidate ([`shares`]).
+const SHARE_KEY_BITS: u32 = 8;
+/// Rows between two faces that share rows: children sit at the corner of their parent that
+/// their frame's corner 0 is at, so at a refined level a face's frame is fixed by the parity of
+/// its place in its cage face's grid, and faces of one frame lie two rows (or columns) apart.
+const SHARE_SHIFT: usize = 2;
+
+/// A face's share of an earlier face's filtered rows: 0 for none, else how many faces back
+/// that face is (1 to [`SHARE_BACK`]), plus [`Share::BELOW`] when the face lies
+/// [`SHARE_SHIFT`] rows below it (its row `j` is the other's `j - SHARE_SHIFT`), without when it
+/// lies as far above (its row `j` is the other's `j + SHARE_SHIFT`). Rows of the same coarse
+/// ids filtered by the same weights are the same sums in the same order: sharing them changes
+/// no bit.
+#[derive(Clone, Copy, Debug)]
+struct Share(u8);
+
+impl Share {
+    const BELOW: u8 = 0x80;
+
+    /// The face `back` faces back and whether this face lies below it, if any.
+    fn of(self) -> Option<(usize, bool)> {
+        let back = (self.0 & !Share::BELOW) as usize;
+        (back != 0).then_some((back, self.0 & Share::BELOW != 0))
+    }
+}
 
 impl Windows {
     /// [`Windows::build`] for step `j` of a run from the cage: the cage's points are primal,
@@ -136,6 +178,7 @@ impl Windows {
             return Ok(None);
         }
         let zone = Zone::of(coarse, fine, averages, &masks)?;
+        let shares = shares(&masks, &nets, side)?;
         Ok(Some(Windows {
             degree,
             averages,
@@ -144,6 +187,7 @@ impl Windows {
             side,
             masks,
             nets,
+            shares,
             zone,
         }))
     }
@@ -172,6 +216,12 @@ impl Windows {
     /// vertex or per face, as the windows were built for); the other children are left as they
     /// are. `out` must have a child per coarse corner (an [`Error::Internal`] otherwise: the
     /// buffers come from the crate).
+    ///
+    /// Not inlined: in a build where it was, LLVM lowered the step's zero fill of the fine
+    /// vertices (`Vec::resize`) to a `memset` call, which callgrind counts by the byte (5.7M
+    /// instructions a cached evaluation on its driver's sphere). Such lowering follows the
+    /// inlining of the whole crate: compare counts of builds, not of functions.
+    #[inline(never)]
     pub(super) fn apply<T: Scalar, const N: usize>(
         &self,
         x: &[Value<T, N>],
@@ -191,8 +241,9 @@ impl Windows {
         Ok(())
     }
 
-    /// [`Windows::apply`] with the net's side `S` a constant: each face's net is read once,
-    /// filtered along its rows for both child columns, then along its columns for each child.
+    /// [`Windows::apply`] with the net's side `S` a constant: each face's net is read row by
+    /// row, each row filtered for both child columns (unless an earlier face of the chunk
+    /// filtered it: [`Share`]), then the rows along the columns for each child.
     fn apply_with<T: Scalar, const N: usize, const S: usize>(
         &self,
         x: &[Value<T, N>],
@@ -205,28 +256,48 @@ impl Windows {
             .par_chunks_mut(4 * CHUNK)
             .enumerate()
             .for_each(|(chunk, children)| {
+                // The filtered rows of the chunk's last faces (`rows[p][j]`: row j of the net
+                // filtered for the child column p), by place in the chunk modulo their number.
+                let mut kept = [[[zero::<T, N>(); S]; 2]; SHARE_BACK + 1];
                 for (i, children) in children.chunks_exact_mut(4).enumerate() {
                     let f = chunk * CHUNK + i;
                     let mask = self.masks[f];
                     if mask == 0 {
                         continue;
                     }
-                    let ids = &self.nets[f * S * S..(f + 1) * S * S];
-                    let mut net = [[zero::<T, N>(); S]; S];
-                    for (row, ids) in net.iter_mut().zip(ids.chunks_exact(S)) {
-                        for (value, &id) in row.iter_mut().zip(ids) {
-                            *value = x[id as usize];
+                    let slot = i % (SHARE_BACK + 1);
+                    // The rows to filter here; the others are copied from the earlier face.
+                    let filtered = match Share(self.shares[f]).of() {
+                        None => 0..S,
+                        Some((back, below)) => {
+                            let earlier = kept[(i - back) % (SHARE_BACK + 1)];
+                            for (rows, earlier) in kept[slot].iter_mut().zip(&earlier) {
+                                if below {
+                                    rows[SHARE_SHIFT..]
+                                        .copy_from_slice(&earlier[..S - SHARE_SHIFT]);
+                                } else {
+                                    rows[..S - SHARE_SHIFT]
+                                        .copy_from_slice(&earlier[SHARE_SHIFT..]);
+                                }
+                            }
+                            match below {
+                                true => 0..SHARE_SHIFT,
+                                false => S - SHARE_SHIFT..S,
+                            }
                         }
-                    }
+                    };
+                    let ids = &self.nets[f * S * S..(f + 1) * S * S];
                     // rows[p][j]: row j of the net filtered for the child column p.
-                    let mut rows = [[zero::<T, N>(); S]; 2];
-                    for (p, rows) in rows.iter_mut().enumerate() {
-                        for (row, net) in rows.iter_mut().zip(&net) {
+                    let rows = &mut kept[slot];
+                    for j in filtered {
+                        let ids = &ids[j * S..(j + 1) * S];
+                        let row: [Value<T, N>; S] = std::array::from_fn(|t| x[ids[t] as usize]);
+                        for (rows, weights) in rows.iter_mut().zip(&weights) {
                             let mut sum = zero();
-                            for (&value, &w) in net.iter().zip(&weights[p]) {
+                            for (&value, &w) in row.iter().zip(weights) {
                                 sum = mad(sum, w, value);
                             }
-                            *row = sum;
+                            rows[j] = sum;
                         }
                     }
                     // Child k of the face sits at column px, row py of its frame.
@@ -242,6 +313,57 @@ impl Windows {
                 }
             });
     }
+}
+
+/// Per coarse face with kernel children, an earlier face of its chunk, at most [`SHARE_BACK`]
+/// back and with kernel children, whose net holds its rows but the last (or first)
+/// [`SHARE_SHIFT`] ones, [`SHARE_SHIFT`] rows further along (module documentation). The
+/// candidates come from two small tables keyed by a row's first id (the latest face whose row
+/// `SHARE_SHIFT`, resp. row 0, starts with it): a few dozen instructions a face, where a scan
+/// of every face back would cost hundreds. A collision only loses a share.
+fn shares(masks: &[u8], nets: &[u32], side: usize) -> Result<Vec<u8>> {
+    let n = side * side;
+    let shift = SHARE_SHIFT * side;
+    let mut shares: Vec<u8> = memory::zeroed(masks.len())?;
+    shares
+        .par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(chunk, shares)| {
+            // Place in the chunk plus one of the latest face whose row SHARE_SHIFT (`above`),
+            // resp. row 0 (`below`), starts with an id of that hash; 0 for none.
+            let mut above = [0u32; 1 << SHARE_KEY_BITS];
+            let mut below = [0u32; 1 << SHARE_KEY_BITS];
+            let key = |id: u32| (id.wrapping_mul(0x9e37_79b1) >> (32 - SHARE_KEY_BITS)) as usize;
+            for (i, share) in shares.iter_mut().enumerate() {
+                let h = chunk * CHUNK + i;
+                if masks[h] == 0 {
+                    continue;
+                }
+                let net = &nets[h * n..(h + 1) * n];
+                let earlier = |latest: u32| {
+                    let back = (i + 1).wrapping_sub(latest as usize);
+                    (latest != 0 && back <= SHARE_BACK).then_some(back)
+                };
+                // Above the earlier face: this face's row j is its row j + SHARE_SHIFT.
+                if let Some(back) = earlier(above[key(net[0])]) {
+                    let other = &nets[(h - back) * n..(h - back + 1) * n];
+                    if net[0] == other[shift] && net[..n - shift] == other[shift..] {
+                        *share = back as u8;
+                    }
+                }
+                if *share == 0 {
+                    if let Some(back) = earlier(below[key(net[shift])]) {
+                        let other = &nets[(h - back) * n..(h - back + 1) * n];
+                        if net[shift] == other[0] && net[shift..] == other[..n - shift] {
+                            *share = back as u8 | Share::BELOW;
+                        }
+                    }
+                }
+                above[key(net[shift])] = i as u32 + 1;
+                below[key(net[0])] = i as u32 + 1;
+            }
+        });
+    Ok(shares)
 }
 
 /// The grid of an even number of averages m on primal or dual input: where a face's net lies
@@ -1189,6 +1311,48 @@ mod tests {
             kernel_faces > 1000,
             "{kernel_faces} faces with kernel children"
         );
+    }
+
+    /// Every share names an earlier kernel face of the chunk whose net holds the face's rows
+    /// two rows along, and shares are found on refined levels (for 4, 6 and 8 averages).
+    #[test]
+    fn shares_hold_the_rows_they_reuse() {
+        let (cage, _) = cube_grid(3);
+        let options = Options {
+            degree: 9,
+            levels: 3,
+            rules: Rules::Averaging,
+            ..Options::default()
+        };
+        let refinement = Refinement::new(&cage, &options).unwrap();
+        let mut shared = 0;
+        for j in 0..refinement.curve_networks().len() {
+            let step = refinement.step(j);
+            for degree in [4, 5, 7, 9] {
+                let Some(w) =
+                    Windows::build(step.coarse, step.fine, step.curves, degree, true).unwrap()
+                else {
+                    continue;
+                };
+                let (s, n) = (w.side, w.side * w.side);
+                for (h, &share) in w.shares.iter().enumerate() {
+                    let Some((back, below)) = super::Share(share).of() else {
+                        continue;
+                    };
+                    let f = h - back;
+                    assert!(w.masks[h] != 0 && w.masks[f] != 0);
+                    assert_eq!(f / super::CHUNK, h / super::CHUNK, "within a chunk");
+                    let (net, other) = (&w.nets[h * n..(h + 1) * n], &w.nets[f * n..(f + 1) * n]);
+                    let shift = super::SHARE_SHIFT * s;
+                    match below {
+                        true => assert_eq!(net[shift..], other[..n - shift]),
+                        false => assert_eq!(net[..n - shift], other[shift..]),
+                    }
+                    shared += 1;
+                }
+            }
+        }
+        assert!(shared > 100, "{shared} faces share rows");
     }
 
     /// The data after every step, by the kernel and the passes (`kernel`) or by the passes
