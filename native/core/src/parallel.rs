@@ -71,14 +71,22 @@ pub(crate) fn gather_hinted<V: Send>(
     Ok(v)
 }
 
-/// `(a[i], b[i]) = f(i)` for `i < n`, in parallel chunks, into two hinted allocations: one walk
-/// for two results without a vector of pairs to split afterwards.
-pub(crate) fn gather_pairs_hinted<A: Send, B: Send>(
+/// `(a[i], b[i]) = f(i)` for `i < n`, in parallel chunks, into two given vectors (cleared
+/// first; each must have room for `n` items, else `Error::Internal`): one walk for two results
+/// without a vector of pairs to split afterwards.
+pub(crate) fn gather_pairs_into<A: Send, B: Send>(
+    mut a: Vec<A>,
+    mut b: Vec<B>,
     n: usize,
     f: impl Fn(usize) -> (A, B) + Sync + Send,
 ) -> Result<(Vec<A>, Vec<B>)> {
-    let mut a = with_capacity_hinted(n)?;
-    let mut b = with_capacity_hinted(n)?;
+    a.clear();
+    b.clear();
+    if a.capacity() < n || b.capacity() < n {
+        return Err(crate::error::Error::Internal(
+            "a gather of pairs into vectors without room".into(),
+        ));
+    }
     (a.spare_capacity_mut()[..n].par_chunks_mut(CHUNK))
         .zip(b.spare_capacity_mut()[..n].par_chunks_mut(CHUNK))
         .enumerate()

@@ -279,10 +279,12 @@ impl Plan {
         Ok((Cow::Owned(per_corner), Topology::Indexed(indices)))
     }
 
-    /// Frees the working buffers that evaluations keep in the plan for the next ones (up to two
-    /// arrays of the last level's size); the next evaluation allocates them again.
+    /// Frees the working buffers that evaluations and limits keep in the plan for the next ones
+    /// (a few arrays of the last level's size); the next call allocates them again. The limit's
+    /// stencils stay.
     pub fn release_buffers(&self) {
         self.scratch.clear();
+        self.limit.release_buffers();
         self.face_varying.release_buffers();
     }
 

@@ -83,6 +83,7 @@
 //! (their points shape their neighbours), so the plan selects the drawing mesh's vertices and
 //! corners from these values ([`crate::output::OutputMesh::vertex_values`]).
 
+use std::borrow::Cow;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
@@ -98,7 +99,9 @@ use crate::error::{Error, Result};
 use crate::evaluate::{in_groups_of_four, run, run_parts};
 use crate::memory;
 use crate::options::{Options, OutputKind};
-use crate::parallel::{gather_hinted, gather_indexed, gather_pairs_hinted, CHUNK};
+use crate::parallel::{
+    gather_hinted, gather_indexed, gather_pairs_into, with_capacity_hinted, CHUNK,
+};
 use crate::refinement::Refinement;
 use crate::scalar::{add, mad, scale, zero, Scalar, Value};
 use crate::scheme::catmark::{
@@ -861,9 +864,19 @@ fn transient_curve_vertices(curves: &CurveNetwork, semi_corners: &[u32]) -> Resu
     Ok(transient)
 }
 
-/// The limit's part of a plan: the stencils, built on first use and kept.
+/// The limit's part of a plan: the stencils, built on first use and kept, and the limit's own
+/// working arrays of the last level's size (the tiles' values, the normals per vertex), kept
+/// for the next call as the evaluation keeps its buffers: made anew on every call, their page
+/// faults were a third of a cached limit's time at degree 9 (callgrind driver, two threads).
 #[derive(Debug, Default)]
-pub(crate) struct LimitCache(Mutex<Option<Arc<Stencils>>>);
+pub(crate) struct LimitCache(Mutex<Option<Arc<Stencils>>>, Scratch);
+
+impl LimitCache {
+    /// Frees the kept working arrays (the stencils stay).
+    pub(crate) fn release_buffers(&self) {
+        self.1.clear();
+    }
+}
 
 /// The stencils of `refinement`, built on first use (see the module documentation).
 fn stencils(refinement: &Refinement, cache: &LimitCache) -> Result<Arc<Stencils>> {
@@ -1396,7 +1409,8 @@ impl Limit<'_> {
             LimitMethod::Eigen => {
                 let st = stencils(r, self.cache)?;
                 let (data, curve) = self.limit_data(&st, &compact)?;
-                let (positions, vertex_normals) = stencil_values(&st, &data, normals)?;
+                let kept = &self.cache.1;
+                let (positions, vertex_normals) = stencil_values(&st, &data, normals, kept)?;
                 // The local extension's stages, each past the one before.
                 let mut chain = Vec::new();
                 let mut at = &*st;
@@ -1418,7 +1432,7 @@ impl Limit<'_> {
                     normals: vertex_normals,
                 }];
                 for ((local, _), data) in chain.into_iter().zip(ldata) {
-                    let (positions, normals) = stencil_values(local, &data, normals)?;
+                    let (positions, normals) = stencil_values(local, &data, normals, kept)?;
                     stages.push(StencilValues {
                         stencils: local,
                         data,
@@ -1434,13 +1448,16 @@ impl Limit<'_> {
                         own.positions[v as usize] = next.positions[i];
                     }
                 }
-                if !normals {
-                    let own = stages.swap_remove(0);
-                    return Ok((own.positions.into_flattened(), None));
-                }
-                let normals = self.stencil_normals(&stages)?;
+                let normals = match normals {
+                    true => Some(self.stencil_normals(&stages)?),
+                    false => None,
+                };
                 let own = stages.swap_remove(0);
-                Ok((own.positions.into_flattened(), Some(normals)))
+                // The level's data goes back to the evaluation's buffers, the normals per
+                // vertex to the limit's.
+                self.scratch.give(own.data);
+                kept.give(own.normals);
+                Ok((own.positions.into_flattened(), normals))
             }
         }
     }
@@ -1482,17 +1499,11 @@ impl Limit<'_> {
             return Ok(Vec::new());
         }
         let even = self.refinement.options().degree.is_multiple_of(2);
-        // The plan's whole last level goes through here: fallible.
-        let three =
-            |x: &[[T; N]], first: usize| -> Result<Vec<[T; 3]>> {
-                memory::collect(x.iter().map(|v| {
-                    std::array::from_fn(|k| v.get(first + k).copied().unwrap_or_default())
-                }))
-            };
         let mut out: Vec<Vec<[T; N]>> = vec![Vec::new(); stages.len()];
         for first in (0..N).step_by(3) {
-            let cage = three(compact, first)?;
-            let (mut data, mut curve) = (three(two_d, first)?, three(curve, first)?);
+            let cage = three_channels(compact, first)?;
+            let (mut data, mut curve) =
+                (three_channels(two_d, first)?, three_channels(curve, first)?);
             for (k, (levels, out)) in stages.iter().zip(&mut out).enumerate() {
                 let (mut fine, fine_curve) = levels.evaluate(&cage, &data, &curve)?;
                 // The last stage's data is needed no more: moved, not copied.
@@ -1504,7 +1515,7 @@ impl Limit<'_> {
                     layout.extend_from_slice(&fine_curve);
                     layout.extend_from_slice(&cage);
                 }
-                (data, curve) = (fine, fine_curve);
+                (data, curve) = (Cow::Owned(fine), Cow::Owned(fine_curve));
                 if out.is_empty() {
                     *out = memory::filled(layout.len(), [T::default(); N])?;
                 }
@@ -1562,6 +1573,21 @@ impl Limit<'_> {
     }
 }
 
+/// Channels `first..first + 3` of `x` (zero past `N`): `x` itself when it has three (the plan's
+/// whole last level goes through here: not copied then, fallibly otherwise).
+fn three_channels<T: Scalar, const N: usize>(
+    x: &[[T; N]],
+    first: usize,
+) -> Result<Cow<'_, [[T; 3]]>> {
+    if N == 3 {
+        return Ok(Cow::Borrowed(x.as_flattened().as_chunks::<3>().0));
+    }
+    let picked = x
+        .iter()
+        .map(|v| std::array::from_fn(|k| v.get(first + k).copied().unwrap_or_default()));
+    Ok(Cow::Owned(memory::collect(picked)?))
+}
+
 /// A set of stencils with the data they read, their limit positions and their unit normals at
 /// interior vertices (zero elsewhere; empty when normals were not asked for).
 struct StencilValues<'a, T, const N: usize> {
@@ -1577,20 +1603,38 @@ type PositionsNormals<T, const N: usize> = (Vec<[T; N]>, Vec<[T; 3]>);
 /// Limit positions of every stencil of `st` from `data` (zero for [`LimitMask::Local`]) and,
 /// with `normals`, the unit normals at its interior vertices in `T` (zero elsewhere): position
 /// and tangents in one walk over each stencil's data.
+/// The tiles' values and the normals come in arrays from `kept` (the tiles' go back there).
 fn stencil_values<T: Scalar, const N: usize>(
     st: &Stencils,
     data: &[[T; N]],
     normals: bool,
+    kept: &Scratch,
 ) -> Result<PositionsNormals<T, N>> {
     let tiled = match &st.tiles {
-        Some(tiles) => tiles.values(data, normals)?,
+        Some(tiles) => tiles.values(data, normals, kept)?,
         None => Vec::new(),
     };
+    let values = stencil_values_with(st, data, normals, &tiled, kept);
+    kept.give(tiled);
+    values
+}
+
+/// [`stencil_values`] with the tiles' values `tiled`.
+fn stencil_values_with<T: Scalar, const N: usize>(
+    st: &Stencils,
+    data: &[[T; N]],
+    normals: bool,
+    tiled: &[([T; N], [T; 3])],
+    kept: &Scratch,
+) -> Result<PositionsNormals<T, N>> {
     if !normals {
-        return Ok((stencil_positions(st, data, &tiled)?, Vec::new()));
+        return Ok((stencil_positions(st, data, tiled)?, Vec::new()));
     }
     let at = |x: &[f64; N]| rounded::<T>([x[0], x[1], x[2]]);
-    gather_pairs_hinted(st.masks_of.len(), |v| match st.masks_of[v] {
+    let n = st.masks_of.len();
+    kept.provision::<[T; 3]>(n, 1)?;
+    let (positions, normals) = (with_capacity_hinted(n)?, kept.take(n));
+    gather_pairs_into(positions, normals, n, |v| match st.masks_of[v] {
         LimitMask::Tiled(slot) => tiled[slot as usize],
         LimitMask::Interior(m) if !st.joint[m as usize].is_empty() => {
             let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
@@ -2230,6 +2274,30 @@ mod tests {
     /// vertices clean at the plan's level are other masks of the same limit: equal to rounding;
     /// the others, curve normals included, are the same sums).
     #[test]
+    fn kept_buffers_change_no_value() {
+        // Each call reuses the arrays the one before left (tiles, normals, the level's data):
+        // a call between two on the same points changes nothing.
+        let (sphere, points) = ico_quads(3);
+        let other: Vec<f64> = points.iter().map(|&x| 2.0 * x + 0.25).collect();
+        for degree in [2, 4, 9] {
+            let options = Options {
+                degree,
+                levels: 3,
+                ..Options::default()
+            };
+            let refinement = Refinement::new(&sphere, &options).unwrap();
+            let (scratch, cache) = (Scratch::default(), LimitCache::default());
+            let first = surface(&refinement, &scratch, &cache, &points).unwrap();
+            let between = surface(&refinement, &scratch, &cache, &other).unwrap();
+            let again = surface(&refinement, &scratch, &cache, &points).unwrap();
+            assert_eq!(first, again, "degree {degree}");
+            assert_ne!(first, between, "degree {degree}");
+            let positions = positions(&refinement, &scratch, &cache, &points, 3).unwrap();
+            assert_eq!(positions, first.0, "degree {degree}: positions alone");
+        }
+    }
+
+    #[test]
     fn wide_vectors_give_the_same_tiles() {
         if !tiles::wide_vectors() {
             eprintln!("no AVX2 here: the four-lane kernel is not compared");
@@ -2259,8 +2327,9 @@ mod tests {
             };
             compared += 1;
             fn same<T: Scalar>(tiles: &Tiles, data: &[[T; 3]], normals: bool) -> bool {
-                let narrow = tiles.values_on(data, normals, false).unwrap();
-                let wide = tiles.values_on(data, normals, true).unwrap();
+                let kept = Scratch::default();
+                let narrow = tiles.values_on(data, normals, false, &kept).unwrap();
+                let wide = tiles.values_on(data, normals, true, &kept).unwrap();
                 let bits = |x: &[([T; 3], [T; 3])]| {
                     (x.iter().flat_map(|(p, n)| p.iter().chain(n)))
                         .map(|v| v.to_f64().to_bits())

@@ -22,6 +22,8 @@
 //! whose stencils would be the valence-4 masks, less those that no tile holds so (near an
 //! irregular vertex, the walk from the tile's corner goes around it), which keep their stencils.
 
+use std::mem::MaybeUninit;
+
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -31,6 +33,7 @@ use crate::error::{Error, Result};
 use crate::memory;
 use crate::scalar::Scalar;
 use crate::scheme::{cardinal_bspline, cardinal_bspline_derivative};
+use crate::step::Scratch;
 use crate::topology::{quad_next, quad_prev, Level, NONE};
 
 /// The largest tile depth `t`: a tile holds `2^t x 2^t` faces of its level.
@@ -186,12 +189,14 @@ impl Tiles {
     /// Per slot, the limit position from `data` (the level's data: per vertex for odd degrees,
     /// per face for even ones) and, with `normals`, the unit normal (zero without): the
     /// tangents are rounded to `T` before their cross product, as the stencils' are.
+    /// The array comes from `scratch` (give it back there).
     pub(super) fn values<T: Scalar, const N: usize>(
         &self,
         data: &[[T; N]],
         normals: bool,
+        scratch: &Scratch,
     ) -> Result<Vec<([T; N], [T; 3])>> {
-        self.values_on(data, normals, wide_vectors())
+        self.values_on(data, normals, wide_vectors(), scratch)
     }
 
     /// [`Tiles::values`], in four-lane vectors when `wide` (the processor must have AVX2).
@@ -200,16 +205,17 @@ impl Tiles {
         data: &[[T; N]],
         normals: bool,
         wide: bool,
+        scratch: &Scratch,
     ) -> Result<Vec<([T; N], [T; 3])>> {
         match self.width {
-            2 => self.values_with::<T, N, 2>(data, normals, wide),
-            3 => self.values_with::<T, N, 3>(data, normals, wide),
-            4 => self.values_with::<T, N, 4>(data, normals, wide),
-            5 => self.values_with::<T, N, 5>(data, normals, wide),
-            6 => self.values_with::<T, N, 6>(data, normals, wide),
-            7 => self.values_with::<T, N, 7>(data, normals, wide),
-            8 => self.values_with::<T, N, 8>(data, normals, wide),
-            _ => self.values_with::<T, N, 9>(data, normals, wide),
+            2 => self.values_with::<T, N, 2>(data, normals, wide, scratch),
+            3 => self.values_with::<T, N, 3>(data, normals, wide, scratch),
+            4 => self.values_with::<T, N, 4>(data, normals, wide, scratch),
+            5 => self.values_with::<T, N, 5>(data, normals, wide, scratch),
+            6 => self.values_with::<T, N, 6>(data, normals, wide, scratch),
+            7 => self.values_with::<T, N, 7>(data, normals, wide, scratch),
+            8 => self.values_with::<T, N, 8>(data, normals, wide, scratch),
+            _ => self.values_with::<T, N, 9>(data, normals, wide, scratch),
         }
     }
 
@@ -219,6 +225,7 @@ impl Tiles {
         data: &[[T; N]],
         normals: bool,
         wide: bool,
+        scratch: &Scratch,
     ) -> Result<Vec<([T; N], [T; 3])>> {
         if self.width != K || self.data_side > MAX_DATA || self.side > MAX_SIDE {
             return Err(Error::Internal(
@@ -226,13 +233,14 @@ impl Tiles {
             ));
         }
         let slots = *self.offsets.last().unwrap_or(&0) as usize;
-        let mut out = memory::with_capacity(slots)?;
-        out.resize(slots, ([T::default(); N], [T::default(); 3]));
+        scratch.provision::<([T; N], [T; 3])>(slots, 1)?;
+        let mut out = scratch.take(slots);
         let tiles = self.owned.len();
         // A tile is a few thousand instructions: small tasks still amortise.
         const TASK: usize = 32;
         let mut pieces = Vec::with_capacity(tiles / TASK + 1);
-        let mut rest = &mut out[..];
+        // Written, not filled first: every slot is one tile's (checked per piece).
+        let mut rest = &mut out.spare_capacity_mut()[..slots];
         for start in (0..tiles).step_by(TASK) {
             let end = (start + TASK).min(tiles);
             let len = (self.offsets[end] - self.offsets[start]) as usize;
@@ -266,6 +274,9 @@ impl Tiles {
             let _ = wide;
             kernel.tiles(tiles, data, &mut rows, piece)
         })?;
+        // SAFETY: every piece covers its tiles' slots, and `Kernel::tiles` returned `Ok` only
+        // after writing each of them.
+        unsafe { out.set_len(slots) };
         Ok(out)
     }
 }
@@ -300,20 +311,27 @@ struct Kernel<'a, const K: usize> {
 }
 
 impl<const K: usize> Kernel<'_, K> {
-    /// Writes the values of the tiles `tiles` into `out` in slot order.
+    /// Writes the values of the tiles `tiles` into `out` in slot order: every item of `out`, or
+    /// an error.
     #[inline(always)]
     fn tiles<T: Scalar, const N: usize>(
         &self,
         tiles: std::ops::Range<usize>,
         data: &[[T; N]],
         rows: &mut Rows<N>,
-        out: &mut [([T; N], [T; 3])],
+        out: &mut [MaybeUninit<([T; N], [T; 3])>],
     ) -> Result<()> {
         let mut at = 0;
         for tile in tiles {
-            at += self.tile(tile, data, rows, &mut out[at..])?;
+            let rest = out.get_mut(at..).unwrap_or_default();
+            at += self.tile(tile, data, rows, rest)?;
         }
-        Ok(())
+        match at == out.len() {
+            true => Ok(()),
+            false => Err(Error::Internal(
+                "limit tiles: fewer vertices than slots".into(),
+            )),
+        }
     }
 
     /// [`Kernel::tiles`] compiled for AVX2.
@@ -327,7 +345,7 @@ impl<const K: usize> Kernel<'_, K> {
         tiles: std::ops::Range<usize>,
         data: &[[T; N]],
         rows: &mut Rows<N>,
-        out: &mut [([T; N], [T; 3])],
+        out: &mut [MaybeUninit<([T; N], [T; 3])>],
     ) -> Result<()> {
         self.tiles(tiles, data, rows, out)
     }
@@ -341,7 +359,7 @@ impl<const K: usize> Kernel<'_, K> {
         tile: usize,
         data: &[[T; N]],
         rows: &mut Rows<N>,
-        out: &mut [([T; N], [T; 3])],
+        out: &mut [MaybeUninit<([T; N], [T; 3])>],
     ) -> Result<usize> {
         let (d, side) = (self.tiles.data_side, self.tiles.side);
         let ids = &self.tiles.ids[tile * d * d..(tile + 1) * d * d];
@@ -431,10 +449,10 @@ impl<const K: usize> Kernel<'_, K> {
                 let slot = out.get_mut(n).ok_or_else(|| {
                     Error::Internal("limit tiles: more vertices than slots".into())
                 })?;
-                *slot = (
+                slot.write((
                     std::array::from_fn(|c| T::from_f64(position[c][i])),
                     normal.to_array().map(T::from_f64),
-                );
+                ));
                 n += 1;
             }
         }
