@@ -867,7 +867,8 @@ fn transient_curve_vertices(curves: &CurveNetwork, semi_corners: &[u32]) -> Resu
 /// The limit's part of a plan: the stencils, built on first use and kept, and the limit's own
 /// working arrays of the last level's size (the tiles' values, the normals per vertex), kept
 /// for the next call as the evaluation keeps its buffers: made anew on every call, their page
-/// faults were a third of a cached limit's time at degree 9 (callgrind driver, two threads).
+/// faults were about half of a cached limit's time at degree 9 in the callgrind driver (two
+/// threads: 38.4 ms a call, 20.6 ms with the arrays kept).
 #[derive(Debug, Default)]
 pub(crate) struct LimitCache(Mutex<Option<Arc<Stencils>>>, Scratch);
 
