@@ -2274,6 +2274,16 @@ mod tests {
     /// The local extension gives the limits of the whole plan extended (the stencils of the
     /// vertices clean at the plan's level are other masks of the same limit: equal to rounding;
     /// the others, curve normals included, are the same sums).
+    /// The refinement of `cage` at level 3 with the averaging rules of `degree`.
+    fn at_level_3(cage: &Cage, degree: u32) -> Refinement {
+        let options = Options {
+            degree,
+            levels: 3,
+            ..Options::default()
+        };
+        Refinement::new(cage, &options).unwrap()
+    }
+
     #[test]
     fn kept_buffers_change_no_value() {
         // Each call reuses the arrays the one before left (tiles, normals, the level's data):
@@ -2281,12 +2291,7 @@ mod tests {
         let (sphere, points) = ico_quads(3);
         let other: Vec<f64> = points.iter().map(|&x| 2.0 * x + 0.25).collect();
         for degree in [2, 4, 9] {
-            let options = Options {
-                degree,
-                levels: 3,
-                ..Options::default()
-            };
-            let refinement = Refinement::new(&sphere, &options).unwrap();
+            let refinement = at_level_3(&sphere, degree);
             let (scratch, cache) = (Scratch::default(), LimitCache::default());
             let first = surface(&refinement, &scratch, &cache, &points).unwrap();
             let between = surface(&refinement, &scratch, &cache, &other).unwrap();
@@ -2308,12 +2313,7 @@ mod tests {
         let single: Vec<f32> = points.iter().map(|&x| x as f32).collect();
         let mut compared = 0;
         for degree in 2..=9 {
-            let options = Options {
-                degree,
-                levels: 3,
-                ..Options::default()
-            };
-            let refinement = Refinement::new(&sphere, &options).unwrap();
+            let refinement = at_level_3(&sphere, degree);
             let (scratch, cache) = (Scratch::default(), LimitCache::default());
             let limit = Limit {
                 refinement: &refinement,
