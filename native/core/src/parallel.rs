@@ -83,7 +83,7 @@ pub(crate) fn gather_pairs_into<A: Send, B: Send>(
     a.clear();
     b.clear();
     if a.capacity() < n || b.capacity() < n {
-        return Err(crate::error::Error::Internal(
+        return Err(Error::Internal(
             "a gather of pairs into vectors without room".into(),
         ));
     }

@@ -1200,21 +1200,36 @@ fn staged_local_stencils(
     semi_corners: &[u32],
 ) -> Result<Option<(Box<Stencils>, LocalLevels)>> {
     let (m1, (st1, levels1)) = first;
-    let degree = refinement.options().degree;
     let rest: Vec<u32> = (st1.local_vertices.iter())
         .map(|&i| vertices[i as usize])
         .collect();
+    let Some(levels2) = extend_local(refinement, levels1, &rest, m - m1)? else {
+        return Ok(None);
+    };
+    local_stencils(refinement, &rest, m, levels2, semi_corners, Unclean::Refuse)
+}
+
+/// `extra` partial levels past `before`'s last around `rest` (vertices of `M_L`, targets of
+/// the next stage); `None` when one of them is not on `before`'s last level.
+fn extend_local(
+    refinement: &Refinement,
+    before: &LocalLevels,
+    rest: &[u32],
+    extra: u32,
+) -> Result<Option<LocalLevels>> {
+    let degree = refinement.options().degree;
     let mut at = Vec::with_capacity(rest.len());
-    for &v in &rest {
-        match levels1.vert_uid().binary_search(&(v as u64)) {
+    for &v in rest {
+        match before.vert_uid().binary_search(&(v as u64)) {
             Ok(w) => at.push(w as u32),
             Err(_) => return Ok(None),
         }
     }
-    let seeds = local_seeds(levels1.level(), degree, &at, m - m1)?;
+    let seeds = local_seeds(before.level(), degree, &at, extra)?;
     let rings = local_rings(degree);
-    let levels2 = levels1.extend(refinement, &seeds, m - m1, &rest, rings)?;
-    local_stencils(refinement, &rest, m, levels2, semi_corners, Unclean::Refuse)
+    before
+        .extend(refinement, &seeds, extra, rest, rings)
+        .map(Some)
 }
 
 /// The local extension `m` levels past `M_L` one level at a time: the vertices of `vertices`
@@ -1243,17 +1258,10 @@ fn stepwise_local_stencils(
                 let seeds = local_seeds(last, degree, &rest, 1)?;
                 LocalLevels::new(refinement, &seeds, 1, &rest, rings)?
             }
-            Some((_, before)) => {
-                let mut at = Vec::with_capacity(rest.len());
-                for &v in &rest {
-                    match before.vert_uid().binary_search(&(v as u64)) {
-                        Ok(w) => at.push(w as u32),
-                        Err(_) => return Ok(None),
-                    }
-                }
-                let seeds = local_seeds(before.level(), degree, &at, 1)?;
-                before.extend(refinement, &seeds, 1, &rest, rings)?
-            }
+            Some((_, before)) => match extend_local(refinement, before, &rest, 1)? {
+                Some(levels) => levels,
+                None => return Ok(None),
+            },
         };
         let unclean = match k == m {
             true => Unclean::Refuse,
@@ -1454,12 +1462,21 @@ impl Limit<'_> {
                     false => None,
                 };
                 let own = stages.swap_remove(0);
-                // The level's data goes back to the evaluation's buffers, the normals per
-                // vertex to the limit's.
-                self.scratch.give(own.data);
+                // The level's data goes back to the buffers of the run that made it, the
+                // normals per vertex to the limit's.
+                self.run_of(&st).1.give(own.data);
                 kept.give(own.normals);
                 Ok((own.positions.into_flattened(), normals))
             }
+        }
+    }
+
+    /// The refinement that `st` reads the last level of, and the buffers of its runs: the
+    /// whole plan extended, or the plan's own.
+    fn run_of<'s>(&'s self, st: &'s Stencils) -> (&'s Refinement, &'s Scratch) {
+        match &st.extended {
+            Some((r, s)) => (r, s),
+            None => (self.refinement, self.scratch),
         }
     }
 
@@ -1472,10 +1489,7 @@ impl Limit<'_> {
         st: &Stencils,
         compact: &[[T; N]],
     ) -> Result<Parts<T, N>> {
-        let (refinement, scratch) = match &st.extended {
-            Some((r, s)) => (r, s),
-            None => (self.refinement, self.scratch),
-        };
+        let (refinement, scratch) = self.run_of(st);
         let (mut data, curve) = run_parts(refinement, scratch, compact)?;
         if self.refinement.options().degree.is_multiple_of(2) {
             memory::reserve(&mut data, curve.len() + compact.len())?;
