@@ -24,10 +24,9 @@
 
 use std::mem::MaybeUninit;
 
-use glam::DVec3;
 use rayon::prelude::*;
 
-use super::{knot_mask, rounded};
+use super::knot_mask;
 use crate::analysis::neighbourhood_size;
 use crate::error::{Error, Result};
 use crate::memory;
@@ -435,29 +434,65 @@ impl<const K: usize> Kernel<'_, K> {
                     }
                 }
             }
-            let at = |t: &[[f64; MAX_SIDE]; N], i: usize| {
-                rounded::<T>(std::array::from_fn(|c| t.get(c).map_or(0.0, |t| t[i])))
+            let normal = match self.normals {
+                true => unit_normals::<T, N>(&along_i, &along_j),
+                false => [[0.0; MAX_SIDE]; 3],
             };
             let mut bits = mine;
             while bits != 0 {
                 let i = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
-                let normal = match self.normals {
-                    true => at(&along_i, i).cross(at(&along_j, i)).normalize_or_zero(),
-                    false => DVec3::ZERO,
-                };
                 let slot = out.get_mut(n).ok_or_else(|| {
                     Error::Internal("limit tiles: more vertices than slots".into())
                 })?;
                 slot.write((
                     std::array::from_fn(|c| T::from_f64(position[c][i])),
-                    normal.to_array().map(T::from_f64),
+                    std::array::from_fn(|c| T::from_f64(normal[c][i])),
                 ));
                 n += 1;
             }
         }
         Ok(n)
     }
+}
+
+/// The unit normals of a row of output columns from its two tangents' sums (channels 0..3,
+/// zero past `N`), each tangent rounded to `T` first (as [`super::rounded`] does for the stencils):
+/// glam's `cross(..).normalize_or_zero()` written over the whole row, the same operations in
+/// the same order, so that they run lane by lane in vectors with bitwise the same values (a
+/// vertex at a time, the cross product and normalisation were a tenth of a cached limit's
+/// instructions at degree 3).
+#[inline(always)]
+fn unit_normals<T: Scalar, const N: usize>(
+    along_i: &[[f64; MAX_SIDE]; N],
+    along_j: &[[f64; MAX_SIDE]; N],
+) -> [[f64; MAX_SIDE]; 3] {
+    let zero = [0.0; MAX_SIDE];
+    let channel = |t: &[[f64; MAX_SIDE]; N], c: usize| {
+        t.get(c).unwrap_or(&zero).map(|x| T::from_f64(x).to_f64())
+    };
+    let (ax, ay, az) = (
+        channel(along_i, 0),
+        channel(along_i, 1),
+        channel(along_i, 2),
+    );
+    let (bx, by, bz) = (
+        channel(along_j, 0),
+        channel(along_j, 1),
+        channel(along_j, 2),
+    );
+    let mut out = [[0.0; MAX_SIDE]; 3];
+    for i in 0..MAX_SIDE {
+        let x = ay[i] * bz[i] - by[i] * az[i];
+        let y = az[i] * bx[i] - bz[i] * ax[i];
+        let z = ax[i] * by[i] - bx[i] * ay[i];
+        let rcp = 1.0 / (x * x + y * y + z * z).sqrt();
+        let unit = rcp.is_finite() && rcp > 0.0;
+        out[0][i] = if unit { x * rcp } else { 0.0 };
+        out[1][i] = if unit { y * rcp } else { 0.0 };
+        out[2][i] = if unit { z * rcp } else { 0.0 };
+    }
+    out
 }
 
 /// What the walk of a tile reads (see [`Tiles::build`]).
