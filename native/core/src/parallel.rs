@@ -71,41 +71,6 @@ pub(crate) fn gather_hinted<V: Send>(
     Ok(v)
 }
 
-/// `(a[i], b[i]) = f(i)` for `i < n`, in parallel chunks, into two given vectors (cleared
-/// first; each must have room for `n` items, else `Error::Internal`): one walk for two results
-/// without a vector of pairs to split afterwards.
-pub(crate) fn gather_pairs_into<A: Send, B: Send>(
-    mut a: Vec<A>,
-    mut b: Vec<B>,
-    n: usize,
-    f: impl Fn(usize) -> (A, B) + Sync + Send,
-) -> Result<(Vec<A>, Vec<B>)> {
-    a.clear();
-    b.clear();
-    if a.capacity() < n || b.capacity() < n {
-        return Err(Error::Internal(
-            "a gather of pairs into vectors without room".into(),
-        ));
-    }
-    (a.spare_capacity_mut()[..n].par_chunks_mut(CHUNK))
-        .zip(b.spare_capacity_mut()[..n].par_chunks_mut(CHUNK))
-        .enumerate()
-        .for_each(|(chunk, (a, b))| {
-            let start = chunk * CHUNK;
-            for (i, (a, b)) in a.iter_mut().zip(b).enumerate() {
-                let (x, y) = f(start + i);
-                a.write(x);
-                b.write(y);
-            }
-        });
-    // SAFETY: the chunks cover the first `n` items of both (a panic would have unwound past here).
-    unsafe {
-        a.set_len(n);
-        b.set_len(n);
-    }
-    Ok((a, b))
-}
-
 /// `out[i] = source[index[i]]` for every `i`, in parallel chunks, into a hinted allocation:
 /// the gathers of rows by a table (values at corners from values at vertices). The index is
 /// walked in step with the output (one bounds check per item, on `source`), about a third of
@@ -346,6 +311,45 @@ pub(crate) fn scatter_uninit<V: Send, const G: usize>(
         }
     });
     Ok(())
+}
+
+/// A slice that parallel tasks write at distinct indices, each index by one task: the writes
+/// of a pass whose items are not in chunks of the output (the limit tiles' vertices). Only
+/// writes; nothing is read back through it.
+pub(crate) struct Disjoint<'a, V> {
+    out: *mut MaybeUninit<V>,
+    len: usize,
+    _out: std::marker::PhantomData<&'a mut [MaybeUninit<V>]>,
+}
+
+// SAFETY: it only moves values of `V` (which is `Send`) into distinct items, as `&mut` chunks
+// handed to tasks would.
+unsafe impl<V: Send> Sync for Disjoint<'_, V> {}
+
+impl<'a, V> Disjoint<'a, V> {
+    /// Writes into `out`, borrowed for as long as the writer lives.
+    pub(crate) fn new(out: &'a mut [MaybeUninit<V>]) -> Self {
+        Disjoint {
+            out: out.as_mut_ptr(),
+            len: out.len(),
+            _out: std::marker::PhantomData,
+        }
+    }
+
+    /// `out[i] = v`; an index out of range is an [`Error::Internal`] (a bug of the caller's
+    /// lists), nothing written.
+    ///
+    /// # Safety
+    /// No other call, on any thread, writes index `i` while the writer lives.
+    #[inline(always)]
+    pub(crate) unsafe fn write(&self, i: usize, v: V) -> Result<()> {
+        if i >= self.len {
+            return Err(Error::Internal("a disjoint write out of range".into()));
+        }
+        // SAFETY: in range, and this call alone writes item `i` (the caller's contract).
+        unsafe { self.out.add(i).write(MaybeUninit::new(v)) };
+        Ok(())
+    }
 }
 
 /// [`scatter_uninit`] into initialised items (which stay initialised: only values are written).

@@ -99,9 +99,7 @@ use crate::error::{Error, Result};
 use crate::evaluate::{in_groups_of_four, run, run_parts};
 use crate::memory;
 use crate::options::{Options, OutputKind};
-use crate::parallel::{
-    gather_hinted, gather_indexed, gather_pairs_into, with_capacity_hinted, CHUNK,
-};
+use crate::parallel::{gather_hinted, gather_indexed, with_capacity_hinted, CHUNK};
 use crate::refinement::Refinement;
 use crate::scalar::{add, mad, scale, zero, Scalar, Value};
 use crate::scheme::catmark::{
@@ -146,7 +144,7 @@ enum LimitMask {
     Corner,
     /// Not clean at this level: the stencil of the local extension.
     Local,
-    /// An interior vertex of valence 4 that a limit tile computes: its slot there.
+    /// An interior vertex of valence 4 that a limit tile computes (in place): its slot there.
     Tiled(u32),
 }
 
@@ -376,7 +374,10 @@ fn build_stencils(
         for t in range {
             let v = (targets.vertex)(t);
             let at = chunk.items.len();
-            if let Some(slot) = tiles.as_ref().and_then(|tiles| tiles.slot(v)) {
+            // The tiles write their values at their level vertex: a tiled stencil is its own
+            // vertex (as every stencil of a plan's last level is).
+            let slot = tiles.as_ref().and_then(|tiles| tiles.slot(v));
+            if let Some(slot) = slot.filter(|_| v == t) {
                 chunk.masks.push(Some(LimitMask::Tiled(slot)));
                 chunk.ends.push(at as u32);
                 continue;
@@ -865,10 +866,11 @@ fn transient_curve_vertices(curves: &CurveNetwork, semi_corners: &[u32]) -> Resu
 }
 
 /// The limit's part of a plan: the stencils, built on first use and kept, and the limit's own
-/// working arrays of the last level's size (the tiles' values, the normals per vertex), kept
-/// for the next call as the evaluation keeps its buffers: made anew on every call, their page
-/// faults were about half of a cached limit's time at degree 9 in the callgrind driver (two
-/// threads: 38.4 ms a call, 20.6 ms with the arrays kept).
+/// working arrays of the last level's size (the normals per vertex; the tiles' values had one
+/// too before they were written in place), kept for the next call as the evaluation keeps its
+/// buffers: made anew on every call, their page faults were about half of a cached limit's
+/// time at degree 9 in the callgrind driver (two threads: 38.4 ms a call, 20.6 ms with the
+/// arrays kept).
 #[derive(Debug, Default)]
 pub(crate) struct LimitCache(Mutex<Option<Arc<Stencils>>>, Scratch);
 
@@ -1616,42 +1618,42 @@ struct StencilValues<'a, T, const N: usize> {
 type PositionsNormals<T, const N: usize> = (Vec<[T; N]>, Vec<[T; 3]>);
 
 /// Limit positions of every stencil of `st` from `data` (zero for [`LimitMask::Local`]) and,
-/// with `normals`, the unit normals at its interior vertices in `T` (zero elsewhere): position
-/// and tangents in one walk over each stencil's data.
-/// The tiles' values and the normals come in arrays from `kept` (the tiles' go back there).
+/// with `normals`, the unit normals at its interior vertices in `T` (zero elsewhere; empty
+/// without): the tiles write theirs in place, then every other stencil makes its position and
+/// tangents in one walk over its data. The normals' array comes from `kept`.
 fn stencil_values<T: Scalar, const N: usize>(
     st: &Stencils,
     data: &[[T; N]],
     normals: bool,
     kept: &Scratch,
 ) -> Result<PositionsNormals<T, N>> {
-    let tiled = match &st.tiles {
-        Some(tiles) => tiles.values(data, normals, kept)?,
-        None => Vec::new(),
+    let n = st.masks_of.len();
+    let mut positions: Vec<[T; N]> = with_capacity_hinted(n)?;
+    let mut unit = match normals {
+        true => {
+            kept.provision::<[T; 3]>(n, 1)?;
+            kept.take(n)
+        }
+        false => Vec::new(),
     };
-    let values = stencil_values_with(st, data, normals, &tiled, kept);
-    kept.give(tiled);
-    values
-}
-
-/// [`stencil_values`] with the tiles' values `tiled`.
-fn stencil_values_with<T: Scalar, const N: usize>(
-    st: &Stencils,
-    data: &[[T; N]],
-    normals: bool,
-    tiled: &[([T; N], [T; 3])],
-    kept: &Scratch,
-) -> Result<PositionsNormals<T, N>> {
-    if !normals {
-        return Ok((stencil_positions(st, data, tiled)?, Vec::new()));
+    if positions.capacity() < n || (normals && unit.capacity() < n) {
+        return Err(Error::Internal("limit: arrays without room".into()));
+    }
+    let (p, q) = (
+        &mut positions.spare_capacity_mut()[..n],
+        unit.spare_capacity_mut(),
+    );
+    let mut q = match normals {
+        true => Some(&mut q[..n]),
+        false => None,
+    };
+    if let Some(tiles) = &st.tiles {
+        tiles.write(data, p, q.as_deref_mut())?;
     }
     let at = |x: &[f64; N]| rounded::<T>([x[0], x[1], x[2]]);
-    let n = st.masks_of.len();
-    kept.provision::<[T; 3]>(n, 1)?;
-    let (positions, normals) = (with_capacity_hinted(n)?, kept.take(n));
-    gather_pairs_into(positions, normals, n, |v| match st.masks_of[v] {
-        LimitMask::Tiled(slot) => tiled[slot as usize],
-        LimitMask::Interior(m) if !st.joint[m as usize].is_empty() => {
+    let none = [T::default(); 3];
+    let value = |v: usize| match st.masks_of[v] {
+        LimitMask::Interior(m) if normals && !st.joint[m as usize].is_empty() => {
             let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
             let [p, a, b] = match &st.folded[m as usize] {
                 Some(fold) => fold.joint(data, items),
@@ -1660,21 +1662,43 @@ fn stencil_values_with<T: Scalar, const N: usize>(
             let normal = at(&a).cross(at(&b)).normalize_or_zero();
             (p.map(T::from_f64), normal.to_array().map(T::from_f64))
         }
-        _ => (stencil_position(st, data, v), [T::default(); 3]),
-    })
-}
-
-/// Limit positions of every stencil of `st` from `data` (zero for [`LimitMask::Local`]) and
-/// the values of its tiles (`tiled`, per slot).
-fn stencil_positions<T: Scalar, const N: usize>(
-    st: &Stencils,
-    data: &[[T; N]],
-    tiled: &[([T; N], [T; 3])],
-) -> Result<Vec<[T; N]>> {
-    gather_hinted(st.masks_of.len(), |v| match st.masks_of[v] {
-        LimitMask::Tiled(slot) => tiled[slot as usize].0,
-        _ => stencil_position(st, data, v),
-    })
+        _ => (stencil_position(st, data, v), none),
+    };
+    // The other stencils, in chunks of the output; the tiles' vertices are written already.
+    let tiled = |v: usize| matches!(st.masks_of[v], LimitMask::Tiled(_));
+    match q {
+        Some(q) => (p.par_chunks_mut(CHUNK))
+            .zip(q.par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(chunk, (p, q))| {
+                for (i, (p, q)) in p.iter_mut().zip(q).enumerate() {
+                    let v = chunk * CHUNK + i;
+                    if !tiled(v) {
+                        let (x, y) = value(v);
+                        p.write(x);
+                        q.write(y);
+                    }
+                }
+            }),
+        None => p.par_chunks_mut(CHUNK).enumerate().for_each(|(chunk, p)| {
+            for (i, p) in p.iter_mut().enumerate() {
+                let v = chunk * CHUNK + i;
+                if !tiled(v) {
+                    p.write(stencil_position(st, data, v));
+                }
+            }
+        }),
+    }
+    // SAFETY: every vertex is a tile's (written by `Tiles::write`, which returned `Ok` only
+    // after writing each of its vertices) or was written above (a panic would have unwound
+    // past here); the normals likewise when asked for.
+    unsafe {
+        positions.set_len(n);
+        if normals {
+            unit.set_len(n);
+        }
+    }
+    Ok((positions, unit))
 }
 
 /// The limit position of stencil `v` of `st` from `data` (zero for [`LimitMask::Local`]).
@@ -1991,6 +2015,7 @@ fn combine_joint<T: Scalar, const N: usize>(
 mod tests {
     use super::*;
     use crate::mesh::Cage;
+    use std::mem::MaybeUninit;
 
     /// An n x n grid of unit quads in the plane z = bump(x, y) (boundary, valence-2 corners).
     fn grid(n: usize) -> (Cage, Vec<f64>) {
@@ -2341,24 +2366,29 @@ mod tests {
                 continue;
             };
             compared += 1;
-            fn same<T: Scalar>(tiles: &Tiles, data: &[[T; 3]], normals: bool) -> bool {
-                let kept = Scratch::default();
-                let narrow = tiles.values_on(data, normals, false, &kept).unwrap();
-                let wide = tiles.values_on(data, normals, true, &kept).unwrap();
-                let bits = |x: &[([T; 3], [T; 3])]| {
-                    (x.iter().flat_map(|(p, n)| p.iter().chain(n)))
+            let n = refinement.last_level().num_vertices;
+            fn same<T: Scalar>(tiles: &Tiles, data: &[[T; 3]], normals: bool, n: usize) -> bool {
+                let run = |wide: bool| {
+                    // Initialised arrays: the items no tile writes stay zero in both runs.
+                    let zero = MaybeUninit::new([T::default(); 3]);
+                    let (mut p, mut q) = (vec![zero; n], vec![zero; n]);
+                    let q_out = normals.then_some(&mut q[..]);
+                    tiles.write_on(data, &mut p, q_out, wide).unwrap();
+                    (p.iter().chain(&q))
+                        // SAFETY: every item was initialised above.
+                        .flat_map(|x| unsafe { x.assume_init() })
                         .map(|v| v.to_f64().to_bits())
                         .collect::<Vec<_>>()
                 };
-                bits(&narrow) == bits(&wide)
+                run(false) == run(true)
             }
             let compact = refinement.compact(points.as_chunks::<3>().0);
             let (data, _) = limit.limit_data(&st, &compact).unwrap();
             let compact32 = refinement.compact(single.as_chunks::<3>().0);
             let (data32, _) = limit.limit_data(&st, &compact32).unwrap();
             for normals in [false, true] {
-                assert!(same(tiles, &data, normals), "degree {degree} f64");
-                assert!(same(tiles, &data32, normals), "degree {degree} f32");
+                assert!(same(tiles, &data, normals, n), "degree {degree} f64");
+                assert!(same(tiles, &data32, normals, n), "degree {degree} f32");
             }
         }
         assert!(compared >= 6, "tiles at {compared} degrees of 8");

@@ -30,9 +30,9 @@ use super::knot_mask;
 use crate::analysis::neighbourhood_size;
 use crate::error::{Error, Result};
 use crate::memory;
+use crate::parallel::Disjoint;
 use crate::scalar::Scalar;
 use crate::scheme::{cardinal_bspline, cardinal_bspline_derivative};
-use crate::step::Scratch;
 use crate::topology::{quad_next, quad_prev, Level, NONE};
 
 /// The largest tile depth `t`: a tile holds `2^t x 2^t` faces of its level.
@@ -73,6 +73,8 @@ pub(super) struct Tiles {
     offsets: Vec<u32>,
     /// Per level vertex, its slot, or `NONE` when no tile computes it.
     slot_of: Vec<u32>,
+    /// Per slot, its level vertex (each vertex in one slot at most).
+    vertices: Vec<u32>,
 }
 
 /// What the walk of one tile found.
@@ -131,6 +133,7 @@ impl Tiles {
         let mut ids: Vec<u32> = Vec::new();
         let mut owned: Vec<u128> = Vec::new();
         let mut offsets: Vec<u32> = vec![0];
+        let mut vertices: Vec<u32> = Vec::new();
         let mut slots = 0u32;
         for start in (0..count).step_by(BLOCK) {
             let end = (start + BLOCK).min(count);
@@ -149,6 +152,8 @@ impl Tiles {
                     let v = w.outputs[b] as usize;
                     if slot_of[v] == NONE {
                         slot_of[v] = slots;
+                        memory::reserve(&mut vertices, 1)?;
+                        vertices.push(v as u32);
                         slots += 1;
                         mine |= 1 << b;
                     }
@@ -176,6 +181,7 @@ impl Tiles {
             owned,
             offsets,
             slot_of,
+            vertices,
         }))
     }
 
@@ -185,99 +191,93 @@ impl Tiles {
         (s != NONE).then_some(s)
     }
 
-    /// Per slot, the limit position from `data` (the level's data: per vertex for odd degrees,
-    /// per face for even ones) and, with `normals`, the unit normal (zero without): the
-    /// tangents are rounded to `T` before their cross product, as the stencils' are.
-    /// The array comes from `scratch` (give it back there).
-    pub(super) fn values<T: Scalar, const N: usize>(
+    /// Writes at each vertex a tile computes its limit position from `data` (the level's
+    /// data: per vertex for odd degrees, per face for even ones) into `positions` and, when
+    /// given, its unit normal into `normals` (both per level vertex): the tangents are rounded
+    /// to `T` before their cross product, as the stencils' are. No other item is written.
+    pub(super) fn write<T: Scalar, const N: usize>(
         &self,
         data: &[[T; N]],
-        normals: bool,
-        scratch: &Scratch,
-    ) -> Result<Vec<([T; N], [T; 3])>> {
-        self.values_on(data, normals, wide_vectors(), scratch)
+        positions: &mut [MaybeUninit<[T; N]>],
+        normals: Option<&mut [MaybeUninit<[T; 3]>]>,
+    ) -> Result<()> {
+        self.write_on(data, positions, normals, wide_vectors())
     }
 
-    /// [`Tiles::values`], in four-lane vectors when `wide` (the processor must have AVX2).
-    pub(super) fn values_on<T: Scalar, const N: usize>(
+    /// [`Tiles::write`], in four-lane vectors when `wide` (the processor must have AVX2).
+    pub(super) fn write_on<T: Scalar, const N: usize>(
         &self,
         data: &[[T; N]],
-        normals: bool,
+        positions: &mut [MaybeUninit<[T; N]>],
+        normals: Option<&mut [MaybeUninit<[T; 3]>]>,
         wide: bool,
-        scratch: &Scratch,
-    ) -> Result<Vec<([T; N], [T; 3])>> {
+    ) -> Result<()> {
+        let out = Out {
+            positions: Disjoint::new(positions),
+            normals: normals.map(Disjoint::new),
+        };
         match self.width {
-            2 => self.values_with::<T, N, 2>(data, normals, wide, scratch),
-            3 => self.values_with::<T, N, 3>(data, normals, wide, scratch),
-            4 => self.values_with::<T, N, 4>(data, normals, wide, scratch),
-            5 => self.values_with::<T, N, 5>(data, normals, wide, scratch),
-            6 => self.values_with::<T, N, 6>(data, normals, wide, scratch),
-            7 => self.values_with::<T, N, 7>(data, normals, wide, scratch),
-            8 => self.values_with::<T, N, 8>(data, normals, wide, scratch),
-            _ => self.values_with::<T, N, 9>(data, normals, wide, scratch),
+            2 => self.write_with::<T, N, 2>(data, &out, wide),
+            3 => self.write_with::<T, N, 3>(data, &out, wide),
+            4 => self.write_with::<T, N, 4>(data, &out, wide),
+            5 => self.write_with::<T, N, 5>(data, &out, wide),
+            6 => self.write_with::<T, N, 6>(data, &out, wide),
+            7 => self.write_with::<T, N, 7>(data, &out, wide),
+            8 => self.write_with::<T, N, 8>(data, &out, wide),
+            _ => self.write_with::<T, N, 9>(data, &out, wide),
         }
     }
 
-    /// [`Tiles::values_on`] with the masks' width `K` a constant.
-    fn values_with<T: Scalar, const N: usize, const K: usize>(
+    /// [`Tiles::write_on`] with the masks' width `K` a constant.
+    fn write_with<T: Scalar, const N: usize, const K: usize>(
         &self,
         data: &[[T; N]],
-        normals: bool,
+        out: &Out<T, N>,
         wide: bool,
-        scratch: &Scratch,
-    ) -> Result<Vec<([T; N], [T; 3])>> {
+    ) -> Result<()> {
         if self.width != K || self.data_side > MAX_DATA || self.side > MAX_SIDE {
             return Err(Error::Internal(
                 "limit tiles: a window past its bounds".into(),
             ));
         }
-        let slots = *self.offsets.last().unwrap_or(&0) as usize;
-        scratch.provision::<([T; N], [T; 3])>(slots, 1)?;
-        let mut out = scratch.take(slots);
         let tiles = self.owned.len();
-        // A tile is a few thousand instructions: small tasks still amortise.
-        const TASK: usize = 32;
-        let mut pieces = Vec::with_capacity(tiles / TASK + 1);
-        // Written, not filled first: every slot is one tile's (checked per piece).
-        let mut rest = &mut out.spare_capacity_mut()[..slots];
-        for start in (0..tiles).step_by(TASK) {
-            let end = (start + TASK).min(tiles);
-            let len = (self.offsets[end] - self.offsets[start]) as usize;
-            let (piece, tail) = rest.split_at_mut(len);
-            pieces.push((start, end, piece));
-            rest = tail;
-        }
         let value: [f64; K] = std::array::from_fn(|k| self.value[k]);
         let slope: [f64; K] = std::array::from_fn(|k| self.slope[k]);
         let kernel = Kernel {
             tiles: self,
             value: &value,
             slope: &slope,
-            normals,
         };
         let wide = wide && wide_vectors();
-        pieces.into_par_iter().try_for_each(|(start, end, piece)| {
-            // Every tile overwrites what it reads of these (the columns past a small tile's side
-            // hold finite leftovers, filtered into sums no vertex reads).
-            let mut rows = Box::new(Rows::<N> {
-                window: [[[0.0; MAX_DATA]; MAX_DATA]; N],
-                by_value: [[[0.0; MAX_SIDE]; MAX_DATA]; N],
-                by_slope: [[[0.0; MAX_SIDE]; MAX_DATA]; N],
-            });
-            let tiles = start..end;
-            #[cfg(target_arch = "x86_64")]
-            if wide {
-                // SAFETY: `wide_vectors` found AVX2 on this processor.
-                return unsafe { kernel.tiles_avx2(tiles, data, &mut rows, piece) };
-            }
-            let _ = wide;
-            kernel.tiles(tiles, data, &mut rows, piece)
-        })?;
-        // SAFETY: every piece covers its tiles' slots, and `Kernel::tiles` returned `Ok` only
-        // after writing each of them.
-        unsafe { out.set_len(slots) };
-        Ok(out)
+        // A tile is a few thousand instructions: small tasks still amortise.
+        const TASK: usize = 32;
+        (0..tiles.div_ceil(TASK))
+            .into_par_iter()
+            .try_for_each(|task| {
+                // Every tile overwrites what it reads of these (the columns past a small tile's side
+                // hold finite leftovers, filtered into sums no vertex reads).
+                let mut rows = Box::new(Rows::<N> {
+                    window: [[[0.0; MAX_DATA]; MAX_DATA]; N],
+                    by_value: [[[0.0; MAX_SIDE]; MAX_DATA]; N],
+                    by_slope: [[[0.0; MAX_SIDE]; MAX_DATA]; N],
+                });
+                let tiles = task * TASK..((task + 1) * TASK).min(tiles);
+                #[cfg(target_arch = "x86_64")]
+                if wide {
+                    // SAFETY: `wide_vectors` found AVX2 on this processor.
+                    return unsafe { kernel.tiles_avx2(tiles, data, &mut rows, out) };
+                }
+                let _ = wide;
+                kernel.tiles(tiles, data, &mut rows, out)
+            })
     }
+}
+
+/// Where the tiles write, per level vertex: the limit position and, when asked for, the unit
+/// normal. Each vertex is in one tile's slots at most, so no two tiles write one item.
+pub(super) struct Out<'a, T, const N: usize> {
+    positions: Disjoint<'a, [T; N]>,
+    normals: Option<Disjoint<'a, [T; 3]>>,
 }
 
 /// Whether the processor has AVX2 (four-lane `f64` vectors) for the kernel: the same products
@@ -306,31 +306,24 @@ struct Kernel<'a, const K: usize> {
     tiles: &'a Tiles,
     value: &'a [f64; K],
     slope: &'a [f64; K],
-    normals: bool,
 }
 
 impl<const K: usize> Kernel<'_, K> {
-    /// Writes the values of the tiles `tiles` into `out` in slot order: every item of `out`, or
-    /// an error.
+    /// Writes the values of the vertices of the tiles `tiles` into `out`: every vertex of
+    /// their slots, or an error.
     #[inline(always)]
     fn tiles<T: Scalar, const N: usize>(
         &self,
         tiles: std::ops::Range<usize>,
         data: &[[T; N]],
         rows: &mut Rows<N>,
-        out: &mut [MaybeUninit<([T; N], [T; 3])>],
+        out: &Out<T, N>,
     ) -> Result<()> {
-        let mut at = 0;
+        // A loop, not a closure: a closure would not take `tiles_avx2`'s target features.
         for tile in tiles {
-            let rest = out.get_mut(at..).unwrap_or_default();
-            at += self.tile(tile, data, rows, rest)?;
+            self.tile(tile, data, rows, out)?;
         }
-        match at == out.len() {
-            true => Ok(()),
-            false => Err(Error::Internal(
-                "limit tiles: fewer vertices than slots".into(),
-            )),
-        }
+        Ok(())
     }
 
     /// [`Kernel::tiles`] compiled for AVX2.
@@ -344,13 +337,13 @@ impl<const K: usize> Kernel<'_, K> {
         tiles: std::ops::Range<usize>,
         data: &[[T; N]],
         rows: &mut Rows<N>,
-        out: &mut [MaybeUninit<([T; N], [T; 3])>],
+        out: &Out<T, N>,
     ) -> Result<()> {
         self.tiles(tiles, data, rows, out)
     }
 
-    /// Writes the values of `tile`'s vertices into `out` in slot order; returns their number.
-    /// Rows first, for all output columns at once (each a sum over `K` window columns), then
+    /// Writes the values of `tile`'s vertices into `out`: every vertex of its slots, or an
+    /// error. Rows first, for all output columns at once (each a sum over `K` window columns), then
     /// per output row the three column sums; the vertices the tile owns are picked from them.
     #[inline(always)]
     fn tile<T: Scalar, const N: usize>(
@@ -358,9 +351,14 @@ impl<const K: usize> Kernel<'_, K> {
         tile: usize,
         data: &[[T; N]],
         rows: &mut Rows<N>,
-        out: &mut [MaybeUninit<([T; N], [T; 3])>],
-    ) -> Result<usize> {
+        out: &Out<T, N>,
+    ) -> Result<()> {
         let (d, side) = (self.tiles.data_side, self.tiles.side);
+        let normals = out.normals.as_ref();
+        let offsets = &self.tiles.offsets;
+        let vertices = (offsets.get(tile..tile + 2))
+            .and_then(|o| self.tiles.vertices.get(o[0] as usize..o[1] as usize))
+            .ok_or_else(|| Error::Internal("limit tiles: a tile past its slots".into()))?;
         let ids = &self.tiles.ids[tile * d * d..(tile + 1) * d * d];
         for (y, ids) in ids.chunks_exact(d).enumerate() {
             for (x, &id) in ids.iter().enumerate() {
@@ -385,7 +383,7 @@ impl<const K: usize> Kernel<'_, K> {
                     for i in 0..MAX_SIDE {
                         v[i] += self.value[k] * (x[i + a] + x[i + b]);
                     }
-                    if self.normals {
+                    if normals.is_some() {
                         for i in 0..MAX_SIDE {
                             s[i] += self.slope[k] * (x[i + a] - x[i + b]);
                         }
@@ -419,7 +417,7 @@ impl<const K: usize> Kernel<'_, K> {
                     for i in 0..MAX_SIDE {
                         position[c][i] += self.value[r] * (bv[a][i] + bv[b][i]);
                     }
-                    if self.normals {
+                    if normals.is_some() {
                         for i in 0..MAX_SIDE {
                             along_i[c][i] += self.value[r] * (bs[a][i] + bs[b][i]);
                             along_j[c][i] += self.slope[r] * (bv[a][i] - bv[b][i]);
@@ -434,25 +432,32 @@ impl<const K: usize> Kernel<'_, K> {
                     }
                 }
             }
-            let normal = match self.normals {
-                true => unit_normals::<T, N>(&along_i, &along_j),
-                false => [[0.0; MAX_SIDE]; 3],
-            };
+            let normal = normals.map(|_| unit_normals::<T, N>(&along_i, &along_j));
             let mut bits = mine;
             while bits != 0 {
                 let i = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
-                let slot = out.get_mut(n).ok_or_else(|| {
+                let v = *vertices.get(n).ok_or_else(|| {
                     Error::Internal("limit tiles: more vertices than slots".into())
-                })?;
-                slot.write((
-                    std::array::from_fn(|c| T::from_f64(position[c][i])),
-                    std::array::from_fn(|c| T::from_f64(normal[c][i])),
-                ));
+                })? as usize;
+                // SAFETY: a vertex is in one slot of one tile at most (`Tiles::build`), and
+                // each tile is walked by one task.
+                unsafe {
+                    out.positions
+                        .write(v, std::array::from_fn(|c| T::from_f64(position[c][i])))?;
+                    if let (Some(to), Some(normal)) = (normals, &normal) {
+                        to.write(v, std::array::from_fn(|c| T::from_f64(normal[c][i])))?;
+                    }
+                }
                 n += 1;
             }
         }
-        Ok(n)
+        match n == vertices.len() {
+            true => Ok(()),
+            false => Err(Error::Internal(
+                "limit tiles: fewer vertices than slots".into(),
+            )),
+        }
     }
 }
 
