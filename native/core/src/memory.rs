@@ -49,6 +49,15 @@ pub fn reserve<T>(v: &mut Vec<T>, additional: usize) -> Result<()> {
         .map_err(|_| refused::<T>(v.len().saturating_add(additional)))
 }
 
+/// Room for `additional` more values in `v`, growing it geometrically as `push` and `extend`
+/// do (at least doubling when full), or [`Error::OutOfMemory`]: for vectors filled a few items
+/// at a time, where [`reserve`]'s exact growth would reallocate on every call (the limit
+/// tiles' lists did: a tenth of a first limit call's instructions in `malloc`).
+pub fn grow<T>(v: &mut Vec<T>, additional: usize) -> Result<()> {
+    v.try_reserve(additional)
+        .map_err(|_| refused::<T>(v.len().saturating_add(additional)))
+}
+
 /// `len` copies of `value` (`vec![value; len]`), or [`Error::OutOfMemory`]. For zeros use
 /// [`zeroed`], which does not write the pages.
 pub fn filled<T: Clone>(len: usize, value: T) -> Result<Vec<T>> {

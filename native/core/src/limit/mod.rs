@@ -438,11 +438,7 @@ fn build_stencils(
             return Ok(None);
         }
         let size: usize = chunks.iter().map(|c| c.items.len()).sum();
-        if items.capacity() - items.len() < size {
-            // Doubling, as `extend` would grow it.
-            let more = size.max(items.len());
-            memory::reserve(&mut items, more)?;
-        }
+        memory::grow(&mut items, size)?;
         let mut t = start;
         for chunk in chunks {
             let base = items.len() as u32;

@@ -152,18 +152,18 @@ impl Tiles {
                     let v = w.outputs[b] as usize;
                     if slot_of[v] == NONE {
                         slot_of[v] = slots;
-                        memory::reserve(&mut vertices, 1)?;
+                        memory::grow(&mut vertices, 1)?;
                         vertices.push(v as u32);
                         slots += 1;
                         mine |= 1 << b;
                     }
                 }
                 if mine != 0 {
-                    memory::reserve(&mut ids, data_side * data_side)?;
+                    memory::grow(&mut ids, data_side * data_side)?;
                     ids.extend_from_slice(&w.ids[..data_side * data_side]);
-                    memory::reserve(&mut owned, 1)?;
+                    memory::grow(&mut owned, 1)?;
                     owned.push(mine);
-                    memory::reserve(&mut offsets, 1)?;
+                    memory::grow(&mut offsets, 1)?;
                     offsets.push(slots);
                 }
             }
