@@ -61,6 +61,25 @@ def test_subdivide_limit_and_normals(degree: int) -> None:
     np.testing.assert_array_equal(refined.normals, result.normals)
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_release_buffers_changes_no_result(dtype: type) -> None:
+    """A plan's kept working arrays, freed between calls, change no bit of what it gives."""
+    mesh = cube(dtype)
+    plan = bidegree.Plan(mesh, degree=4, levels=3)
+    moved = (mesh.points * 1.5 + 0.25).astype(dtype)
+    first = [plan.evaluate(mesh.points), *plan.limit_surface()]
+    plan.release_buffers()
+    other = [plan.evaluate(moved), *plan.limit_surface(moved)]
+    plan.release_buffers()
+    again = [plan.evaluate(mesh.points), *plan.limit_surface()]
+    plan.release_buffers()
+    plan.release_buffers()
+    for a, b in zip(first, again, strict=True):
+        assert a.dtype == dtype
+        np.testing.assert_array_equal(a, b)
+    assert all(np.abs(a - b).max() > 0.1 for a, b in zip(first[:2], other[:2], strict=True))
+
+
 def test_limit_refusals() -> None:
     mesh = cube()
     with pytest.raises(bidegree.InvalidInputError, match="primal"):

@@ -202,6 +202,16 @@ impl PyPlan {
         }
     }
 
+    /// Frees the working arrays that evaluations and limits keep for the next call (a few of
+    /// the last level's size); the next call allocates them again. The topology and the
+    /// limit's stencils stay.
+    fn release_buffers(&self, py: Python<'_>) -> PyResult<()> {
+        run(py, || {
+            self.inner.release_buffers();
+            Ok(())
+        })
+    }
+
     /// Levels the limit evaluation adds to the plan (0 when every output vertex is clean).
     #[getter]
     fn limit_extra_levels(&self, py: Python<'_>) -> PyResult<u32> {

@@ -220,6 +220,17 @@ class Plan(_Output):
         positions, normals = self._native_plan.limit_surface(self._points(points))
         return positions, normals
 
+    def release_buffers(self) -> None:
+        """Free the working arrays the plan keeps between calls.
+
+        A plan keeps a few arrays the size of its last level after :meth:`evaluate`,
+        :meth:`limit_surface` and the face-varying calls, so that the next call (the next frame)
+        does not allocate them again. A batch job that keeps many plans alive, or one plan
+        between rare calls, can give that memory back here; results do not change, and the next
+        call allocates the arrays again. The topology and the limit's stencils stay.
+        """
+        self._native_plan.release_buffers()
+
     @property
     def limit_extra_levels(self) -> int:
         """Levels the limit evaluation refines beyond :attr:`levels` so that every output
