@@ -305,72 +305,127 @@ impl Windows {
             .all(|p| (0..S)
                 .all(|t| (p * o..p * o + K).contains(&t) || full[p][t] == T::from_f64(0.0))));
         let nf = self.masks.len();
+        let wide = wide_vectors();
         out[..4 * nf]
             .par_chunks_mut(4 * CHUNK)
             .enumerate()
             .for_each(|(chunk, children)| {
-                // The filtered rows of the chunk's last faces (`rows[j][p]`: row j of the net
-                // filtered for the child column p), by place in the chunk modulo their number.
-                let mut kept = [[[[T::default(); L]; 2]; S]; SHARE_BACK + 1];
-                for (i, children) in children.chunks_exact_mut(4).enumerate() {
-                    let f = chunk * CHUNK + i;
-                    let mask = self.masks[f];
-                    if mask == 0 {
-                        continue;
-                    }
-                    let slot = i % (SHARE_BACK + 1);
-                    // The rows to filter here; the others are copied from the earlier face.
-                    let filtered = match Share(self.shares[f]).of() {
-                        None => 0..S,
-                        Some((back, below)) => {
-                            let (earlier, rows) =
-                                two(&mut kept, (i - back) % (SHARE_BACK + 1), slot);
-                            if below {
-                                rows[SHARE_SHIFT..].copy_from_slice(&earlier[..S - SHARE_SHIFT]);
-                                0..SHARE_SHIFT
-                            } else {
-                                rows[..S - SHARE_SHIFT].copy_from_slice(&earlier[SHARE_SHIFT..]);
-                                S - SHARE_SHIFT..S
-                            }
-                        }
-                    };
-                    let ids = &self.nets[f * S * S..(f + 1) * S * S];
-                    let rows = &mut kept[slot];
-                    let nets = ids[filtered.start * S..].chunks_exact(S);
-                    for (rows, ids) in rows[filtered].iter_mut().zip(nets) {
-                        let row: [[T; L]; S] = std::array::from_fn(|t| {
-                            // SAFETY: every id of a net is below `reach` ([`Windows::reach`]),
-                            // and `apply` checked that `x` holds `reach` values.
-                            lanes(unsafe { *x.get_unchecked(ids[t] as usize) })
-                        });
-                        let mut sums = [zero::<T, L>(); 2];
-                        for t in 0..K {
-                            for (p, sum) in sums.iter_mut().enumerate() {
-                                *sum = add(*sum, mul(w[p][t], row[p * o + t]));
-                            }
-                        }
-                        *rows = sums;
-                    }
-                    // Child k of the face sits at column px, row py of its frame: both columns
-                    // of a child row at once.
-                    for (py, ks) in [(0, [0, 1]), (1, [3, 2])] {
-                        if mask & (1 << ks[0] | 1 << ks[1]) == 0 {
-                            continue;
-                        }
-                        let mut sums = [zero::<T, L>(); 2];
-                        for t in 0..K {
-                            for (px, sum) in sums.iter_mut().enumerate() {
-                                *sum = add(*sum, mul(w[py][t], rows[py * o + t][px]));
-                            }
-                        }
-                        for (k, sum) in ks.into_iter().zip(sums) {
-                            if mask & (1 << k) != 0 {
-                                children[k].write(std::array::from_fn(|c| sum[c]));
-                            }
-                        }
+                #[cfg(target_arch = "x86_64")]
+                if wide {
+                    // SAFETY: `wide_vectors` found AVX2 on this processor.
+                    return unsafe { self.chunk_avx2::<T, N, L, S, K>(chunk, children, x, &w) };
+                }
+                let _ = wide;
+                self.chunk::<T, N, L, S, K>(chunk, children, x, &w)
+            });
+    }
+
+    /// The children of the faces of `chunk` into `children` (its four per face) from `x`,
+    /// with the weights `w` of the taps of each column ([`Windows::apply_with`]).
+    #[inline(always)]
+    fn chunk<T: Scalar, const N: usize, const L: usize, const S: usize, const K: usize>(
+        &self,
+        chunk: usize,
+        children: &mut [MaybeUninit<Value<T, N>>],
+        x: &[Value<T, N>],
+        w: &[[[T; L]; K]; 2],
+    ) {
+        let o = S - K;
+        // The filtered rows of the chunk's last faces (`rows[j][p]`: row j of the net
+        // filtered for the child column p), by place in the chunk modulo their number.
+        let mut kept = [[[[T::default(); L]; 2]; S]; SHARE_BACK + 1];
+        for (i, children) in children.chunks_exact_mut(4).enumerate() {
+            let f = chunk * CHUNK + i;
+            let mask = self.masks[f];
+            if mask == 0 {
+                continue;
+            }
+            let slot = i % (SHARE_BACK + 1);
+            // The rows to filter here; the others are copied from the earlier face.
+            let filtered = match Share(self.shares[f]).of() {
+                None => 0..S,
+                Some((back, below)) => {
+                    let (earlier, rows) = two(&mut kept, (i - back) % (SHARE_BACK + 1), slot);
+                    if below {
+                        rows[SHARE_SHIFT..].copy_from_slice(&earlier[..S - SHARE_SHIFT]);
+                        0..SHARE_SHIFT
+                    } else {
+                        rows[..S - SHARE_SHIFT].copy_from_slice(&earlier[SHARE_SHIFT..]);
+                        S - SHARE_SHIFT..S
                     }
                 }
-            });
+            };
+            let ids = &self.nets[f * S * S..(f + 1) * S * S];
+            let rows = &mut kept[slot];
+            let nets = ids[filtered.start * S..].chunks_exact(S);
+            for (rows, ids) in rows[filtered].iter_mut().zip(nets) {
+                let row: [[T; L]; S] = std::array::from_fn(|t| {
+                    // SAFETY: every id of a net is below `reach` ([`Windows::reach`]),
+                    // and `apply` checked that `x` holds `reach` values.
+                    lanes(unsafe { *x.get_unchecked(ids[t] as usize) })
+                });
+                let mut sums = [zero::<T, L>(); 2];
+                for t in 0..K {
+                    for (p, sum) in sums.iter_mut().enumerate() {
+                        *sum = add(*sum, mul(w[p][t], row[p * o + t]));
+                    }
+                }
+                *rows = sums;
+            }
+            // Child k of the face sits at column px, row py of its frame: both columns
+            // of a child row at once.
+            for (py, ks) in [(0, [0, 1]), (1, [3, 2])] {
+                if mask & (1 << ks[0] | 1 << ks[1]) == 0 {
+                    continue;
+                }
+                let mut sums = [zero::<T, L>(); 2];
+                for t in 0..K {
+                    for (px, sum) in sums.iter_mut().enumerate() {
+                        *sum = add(*sum, mul(w[py][t], rows[py * o + t][px]));
+                    }
+                }
+                for (k, sum) in ks.into_iter().zip(sums) {
+                    if mask & (1 << k) != 0 {
+                        children[k].write(std::array::from_fn(|c| sum[c]));
+                    }
+                }
+            }
+        }
+    }
+
+    /// [`Windows::chunk`] compiled for AVX2 (three-operand vectors, unaligned memory operands;
+    /// no fused multiply-add, so the same bits).
+    ///
+    /// # Safety
+    /// The processor must have AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn chunk_avx2<
+        T: Scalar,
+        const N: usize,
+        const L: usize,
+        const S: usize,
+        const K: usize,
+    >(
+        &self,
+        chunk: usize,
+        children: &mut [MaybeUninit<Value<T, N>>],
+        x: &[Value<T, N>],
+        w: &[[[T; L]; K]; 2],
+    ) {
+        self.chunk::<T, N, L, S, K>(chunk, children, x, w)
+    }
+}
+
+/// Whether the processor has AVX2, for [`Windows::chunk_avx2`].
+fn wide_vectors() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
     }
 }
 
