@@ -39,12 +39,16 @@
 //! are filtered per face (a same-frame face two columns along reads another window), and the
 //! gather and filters, scalar over a point's channels, are still most of cached degree 9.
 //!
-//! Vectors (2026-12-03, instructions, callgrind driver, same case; the driver's counts had
-//! grown since, cached 4 43.8M -> 48.9M, from a `memset` of the step's zero fill): a point
-//! padded to four lanes, both child columns of a row and both children of a child row filtered
-//! at once, the zero taps skipped, the net's data read unchecked (bounds checked once). Cached
-//! degree 3 32.8M -> 31.9M, 4 48.9M -> 43.0M, 5 61.6M -> 51.1M, 6 68.9M -> 57.7M, 7 64.4M ->
-//! 56.7M, 8 73.8M -> 67.6M, 9 86.4M -> 74.1M; fresh 4 172.0M -> 165.9M, 9 241.9M -> 229.1M.
+//! Vectors (2026-12-03, instructions, callgrind driver, same case): a point padded to four
+//! lanes ([`lanes`], [`put`]), both child columns of a row and both children of a child row
+//! filtered at once, the zero taps skipped, the net's data read unchecked (bounds checked once),
+//! and the chunk also compiled for AVX2 where the processor has it. Cached degree 3 32.8M ->
+//! 32.1M (no kernel), 4 48.9M -> 32.1M, 5 61.6M -> 39.6M, 6 68.9M -> 44.7M, 7 64.4M -> 41.5M, 8
+//! 73.8M -> 46.7M, 9 86.4M -> 56.5M; fresh 3 121.4M -> 120.5M, 4 172.0M -> 155.0M, 5 187.8M ->
+//! 165.8M, 6 215.6M -> 191.1M, 7 191.2M -> 168.4M, 8 222.1M -> 194.8M, 9 241.9M -> 211.4M;
+//! adaptive-flat-4-6 419.9M -> 408.2M. About 4.3M of each cached drop is no kernel's: the first
+//! build counted 5.7M a call in a `memset` of the step's zero fill, which every later build
+//! lowered to a loop of about 1.4M (the counts of the section above had none).
 //!
 //! [`Windows`] holds, per step, what the kernel needs (per coarse face, the ids of its net in
 //! its frame and the children it writes) and the zone that the passes must still compute: the
@@ -267,7 +271,7 @@ impl Windows {
         }
     }
 
-    /// [`Windows::apply`] on values of `L` lanes (`N` channels and `L - N` zeros).
+    /// [`Windows::apply`] on values of `L` lanes (`N` channels, then padding: [`lanes`]).
     fn apply_lanes<T: Scalar, const N: usize, const L: usize>(
         &self,
         x: &[Value<T, N>],
@@ -445,10 +449,13 @@ fn wide_vectors() -> bool {
 /// and a weight): four `f32` fill an SSE register.
 const LANES: usize = 4;
 
-/// `value` in `L` lanes, zero past its `N` channels.
+/// `value` in `L` lanes, its channels repeated past the `N` first. The padding lanes are
+/// finite data, sums of which no child keeps ([`put`]); zeros there made every padding lane of
+/// a filtered row the same constant, and LLVM, seeing it, split the row filter into two lanes
+/// and a scalar.
 #[inline(always)]
 fn lanes<T: Scalar, const N: usize, const L: usize>(value: [T; N]) -> [T; L] {
-    std::array::from_fn(|c| if c < N { value[c] } else { T::default() })
+    std::array::from_fn(|c| value[c % N])
 }
 
 /// Writes child `k` of a face, the first `N` lanes of `value`. Children 0 to 2 are written
