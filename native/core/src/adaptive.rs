@@ -58,12 +58,11 @@
 //! not hash maps; the refined sets are the only ones, read by the restriction criterion (the
 //! node lists are made from them only when they grow).
 //!
-//! Measured (instruction counts on the callgrind driver `examples/callgrind.rs`, one thread,
-//! 2026-12-03): `adaptive-flat-4-6` 409M against 715M for `adaptive-uniform-4-6` (0.57x; 0.66x
-//! for 3-5, 0.60x for 4-5). Of the 409M, the partial levels take 176M (refinement 52M, steps
-//! and their windows 41M, the cut around the parents 54M), the closed-form decisions 122M
-//! (about 8k instructions per sibling block), the triangulation 74M and the restriction
-//! criterion 24M (serial).
+//! Measured (instructions, callgrind driver `examples/callgrind.rs`, one thread, 2026-12-03):
+//! `adaptive-flat-4-6` 408M against 799M for `adaptive-uniform-4-6` (0.51x; 0.65x for 3-5,
+//! 0.54x for 4-5). Of the 408M, the partial levels take 185M (`extend_pass`), the closed-form
+//! decisions 117M (about 10k instructions per sibling block, 12k blocks, with the per-level
+//! tables), the triangulation 70M and the restriction criterion 23M (serial).
 //!
 //! # Refinement
 //! Levels are decided one at a time: level j's nodes are evaluated together with their children
