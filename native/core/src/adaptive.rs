@@ -58,12 +58,11 @@
 //! not hash maps; the refined sets are the only ones, read by the restriction criterion (the
 //! node lists are made from them only when they grow).
 //!
-//! Measured (instruction counts on the callgrind driver `examples/callgrind.rs`, one thread,
-//! 2026-12-03): `adaptive-flat-4-6` 409M against 715M for `adaptive-uniform-4-6` (0.57x; 0.66x
-//! for 3-5, 0.60x for 4-5). Of the 409M, the partial levels take 176M (refinement 52M, steps
-//! and their windows 41M, the cut around the parents 54M), the closed-form decisions 122M
-//! (about 8k instructions per sibling block), the triangulation 74M and the restriction
-//! criterion 24M (serial).
+//! Measured (instructions, callgrind driver `examples/callgrind.rs`, one thread, 2026-12-03):
+//! `adaptive-flat-4-6` 408M against 799M for `adaptive-uniform-4-6` (0.51x; 0.65x for 3-5,
+//! 0.54x for 4-5). Of the 408M, the partial levels take 185M (`extend_pass`), the closed-form
+//! decisions 117M (about 10k instructions per sibling block, 12k blocks, with the per-level
+//! tables), the triangulation 70M and the restriction criterion 23M (serial).
 //!
 //! # Refinement
 //! Levels are decided one at a time: level j's nodes are evaluated together with their children
@@ -1941,6 +1940,9 @@ struct Grid {
     /// Per child position p (0, 1/2, 1, 3/2, 2 of the node's side: p = 0..=4), the weight of
     /// each data position from `lo` on (one more than a node reads, for a sibling block).
     weights: [Vec<f64>; 5],
+    /// Per child position, the data positions of its nonzero weights (one run: replication and
+    /// averages spread each child over consecutive positions), so the sums skip the zeros.
+    taps: [std::ops::Range<usize>; 5],
     /// Bound of the rounding of both computations of the error, per unit of data magnitude
     /// (relative to the cage diagonal).
     slack: f64,
@@ -2007,12 +2009,18 @@ impl Grid {
         } else {
             1.0
         };
+        let taps = weights.each_ref().map(|w| {
+            let first = w.iter().position(|&x| x != 0.0).unwrap_or(0);
+            let end = w.iter().rposition(|&x| x != 0.0).map_or(first, |l| l + 1);
+            first..end
+        });
         Some(Grid {
             odd,
             lo: lo as i32,
             reach,
             inner: inner.max(reach - 1),
             weights,
+            taps,
             slack: 256.0 * (n as f64 + 2.0) * T::UNIT_ROUNDOFF * scale_by,
         })
     }
@@ -2168,9 +2176,9 @@ fn block_errors<T: Scalar>(
     // its column, then along each row.
     let r = grid.reach;
     let top = r + span as i32 - 1;
-    let side = (r + top + 1) as usize;
-    let mut cells = [0u32; (GRID_SIDE + 1) * (GRID_SIDE + 1)];
-    let at = |a: i32, b: i32| ((b + r) as usize) * side + (a + r) as usize;
+    const STRIDE: usize = GRID_SIDE + 1;
+    let mut cells = [0u32; STRIDE * STRIDE];
+    let at = |a: i32, b: i32| ((b + r) as usize) * STRIDE + (a + r) as usize;
     cells[at(0, 0)] = 4 * f as u32;
     for b in 1..=r.max(top) {
         if b <= top {
@@ -2220,40 +2228,52 @@ fn block_errors<T: Scalar>(
             }
         }
     }
-    // Rows, then columns: rows[y][p] = sum_x W_p(x) d(x, y), point(p, q) = sum_y W_q(y)
-    // rows[y][p], over the data positions lo..lo + n (+ 1 for a block).
+    // Rows, then columns: row(y)[p] = sum_x W_p(x) d(x, y), point(p, q) = sum_y W_q(y)
+    // row(y)[p], over the data positions lo..lo + n (+ 1 for a block). Each sum runs over the
+    // nonzero weights only, in increasing position; a row is added to the points as soon as
+    // it is made, its data read once.
     let n = grid.weights[0].len() - 2 + span;
     let points = 2 * span + 1;
+    let taps = grid.taps.each_ref().map(|t| t.start..t.end.min(n));
     let mut magnitude = 0.0f64;
-    let mut rows = [[[0.0f64; 3]; 5]; GRID_SIDE + 2];
-    for (y, row) in rows.iter_mut().enumerate().take(n) {
-        for x in 0..n {
-            let (px, py) = (grid.lo + x as i32, grid.lo + y as i32);
+    let mut data = [[0.0f64; 3]; GRID_SIDE + 2];
+    let mut grid_points = [[[0.0f64; 3]; 5]; 5];
+    for y in 0..n {
+        let py = grid.lo + y as i32;
+        for (x, d) in data[..n].iter_mut().enumerate() {
+            let px = grid.lo + x as i32;
             let item = if grid.odd {
                 vertex(px, py)
             } else {
                 (cells[at(px, py)] >> 2) as usize
             };
-            let d = part.data[item].map(|v| v.to_f64());
-            magnitude = d.iter().fold(magnitude, |m, x| m.max(x.abs()));
-            for (p, sum) in row.iter_mut().enumerate().take(points) {
-                let w = grid.weights[p][x];
-                if w != 0.0 {
-                    for k in 0..3 {
-                        sum[k] += w * d[k];
-                    }
+            *d = part.data[item].map(|v| v.to_f64());
+            for v in d.iter() {
+                // As `f64::max`, without its NaN handling (the data are finite).
+                if v.abs() > magnitude {
+                    magnitude = v.abs();
                 }
             }
         }
-    }
-    let mut grid_points = [[[0.0f64; 3]; 5]; 5];
-    for (q, column) in grid_points.iter_mut().enumerate().take(points) {
-        for (y, row) in rows.iter().enumerate().take(n) {
-            let w = grid.weights[q][y];
-            if w != 0.0 {
-                for (p, point) in column.iter_mut().enumerate().take(points) {
+        let mut row = [[0.0f64; 3]; 5];
+        for (sum, (w, t)) in row
+            .iter_mut()
+            .zip(grid.weights.iter().zip(&taps))
+            .take(points)
+        {
+            for (w, d) in w[t.clone()].iter().zip(&data[t.clone()]) {
+                for k in 0..3 {
+                    sum[k] += w * d[k];
+                }
+            }
+        }
+        let columns = grid_points.iter_mut().zip(grid.weights.iter().zip(&taps));
+        for (column, (w, t)) in columns.take(points) {
+            if t.contains(&y) {
+                let w = w[y];
+                for (point, r) in column.iter_mut().zip(&row).take(points) {
                     for k in 0..3 {
-                        point[k] += w * row[p][k];
+                        point[k] += w * r[k];
                     }
                 }
             }
@@ -2263,10 +2283,11 @@ fn block_errors<T: Scalar>(
     let mut out = [(0.0, 0.0); 4];
     for (o, &(a, b)) in out.iter_mut().zip(&PLACE).take(span * span) {
         let (a, b) = (2 * a as usize, 2 * b as usize);
-        let point = |p: usize, q: usize| grid_points[b + q][a + p];
-        let corner = [(0, 0), (2, 0), (2, 2), (0, 2)].map(|(p, q)| point(p, q));
-        let mid = [(1, 0), (2, 1), (1, 2), (0, 1)].map(|(p, q)| point(p, q));
-        *o = (flatness(&corner, &mid, point(1, 1)), slack);
+        // Point (p, q) of the node is grid_points[b + q][a + p].
+        let [r0, r1, r2] = [&grid_points[b], &grid_points[b + 1], &grid_points[b + 2]];
+        let corner = [r0[a], r0[a + 2], r2[a + 2], r2[a]];
+        let mid = [r0[a + 1], r1[a + 2], r2[a + 1], r1[a]];
+        *o = (flatness(&corner, &mid, r1[a + 1]), slack);
     }
     Some(out)
 }
