@@ -1154,6 +1154,18 @@ mod tests {
     use crate::step::LevelData;
     use crate::{Cage, Options, Rules};
 
+    /// [`cube_grid`]`(3)` refined three levels (degree 9): the steps that the kernel's tests
+    /// build their windows on.
+    fn refined_cube() -> Refinement {
+        let options = Options {
+            degree: 9,
+            levels: 3,
+            rules: Rules::Averaging,
+            ..Options::default()
+        };
+        Refinement::new(&cube_grid(3).0, &options).unwrap()
+    }
+
     /// A cube whose faces are `k x k` grids (eight vertices of valence 3), with points pushed
     /// off the cube by a fixed pseudo-random amount.
     fn cube_grid(k: usize) -> (Cage, Vec<[f64; 3]>) {
@@ -1529,14 +1541,7 @@ mod tests {
         if !super::wide_vectors() {
             return;
         }
-        let (cage, _) = cube_grid(3);
-        let options = Options {
-            degree: 9,
-            levels: 3,
-            rules: Rules::Averaging,
-            ..Options::default()
-        };
-        let refinement = Refinement::new(&cage, &options).unwrap();
+        let refinement = refined_cube();
         let mut seed = 7u32;
         let mut checked = 0;
         for j in 0..refinement.curve_networks().len() {
@@ -1583,14 +1588,7 @@ mod tests {
     /// two rows along, and shares are found on refined levels (for 4, 6 and 8 averages).
     #[test]
     fn shares_hold_the_rows_they_reuse() {
-        let (cage, _) = cube_grid(3);
-        let options = Options {
-            degree: 9,
-            levels: 3,
-            rules: Rules::Averaging,
-            ..Options::default()
-        };
-        let refinement = Refinement::new(&cage, &options).unwrap();
+        let refinement = refined_cube();
         let mut shared = 0;
         for j in 0..refinement.curve_networks().len() {
             let step = refinement.step(j);
