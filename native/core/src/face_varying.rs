@@ -626,7 +626,7 @@ pub(crate) fn evaluate<T: Scalar>(
     })
 }
 
-/// [`evaluate`] in the indexed form: the values at the vertices of the refined face-varying
+/// [`evaluate()`] in the indexed form: the values at the vertices of the refined face-varying
 /// mesh that the output uses, and the index of each output corner (kept in the plan).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn evaluate_shared<T: Scalar>(

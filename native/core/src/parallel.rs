@@ -1,8 +1,9 @@
 //! Parallel gathers in fixed chunks: every pass of the crate writes each output item from one
 //! task, over chunks whose bounds do not depend on the number of threads, so results are bitwise
 //! the same whatever the thread count. Also the allocation hints that make a large buffer's first
-//! touch cheap (fallible, through [`crate::memory`]), and [`in_pool`]. Ground floor: imports
-//! only `error` and `memory`.
+//! touch cheap (fallible, through [`crate::memory`]), [`Disjoint`] for the passes whose items
+//! are not chunks of their output (each item still written by one task), and [`in_pool`].
+//! Ground floor: imports only `error` and `memory`.
 
 use std::mem::MaybeUninit;
 

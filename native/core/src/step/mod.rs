@@ -918,7 +918,7 @@ fn touched_faces(t: &Tables, curves: &CurveNetwork) -> Vec<bool> {
 }
 
 /// The second half of [`LevelData::first_average_to_dual`]: `out` becomes the `n` faces of
-/// the fine level, four per coarse quad ([`child_faces`]). Each face is written once, in
+/// the fine level, four per coarse quad ([`Children::of`]). Each face is written once, in
 /// parallel chunks (so a new buffer's pages are touched by both threads).
 fn child_face_centroids<T: Scalar, const N: usize>(
     children: &Children<'_, T, N, impl Nine<T, N>>,
