@@ -147,8 +147,8 @@ enum LimitMask {
     Corner,
     /// Not clean at this level: the stencil of the local extension.
     Local,
-    /// An interior vertex of valence 4 that a limit tile computes (in place): its slot there.
-    Tiled(u32),
+    /// An interior vertex of valence 4 that a limit tile computes (and writes in place).
+    Tiled,
 }
 
 /// Everything topological the limit needs, built once per plan (see the module documentation).
@@ -372,6 +372,10 @@ fn build_stencils(
         (Some(walk), Some(depth)) => Tiles::build(last, &walk.twins, &walk.marks, degree, depth)?,
         _ => None,
     };
+    let tiled = match &tiles {
+        Some(tiles) => tiles.computed(last.num_vertices)?,
+        None => Vec::new(),
+    };
     let chunk_stencils = |stamps: &mut Stamps, range: std::ops::Range<usize>| -> Result<_> {
         let mut chunk = ChunkStencils::default();
         for t in range {
@@ -379,9 +383,8 @@ fn build_stencils(
             let at = chunk.items.len();
             // The tiles write their values at their level vertex: a tiled stencil is its own
             // vertex (as every stencil of a plan's last level is).
-            let slot = tiles.as_ref().and_then(|tiles| tiles.slot(v));
-            if let Some(slot) = slot.filter(|_| v == t) {
-                chunk.masks.push(Some(LimitMask::Tiled(slot)));
+            if v == t && tiled.get(v).copied().unwrap_or(false) {
+                chunk.masks.push(Some(LimitMask::Tiled));
                 chunk.ends.push(at as u32);
                 continue;
             }
@@ -1664,7 +1667,7 @@ fn stencil_values<T: Scalar, const N: usize>(
         _ => (stencil_position(st, data, v), none),
     };
     // The other stencils, in chunks of the output; the tiles' vertices are written already.
-    let tiled = |v: usize| matches!(st.masks_of[v], LimitMask::Tiled(_));
+    let tiled = |v: usize| st.masks_of[v] == LimitMask::Tiled;
     match q {
         Some(q) => (p.par_chunks_mut(CHUNK))
             .zip(q.par_chunks_mut(CHUNK))
@@ -1711,7 +1714,7 @@ fn stencil_position<T: Scalar, const N: usize>(st: &Stencils, data: &[[T; N]], v
         LimitMask::Valence2(m) => &st.masks[m as usize].position,
         LimitMask::Curve => &st.curve_mask,
         LimitMask::Corner => return data[items[0] as usize],
-        LimitMask::Local | LimitMask::Tiled(_) => return zero(),
+        LimitMask::Local | LimitMask::Tiled => return zero(),
     };
     combine(data, items, weights)
 }
@@ -2270,7 +2273,7 @@ mod tests {
             let tiled_vertices = |cache: &LimitCache| {
                 let st = cache.0.lock().unwrap().clone().unwrap();
                 let tiled = (st.masks_of.iter())
-                    .filter(|m| matches!(m, LimitMask::Tiled(_)))
+                    .filter(|m| matches!(m, LimitMask::Tiled))
                     .count();
                 (tiled, st.extended.is_none())
             };

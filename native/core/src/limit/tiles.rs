@@ -73,8 +73,6 @@ pub(super) struct Tiles {
     owned: Vec<u128>,
     /// Per tile, its first slot (the slots of its vertices follow in bit order); one more.
     offsets: Vec<u32>,
-    /// Per level vertex, its slot, or `NONE` when no tile computes it.
-    slot_of: Vec<u32>,
     /// Per slot, its level vertex (each vertex in one slot at most).
     vertices: Vec<u32>,
 }
@@ -131,12 +129,11 @@ impl Tiles {
             primal,
             data_side,
         };
-        let mut slot_of = memory::filled(level.num_vertices, NONE)?;
+        let mut claimed = memory::filled(level.num_vertices, false)?;
         let mut ids: Vec<u32> = Vec::new();
         let mut owned: Vec<u128> = Vec::new();
         let mut offsets: Vec<u32> = vec![0];
         let mut vertices: Vec<u32> = Vec::new();
-        let mut slots = 0u32;
         for start in (0..count).step_by(BLOCK) {
             let end = (start + BLOCK).min(count);
             let walks: Vec<Walked> = (start..end)
@@ -152,11 +149,10 @@ impl Tiles {
                     let b = bits.trailing_zeros() as usize;
                     bits &= bits - 1;
                     let v = w.outputs[b] as usize;
-                    if slot_of[v] == NONE {
-                        slot_of[v] = slots;
+                    if !claimed[v] {
+                        claimed[v] = true;
                         memory::grow(&mut vertices, 1)?;
                         vertices.push(v as u32);
-                        slots += 1;
                         mine |= 1 << b;
                     }
                 }
@@ -166,7 +162,7 @@ impl Tiles {
                     memory::grow(&mut owned, 1)?;
                     owned.push(mine);
                     memory::grow(&mut offsets, 1)?;
-                    offsets.push(slots);
+                    offsets.push(vertices.len() as u32);
                 }
             }
         }
@@ -182,15 +178,21 @@ impl Tiles {
             ids,
             owned,
             offsets,
-            slot_of,
             vertices,
         }))
     }
 
-    /// The slot of level vertex `v` when a tile computes it.
-    pub(super) fn slot(&self, v: usize) -> Option<u32> {
-        let s = self.slot_of[v];
-        (s != NONE).then_some(s)
+    /// Per vertex of the level (`num_vertices` of them), whether a tile computes it: what the
+    /// stencils are built with, once (the tiles keep only their vertices' list).
+    pub(super) fn computed(&self, num_vertices: usize) -> Result<Vec<bool>> {
+        let mut computed = memory::filled(num_vertices, false)?;
+        for &v in &self.vertices {
+            *computed
+                .get_mut(v as usize)
+                .ok_or_else(|| Error::Internal("limit tiles: a vertex past the level".into()))? =
+                true;
+        }
+        Ok(computed)
     }
 
     /// Writes at each vertex a tile computes its limit position from `data` (the level's
