@@ -1539,6 +1539,7 @@ mod tests {
     #[test]
     fn wide_vectors_give_the_same_children() {
         if !super::wide_vectors() {
+            eprintln!("no AVX2 here: the AVX2 kernel is not compared");
             return;
         }
         let refinement = refined_cube();
