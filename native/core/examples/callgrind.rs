@@ -20,7 +20,9 @@
 //! done
 //! ```
 //!
-//! Cage: the 3,840-quad ico-quad sphere of the OpenSubdiv benchmark, f32 points, level 3.
+//! Cage: the 3,840-quad ico-quad sphere of the OpenSubdiv benchmark, f32 points, level 3
+//! (`CALLGRIND_LEVELS=L` sets another level for the sphere's cases: Blender's viewport and
+//! render defaults are 1 and 2).
 //! A scheme is `classic-3` or `averaging-D` for any degree D (`cached-averaging-7`, ...).
 //! "fresh" is `Plan::new` and one `evaluate`; "cached" one `evaluate` through a plan that has
 //! already evaluated once (its kept buffers warm); the limit case is `limit_surface` on a new
@@ -61,9 +63,13 @@ fn main() {
         }
     };
     let (cage, _, cage_indices, points) = cages::ico_quad_sphere(8);
+    let sphere_levels: u32 = match std::env::var("CALLGRIND_LEVELS") {
+        Ok(l) => l.parse().unwrap_or_else(|_| usage()),
+        Err(_) => 3,
+    };
     let options = |degree: u32, rules: Rules| Options {
         degree,
-        levels: 3,
+        levels: sphere_levels,
         rules,
         ..Options::default()
     };
@@ -169,7 +175,7 @@ fn main() {
             "ico" => (cage.clone(), points.clone()),
             _ => usage(),
         };
-        let levels = if shape == "ico" { 3 } else { 2 };
+        let levels = if shape == "ico" { sphere_levels } else { 2 };
         let o = Options {
             degree,
             levels,
