@@ -220,26 +220,48 @@ impl Tiles {
             positions: Disjoint::new(positions),
             normals: normals.map(Disjoint::new),
         };
-        match self.width {
-            2 => self.write_with::<T, N, 2>(data, &out, wide),
-            3 => self.write_with::<T, N, 3>(data, &out, wide),
-            4 => self.write_with::<T, N, 4>(data, &out, wide),
-            5 => self.write_with::<T, N, 5>(data, &out, wide),
-            6 => self.write_with::<T, N, 6>(data, &out, wide),
-            7 => self.write_with::<T, N, 7>(data, &out, wide),
-            8 => self.write_with::<T, N, 8>(data, &out, wide),
-            _ => self.write_with::<T, N, 9>(data, &out, wide),
+        // Output columns are filtered `LANES` at a time: the tile's side rounded up to whole
+        // four-lane vectors (at most `MAX_SIDE`), so that the tiles of levels 1 and 2 (side 3
+        // and 5) do not filter the nine columns of the largest tile.
+        match self.side {
+            0..=4 => self.write_lanes::<T, N, 4>(data, &out, wide),
+            5..=8 => self.write_lanes::<T, N, 8>(data, &out, wide),
+            _ => self.write_lanes::<T, N, MAX_SIDE>(data, &out, wide),
         }
     }
 
-    /// [`Tiles::write_on`] with the masks' width `K` a constant.
-    fn write_with<T: Scalar, const N: usize, const K: usize>(
+    /// [`Tiles::write_on`] with `LANES` output columns filtered (at least the tile's side).
+    fn write_lanes<T: Scalar, const N: usize, const LANES: usize>(
         &self,
         data: &[[T; N]],
         out: &Out<T, N>,
         wide: bool,
     ) -> Result<()> {
-        if self.width != K || self.data_side > MAX_DATA || self.side > MAX_SIDE {
+        match self.width {
+            2 => self.write_with::<T, N, 2, LANES>(data, out, wide),
+            3 => self.write_with::<T, N, 3, LANES>(data, out, wide),
+            4 => self.write_with::<T, N, 4, LANES>(data, out, wide),
+            5 => self.write_with::<T, N, 5, LANES>(data, out, wide),
+            6 => self.write_with::<T, N, 6, LANES>(data, out, wide),
+            7 => self.write_with::<T, N, 7, LANES>(data, out, wide),
+            8 => self.write_with::<T, N, 8, LANES>(data, out, wide),
+            _ => self.write_with::<T, N, 9, LANES>(data, out, wide),
+        }
+    }
+
+    /// [`Tiles::write_lanes`] with the masks' width `K` a constant.
+    fn write_with<T: Scalar, const N: usize, const K: usize, const LANES: usize>(
+        &self,
+        data: &[[T; N]],
+        out: &Out<T, N>,
+        wide: bool,
+    ) -> Result<()> {
+        if self.width != K
+            || self.data_side > MAX_DATA
+            || self.side > LANES
+            || LANES > MAX_SIDE
+            || LANES + K - 1 > MAX_DATA
+        {
             return Err(Error::Internal(
                 "limit tiles: a window past its bounds".into(),
             ));
@@ -269,10 +291,12 @@ impl Tiles {
                 #[cfg(target_arch = "x86_64")]
                 if wide {
                     // SAFETY: `wide_vectors` found AVX2 on this processor.
-                    return unsafe { kernel.tiles_avx2(tiles, data, &mut rows, out) };
+                    return unsafe {
+                        kernel.tiles_avx2::<T, N, LANES>(tiles, data, &mut rows, out)
+                    };
                 }
                 let _ = wide;
-                kernel.tiles(tiles, data, &mut rows, out)
+                kernel.tiles::<T, N, LANES>(tiles, data, &mut rows, out)
             })
     }
 }
@@ -316,7 +340,7 @@ impl<const K: usize> Kernel<'_, K> {
     /// Writes the values of the vertices of the tiles `tiles` into `out`: every vertex of
     /// their slots, or an error.
     #[inline(always)]
-    fn tiles<T: Scalar, const N: usize>(
+    fn tiles<T: Scalar, const N: usize, const LANES: usize>(
         &self,
         tiles: std::ops::Range<usize>,
         data: &[[T; N]],
@@ -325,7 +349,7 @@ impl<const K: usize> Kernel<'_, K> {
     ) -> Result<()> {
         // A loop, not a closure: a closure would not take `tiles_avx2`'s target features.
         for tile in tiles {
-            self.tile(tile, data, rows, out)?;
+            self.tile::<T, N, LANES>(tile, data, rows, out)?;
         }
         Ok(())
     }
@@ -336,21 +360,21 @@ impl<const K: usize> Kernel<'_, K> {
     /// The processor must have AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn tiles_avx2<T: Scalar, const N: usize>(
+    unsafe fn tiles_avx2<T: Scalar, const N: usize, const LANES: usize>(
         &self,
         tiles: std::ops::Range<usize>,
         data: &[[T; N]],
         rows: &mut Rows<N>,
         out: &Out<T, N>,
     ) -> Result<()> {
-        self.tiles(tiles, data, rows, out)
+        self.tiles::<T, N, LANES>(tiles, data, rows, out)
     }
 
     /// Writes the values of `tile`'s vertices into `out`: every vertex of its slots, or an
     /// error. Rows first, for all output columns at once (each a sum over `K` window columns), then
     /// per output row the three column sums; the vertices the tile owns are picked from them.
     #[inline(always)]
-    fn tile<T: Scalar, const N: usize>(
+    fn tile<T: Scalar, const N: usize, const LANES: usize>(
         &self,
         tile: usize,
         data: &[[T; N]],
@@ -384,17 +408,17 @@ impl<const K: usize> Kernel<'_, K> {
                 let mut s = [0.0f64; MAX_SIDE];
                 for k in 0..half {
                     let (a, b) = (k, K - 1 - k);
-                    for i in 0..MAX_SIDE {
+                    for i in 0..LANES {
                         v[i] += self.value[k] * (x[i + a] + x[i + b]);
                     }
                     if normals.is_some() {
-                        for i in 0..MAX_SIDE {
+                        for i in 0..LANES {
                             s[i] += self.slope[k] * (x[i + a] - x[i + b]);
                         }
                     }
                 }
                 if odd {
-                    for i in 0..MAX_SIDE {
+                    for i in 0..LANES {
                         v[i] += self.value[half] * x[i + half];
                     }
                 }
@@ -420,11 +444,11 @@ impl<const K: usize> Kernel<'_, K> {
                 let (bv, bs) = (&rows.by_value[c], &rows.by_slope[c]);
                 for r in 0..half {
                     let (a, b) = (j + r, j + K - 1 - r);
-                    for i in 0..MAX_SIDE {
+                    for i in 0..LANES {
                         position[c][i] += self.value[r] * (bv[a][i] + bv[b][i]);
                     }
                     if normals.is_some() {
-                        for i in 0..MAX_SIDE {
+                        for i in 0..LANES {
                             along_i[c][i] += self.value[r] * (bs[a][i] + bs[b][i]);
                             along_j[c][i] += self.slope[r] * (bv[a][i] - bv[b][i]);
                         }
@@ -432,13 +456,13 @@ impl<const K: usize> Kernel<'_, K> {
                 }
                 if odd {
                     let m = j + half;
-                    for i in 0..MAX_SIDE {
+                    for i in 0..LANES {
                         position[c][i] += self.value[half] * bv[m][i];
                         along_i[c][i] += self.value[half] * bs[m][i];
                     }
                 }
             }
-            let normal = normals.map(|_| unit_normals::<T, N>(&along_i, &along_j));
+            let normal = normals.map(|_| unit_normals::<T, N, LANES>(&along_i, &along_j));
             let mut bits = mine;
             while bits != 0 {
                 let i = bits.trailing_zeros() as usize;
@@ -474,7 +498,7 @@ impl<const K: usize> Kernel<'_, K> {
 /// vertex at a time, the cross product and normalisation were a tenth of a cached limit's
 /// instructions at degree 3).
 #[inline(always)]
-fn unit_normals<T: Scalar, const N: usize>(
+fn unit_normals<T: Scalar, const N: usize, const LANES: usize>(
     along_i: &[[f64; MAX_SIDE]; N],
     along_j: &[[f64; MAX_SIDE]; N],
 ) -> [[f64; MAX_SIDE]; 3] {
@@ -493,7 +517,7 @@ fn unit_normals<T: Scalar, const N: usize>(
         channel(along_j, 2),
     );
     let mut out = [[0.0; MAX_SIDE]; 3];
-    for i in 0..MAX_SIDE {
+    for i in 0..LANES {
         let x = ay[i] * bz[i] - by[i] * az[i];
         let y = az[i] * bx[i] - bz[i] * ax[i];
         let z = ax[i] * by[i] - bx[i] * ay[i];
