@@ -408,12 +408,16 @@ impl<const K: usize> Kernel<'_, K> {
                 let mut s = [0.0f64; MAX_SIDE];
                 for k in 0..half {
                     let (a, b) = (k, K - 1 - k);
-                    for i in 0..LANES {
-                        v[i] += self.value[k] * (x[i + a] + x[i + b]);
-                    }
+                    // One loop for both masks when both are wanted: each item is read once.
                     if normals.is_some() {
                         for i in 0..LANES {
-                            s[i] += self.slope[k] * (x[i + a] - x[i + b]);
+                            let (p, q) = (x[i + a], x[i + b]);
+                            v[i] += self.value[k] * (p + q);
+                            s[i] += self.slope[k] * (p - q);
+                        }
+                    } else {
+                        for i in 0..LANES {
+                            v[i] += self.value[k] * (x[i + a] + x[i + b]);
                         }
                     }
                 }
@@ -444,13 +448,16 @@ impl<const K: usize> Kernel<'_, K> {
                 let (bv, bs) = (&rows.by_value[c], &rows.by_slope[c]);
                 for r in 0..half {
                     let (a, b) = (j + r, j + K - 1 - r);
-                    for i in 0..LANES {
-                        position[c][i] += self.value[r] * (bv[a][i] + bv[b][i]);
-                    }
                     if normals.is_some() {
                         for i in 0..LANES {
+                            let (p, q) = (bv[a][i], bv[b][i]);
+                            position[c][i] += self.value[r] * (p + q);
                             along_i[c][i] += self.value[r] * (bs[a][i] + bs[b][i]);
-                            along_j[c][i] += self.slope[r] * (bv[a][i] - bv[b][i]);
+                            along_j[c][i] += self.slope[r] * (p - q);
+                        }
+                    } else {
+                        for i in 0..LANES {
+                            position[c][i] += self.value[r] * (bv[a][i] + bv[b][i]);
                         }
                     }
                 }
