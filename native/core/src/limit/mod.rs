@@ -368,8 +368,12 @@ fn build_stencils(
         }),
         false => None,
     };
+    // Stamps per task, shared by the tiles' walks and the stencils' (see [`Pooled`]).
+    let pool = Mutex::new(Vec::new());
     let tiles = match (&walk, tile_depth) {
-        (Some(walk), Some(depth)) => Tiles::build(last, &walk.twins, &walk.marks, degree, depth)?,
+        (Some(walk), Some(depth)) => {
+            Tiles::build(last, &walk.twins, &walk.marks, degree, depth, &pool)?
+        }
         _ => None,
     };
     let tiled = match &tiles {
@@ -422,7 +426,6 @@ fn build_stencils(
     let mut items: Vec<u32> = Vec::new();
     let mut local = Vec::new();
     offsets.push(0u32);
-    let pool = Mutex::new(Vec::new());
     let marks = walk.as_ref().map_or(&[][..], |w| &w.marks[..]);
     for start in (0..outputs).step_by(BLOCK) {
         let end = (start + BLOCK).min(outputs);

@@ -26,7 +26,9 @@ use std::mem::MaybeUninit;
 
 use rayon::prelude::*;
 
-use super::knot_mask;
+use std::sync::Mutex;
+
+use super::{knot_mask, Pooled, Stamps};
 use crate::analysis::neighbourhood_size;
 use crate::error::{Error, Result};
 use crate::memory;
@@ -92,13 +94,15 @@ impl Tiles {
     /// The tiles of `level` (a quad level whose faces `g 4^depth ..` descend from one face of
     /// the level `depth` above it) for the limit of `degree`: `twins` are the level's
     /// [`Level::twin_corners`], `marks` per vertex 0 when regular (valence 4, interior, on no
-    /// curve). `None` when no vertex is computed by a tile.
+    /// curve). `None` when no vertex is computed by a tile. The walks take their [`Stamps`]
+    /// over `marks` from `pool` (the stencils' build then finds them there).
     pub(super) fn build(
         level: &Level,
         twins: &[u32],
         marks: &[u32],
         degree: u32,
         depth: u32,
+        pool: &Mutex<Vec<Stamps>>,
     ) -> Result<Option<Tiles>> {
         if depth > MAX_DEPTH || !level.is_quads() || !(2..=9).contains(&degree) {
             return Ok(None);
@@ -139,8 +143,14 @@ impl Tiles {
             let walks: Vec<Walked> = (start..end)
                 .into_par_iter()
                 .with_min_len(16)
-                .map(|g| geometry.walk(g << (2 * depth)))
-                .collect();
+                .map_init(
+                    || Pooled::take(pool, marks),
+                    |stamps, g| {
+                        let stamps = stamps.stamps.as_mut().map_err(|e| e.clone())?;
+                        Ok(geometry.walk(g << (2 * depth), stamps))
+                    },
+                )
+                .collect::<Result<_>>()?;
             // Claims in tile order: the result does not depend on the thread count.
             for w in &walks {
                 let mut mine = 0u128;
@@ -554,7 +564,7 @@ impl Geometry<'_> {
     /// A vertex is good when it is regular and its four cells meet around it as a grid's do;
     /// an output vertex is valid when every vertex within `N` rings of it is good and the good
     /// vertices of the window are all different.
-    fn walk(&self, anchor: usize) -> Walked {
+    fn walk(&self, anchor: usize, stamps: &mut Stamps) -> Walked {
         let (t, n, d) = (self.t, self.rings, self.data_side);
         let twin = |c: u32| -> Option<u32> {
             let o = *self.twins.get(c as usize)?;
@@ -639,16 +649,14 @@ impl Geometry<'_> {
                     && right(left_of) == Some(own);
             }
         }
-        // All good vertices different (the window is a disc), else no output.
-        let mut seen = [NONE; MAX_DATA * MAX_DATA];
-        let mut count = 0;
-        for x in (0..vside * vside).filter(|&x| good[x]) {
-            seen[count] = vertex[x];
-            count += 1;
-        }
-        let seen = &mut seen[..count];
-        seen.sort_unstable();
-        let distinct = seen.windows(2).all(|w| w[0] != w[1]);
+        // All good vertices different (the window is a disc), else no output: good vertices
+        // are regular, so a stamp refused is one met before (a sort of the window's vertices
+        // cost 5 % of a first limit call at degree 3).
+        stamps.start();
+        let count = good[..vside * vside].iter().filter(|&&g| g).count();
+        let distinct = (0..vside * vside)
+            .filter(|&x| good[x])
+            .all(|x| stamps.insert(vertex[x]));
         // Bad vertices counted over each box of N rings by prefix sums (most windows have none:
         // then every output is valid).
         let all_good = count == vside * vside;
