@@ -755,7 +755,7 @@ fn carry_face_varying<T: Scalar>(
     base: &Refinement,
     parts: &[Part<T>],
     mesh: &AdaptiveMesh<T>,
-    corner_at: &[(u32, u32, u8)],
+    corner_at: &[CornerAt],
     values: &[T],
     channels: usize,
     topology: Topology,
@@ -818,7 +818,7 @@ fn carry_face_varying<T: Scalar>(
 fn linear_face_varying<T: Scalar>(
     ctx: &Context<T>,
     parts: &[Part<T>],
-    corner_at: &[(u32, u32, u8)],
+    corner_at: &[CornerAt],
     values: &[T],
     channels: usize,
 ) -> Result<Vec<T>> {
@@ -2234,7 +2234,7 @@ fn block_errors<T: Scalar>(
     // it is made, its data read once.
     let n = grid.weights[0].len() - 2 + span;
     let points = 2 * span + 1;
-    let taps = grid.taps.each_ref().map(|t| t.start..t.end.min(n));
+    let taps = grid.taps.each_ref().map(|t| (t.start, t.end.min(n)));
     let mut magnitude = 0.0f64;
     let mut data = [[0.0f64; 3]; GRID_SIDE + 2];
     let mut grid_points = [[[0.0f64; 3]; 5]; 5];
@@ -2247,35 +2247,42 @@ fn block_errors<T: Scalar>(
             } else {
                 (cells[at(px, py)] >> 2) as usize
             };
-            *d = part.data[item].map(|v| v.to_f64());
-            for v in d.iter() {
-                // As `f64::max`, without its NaN handling (the data are finite).
-                if v.abs() > magnitude {
-                    magnitude = v.abs();
-                }
+            let [a, b, c] = part.data[item].map(|v| v.to_f64());
+            // As `f64::max`, without its NaN handling (the data are finite).
+            let m = a.abs();
+            let m = if b.abs() > m { b.abs() } else { m };
+            let m = if c.abs() > m { c.abs() } else { m };
+            if m > magnitude {
+                magnitude = m;
             }
+            *d = [a, b, c];
         }
+        // Plain index loops over the taps, each sum from 0 in increasing position (the order
+        // of the iterator version they replace: the same bits).
         let mut row = [[0.0f64; 3]; 5];
-        for (sum, (w, t)) in row
-            .iter_mut()
-            .zip(grid.weights.iter().zip(&taps))
-            .take(points)
-        {
-            for (w, d) in w[t.clone()].iter().zip(&data[t.clone()]) {
-                for k in 0..3 {
-                    sum[k] += w * d[k];
-                }
+        for p in 0..points {
+            let (first, end) = taps[p];
+            let w = &grid.weights[p][first..end];
+            let d = &data[first..end];
+            let mut sum = [0.0f64; 3];
+            for i in 0..w.len().min(d.len()) {
+                sum[0] += w[i] * d[i][0];
+                sum[1] += w[i] * d[i][1];
+                sum[2] += w[i] * d[i][2];
             }
+            row[p] = sum;
         }
-        let columns = grid_points.iter_mut().zip(grid.weights.iter().zip(&taps));
-        for (column, (w, t)) in columns.take(points) {
-            if t.contains(&y) {
-                let w = w[y];
-                for (point, r) in column.iter_mut().zip(&row).take(points) {
-                    for k in 0..3 {
-                        point[k] += w * r[k];
-                    }
-                }
+        for q in 0..points {
+            let (first, end) = taps[q];
+            if y < first || y >= end {
+                continue;
+            }
+            let w = grid.weights[q][y];
+            let column = &mut grid_points[q];
+            for p in 0..points {
+                column[p][0] += w * row[p][0];
+                column[p][1] += w * row[p][1];
+                column[p][2] += w * row[p][2];
             }
         }
     }
@@ -2304,50 +2311,78 @@ fn scale_of<T>(ctx: &Context<T>) -> f64 {
 /// Refines the nodes `nodes` of level `t` and, by the vertex restriction criterion, every leaf
 /// parent of a face sharing a vertex with a refined node, down to the roots. Returns the lowest
 /// level at which a node was refined (`t` if none).
-fn restrict_refine<T>(
+///
+/// The criterion only reaches down a level, so the sets are completed level by level from `t`:
+/// the parents a level's new nodes ask for are found in parallel chunks (the sets of the level
+/// below are only read meanwhile), sorted and added. The sets are the same as by any order of
+/// insertion (the smallest ones closed under the criterion).
+fn restrict_refine<T: Sync>(
     parts: &[Part<T>],
     refined: &mut [IdSet],
     t: usize,
     nodes: impl Iterator<Item = u64>,
 ) -> Result<usize> {
     let mut lowest = t;
-    let mut stack: Vec<(usize, u64)> = nodes.map(|u| (t, u)).collect();
-    stack.reverse();
-    while let Some((s, x)) = stack.pop() {
-        reserve_set(&mut refined[s], 1)?;
-        if !refined[s].insert(x) {
-            continue;
-        }
-        lowest = lowest.min(s);
-        if s == 1 {
-            continue;
-        }
+    let nodes: Vec<u64> = nodes.collect();
+    reserve_set(&mut refined[t], nodes.len())?;
+    let mut new: Vec<u64> = nodes
+        .into_iter()
+        .filter(|&x| refined[t].insert(x))
+        .collect();
+    let mut s = t;
+    while !new.is_empty() && s > 1 {
         let part = &parts[s];
-        let f = part.face_of_uid(x).ok_or_else(|| {
-            Error::Internal(format!("adaptive: node {x} of level {s} outside its level"))
-        })?;
-        // The faces around the node's corners have few parents, met in runs, and one of them
-        // is the node's own (refined): each other one is looked up once per run.
-        let mut last = x >> 2;
-        for k in 4 * f..4 * f + 4 {
-            let v = part.level.corner_verts[k] as usize;
-            if !part.is_complete(v) {
-                return Err(Error::Internal(format!(
-                    "adaptive: vertex {} of level {s} is cut off",
-                    part.vert_uid[v]
-                )));
-            }
-            for &d in part.level.corners_of_vertex(v) {
-                let parent = part.face_uid[(d >> 2) as usize] >> 2;
-                if parent != last && parent != x >> 2 && !refined[s - 1].contains(&parent) {
-                    stack.push((s - 1, parent));
+        let below = &refined[s - 1];
+        // The leaf parents asked for by the nodes of one chunk, in the nodes' order.
+        let asked = |chunk: &[u64]| -> Result<Vec<u64>> {
+            let mut out = Vec::new();
+            for &x in chunk {
+                let f = part.face_of_uid(x).ok_or_else(|| {
+                    Error::Internal(format!("adaptive: node {x} of level {s} outside its level"))
+                })?;
+                // The faces around the node's corners have few parents, met in runs, and one
+                // of them is the node's own (refined): each other one is looked up once per run.
+                let mut last = x >> 2;
+                for k in 4 * f..4 * f + 4 {
+                    let v = part.level.corner_verts[k] as usize;
+                    if !part.is_complete(v) {
+                        return Err(Error::Internal(format!(
+                            "adaptive: vertex {} of level {s} is cut off",
+                            part.vert_uid[v]
+                        )));
+                    }
+                    for &d in part.level.corners_of_vertex(v) {
+                        let parent = part.face_uid[(d >> 2) as usize] >> 2;
+                        if parent != last && parent != x >> 2 && !below.contains(&parent) {
+                            out.push(parent);
+                        }
+                        last = parent;
+                    }
                 }
-                last = parent;
             }
+            Ok(out)
+        };
+        let chunks: Vec<Result<Vec<u64>>> = new.par_chunks(RESTRICT_CHUNK).map(asked).collect();
+        let mut parents = Vec::new();
+        for chunk in chunks {
+            parents.extend(chunk?);
         }
+        parents.sort_unstable();
+        parents.dedup();
+        s -= 1;
+        reserve_set(&mut refined[s], parents.len())?;
+        refined[s].extend(parents.iter().copied());
+        if !parents.is_empty() {
+            lowest = s;
+        }
+        new = parents;
     }
     Ok(lowest)
 }
+
+/// Nodes per parallel task of [`restrict_refine`] (each looks at the 16 faces or so around its
+/// node's corners).
+const RESTRICT_CHUNK: usize = 1 << 9;
 
 /// Triangle templates of a leaf quad for the 16 cases of refined edge neighbours (bit k: the
 /// neighbour across edge k, from corner k to corner k + 1, is refined once more). Positions:
@@ -2380,6 +2415,14 @@ fn cage_edge_of<T>(parts: &[Part<T>], t: usize, uid: u64) -> u32 {
     }
 }
 
+/// Where a triangle corner is: the level of its leaf, the leaf (a face of that partial level)
+/// and its template slot (corner `k` is `2k`, the midpoint of edge `k` is `2k + 1`).
+type CornerAt = (u32, u32, u8);
+
+// SAFETY: a tuple of integers; all-zero bytes are a valid value of each field, and padding
+// bytes may hold anything.
+unsafe impl memory::Zeroable for CornerAt {}
+
 /// The output mesh and where its vertices and triangle corners are in the partial levels.
 struct Drawn<T> {
     mesh: AdaptiveMesh<T>,
@@ -2387,7 +2430,7 @@ struct Drawn<T> {
     vertex_at: Vec<(u32, u32)>,
     /// Per triangle corner: the level of its leaf, the leaf (a face of that partial level) and
     /// its template slot (corner `k` is `2k`, the midpoint of edge `k` is `2k + 1`).
-    corner_at: Vec<(u32, u32, u8)>,
+    corner_at: Vec<CornerAt>,
 }
 
 /// Leaves per chunk of the parallel triangle output.
@@ -2400,7 +2443,7 @@ struct LeafChunk<'a> {
     triangles: &'a mut [[u32; 3]],
     face_origin: &'a mut [u32],
     triangle_level: &'a mut [u32],
-    corner_at: &'a mut [(u32, u32, u8)],
+    corner_at: &'a mut [CornerAt],
     edge_origin: &'a mut [u32],
     edge_level: &'a mut [u32],
     edge_sharpness: &'a mut [f32],
@@ -2599,13 +2642,15 @@ fn triangulate<T: Scalar>(
     let first_triangle =
         prefix_offsets(cases.len(), |i| templates[cases[i].1 as usize].len() as u32)?;
     let num_triangles = first_triangle[cases.len()] as usize;
-    let mut triangles = zeroed_hinted::<[u32; 3]>(num_triangles)?;
-    let mut face_origin = zeroed_hinted::<u32>(num_triangles)?;
-    let mut triangle_level = zeroed_hinted::<u32>(num_triangles)?;
-    let mut corner_at = memory::filled(3 * num_triangles, (0u32, 0u32, 0u8))?;
-    let mut edge_origin = zeroed_hinted::<u32>(3 * num_triangles)?;
-    let mut edge_level = zeroed_hinted::<u32>(3 * num_triangles)?;
-    let mut edge_sharpness = zeroed_hinted::<f32>(3 * num_triangles)?;
+    // Every item is written below, so the outputs start as zero pages from the allocator
+    // (untouched until written) rather than being filled with zeros first.
+    let mut triangles = memory::zeroed::<[u32; 3]>(num_triangles)?;
+    let mut face_origin = memory::zeroed::<u32>(num_triangles)?;
+    let mut triangle_level = memory::zeroed::<u32>(num_triangles)?;
+    let mut corner_at = memory::zeroed::<CornerAt>(3 * num_triangles)?;
+    let mut edge_origin = memory::zeroed::<u32>(3 * num_triangles)?;
+    let mut edge_level = memory::zeroed::<u32>(3 * num_triangles)?;
+    let mut edge_sharpness = memory::zeroed::<f32>(3 * num_triangles)?;
     // Chunks of leaves and the runs of the outputs they write.
     let mut chunks: Vec<LeafChunk> = Vec::new();
     {
