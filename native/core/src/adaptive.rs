@@ -99,6 +99,7 @@
 
 use std::collections::HashSet;
 use std::hash::{BuildHasherDefault, Hasher};
+use std::mem::MaybeUninit;
 
 use rayon::prelude::*;
 
@@ -108,7 +109,9 @@ use crate::face_varying::{face_varying_mesh, FaceVaryingMode, Topology};
 use crate::memory;
 use crate::mesh::{check_values, validate_geometry, Cage};
 use crate::options::{check_degree, check_levels, Boundary, Options};
-use crate::parallel::{fill_csr, gather_hinted, in_pool, prefix_offsets, zeroed_hinted};
+use crate::parallel::{
+    fill_csr, gather_hinted, in_pool, prefix_offsets, with_capacity_hinted, zeroed_hinted,
+};
 use crate::refinement::Refinement;
 use crate::scalar::{reciprocal, Scalar};
 use crate::scheme::{decrement, Scheme};
@@ -2419,10 +2422,6 @@ fn cage_edge_of<T>(parts: &[Part<T>], t: usize, uid: u64) -> u32 {
 /// and its template slot (corner `k` is `2k`, the midpoint of edge `k` is `2k + 1`).
 type CornerAt = (u32, u32, u8);
 
-// SAFETY: a tuple of integers; all-zero bytes are a valid value of each field, and padding
-// bytes may hold anything.
-unsafe impl memory::Zeroable for CornerAt {}
-
 /// The output mesh and where its vertices and triangle corners are in the partial levels.
 struct Drawn<T> {
     mesh: AdaptiveMesh<T>,
@@ -2438,15 +2437,17 @@ const LEAF_CHUNK: usize = 1 << 10;
 
 /// A run of leaves (indices into the output order) and the runs of the triangle outputs that
 /// their triangles fill.
+/// The runs start uninitialised: each chunk writes all of them (checked before the outputs'
+/// lengths are set), so they are not filled with zeros first.
 struct LeafChunk<'a> {
     leaves: std::ops::Range<usize>,
-    triangles: &'a mut [[u32; 3]],
-    face_origin: &'a mut [u32],
-    triangle_level: &'a mut [u32],
-    corner_at: &'a mut [CornerAt],
-    edge_origin: &'a mut [u32],
-    edge_level: &'a mut [u32],
-    edge_sharpness: &'a mut [f32],
+    triangles: &'a mut [MaybeUninit<[u32; 3]>],
+    face_origin: &'a mut [MaybeUninit<u32>],
+    triangle_level: &'a mut [MaybeUninit<u32>],
+    corner_at: &'a mut [MaybeUninit<CornerAt>],
+    edge_origin: &'a mut [MaybeUninit<u32>],
+    edge_level: &'a mut [MaybeUninit<u32>],
+    edge_sharpness: &'a mut [MaybeUninit<f32>],
 }
 
 impl<'a> LeafChunk<'a> {
@@ -2642,27 +2643,26 @@ fn triangulate<T: Scalar>(
     let first_triangle =
         prefix_offsets(cases.len(), |i| templates[cases[i].1 as usize].len() as u32)?;
     let num_triangles = first_triangle[cases.len()] as usize;
-    // Every item is written below, so the outputs start as zero pages from the allocator
-    // (untouched until written) rather than being filled with zeros first.
-    let mut triangles = memory::zeroed::<[u32; 3]>(num_triangles)?;
-    let mut face_origin = memory::zeroed::<u32>(num_triangles)?;
-    let mut triangle_level = memory::zeroed::<u32>(num_triangles)?;
-    let mut corner_at = memory::zeroed::<CornerAt>(3 * num_triangles)?;
-    let mut edge_origin = memory::zeroed::<u32>(3 * num_triangles)?;
-    let mut edge_level = memory::zeroed::<u32>(3 * num_triangles)?;
-    let mut edge_sharpness = memory::zeroed::<f32>(3 * num_triangles)?;
+    let (n, n3) = (num_triangles, 3 * num_triangles);
+    let mut triangles = with_capacity_hinted::<[u32; 3]>(n)?;
+    let mut face_origin = with_capacity_hinted::<u32>(n)?;
+    let mut triangle_level = with_capacity_hinted::<u32>(n)?;
+    let mut corner_at = with_capacity_hinted::<CornerAt>(n3)?;
+    let mut edge_origin = with_capacity_hinted::<u32>(n3)?;
+    let mut edge_level = with_capacity_hinted::<u32>(n3)?;
+    let mut edge_sharpness = with_capacity_hinted::<f32>(n3)?;
     // Chunks of leaves and the runs of the outputs they write.
     let mut chunks: Vec<LeafChunk> = Vec::new();
     {
         let mut rest = LeafChunk {
             leaves: 0..0,
-            triangles: &mut triangles[..],
-            face_origin: &mut face_origin[..],
-            triangle_level: &mut triangle_level[..],
-            corner_at: &mut corner_at[..],
-            edge_origin: &mut edge_origin[..],
-            edge_level: &mut edge_level[..],
-            edge_sharpness: &mut edge_sharpness[..],
+            triangles: &mut triangles.spare_capacity_mut()[..n],
+            face_origin: &mut face_origin.spare_capacity_mut()[..n],
+            triangle_level: &mut triangle_level.spare_capacity_mut()[..n],
+            corner_at: &mut corner_at.spare_capacity_mut()[..n3],
+            edge_origin: &mut edge_origin.spare_capacity_mut()[..n3],
+            edge_level: &mut edge_level.spare_capacity_mut()[..n3],
+            edge_sharpness: &mut edge_sharpness.spare_capacity_mut()[..n3],
         };
         for first in (0..cases.len()).step_by(LEAF_CHUNK) {
             let end = (first + LEAF_CHUNK).min(cases.len());
@@ -2689,9 +2689,9 @@ fn triangulate<T: Scalar>(
                 )
             });
             for tri in &templates[mask as usize] {
-                chunk.triangles[x] = tri.map(|p| slots[p as usize]);
-                chunk.face_origin[x] = origin;
-                chunk.triangle_level[x] = t as u32;
+                chunk.triangles[x].write(tri.map(|p| slots[p as usize]));
+                chunk.face_origin[x].write(origin);
+                chunk.triangle_level[x].write(t as u32);
                 x += 1;
                 for i in 0..3 {
                     let (p, q) = (tri[i], tri[(i + 1) % 3]);
@@ -2703,20 +2703,40 @@ fn triangulate<T: Scalar>(
                     } else {
                         ctx.features.edge_sharpness[origin as usize]
                     };
-                    chunk.corner_at[y] = (t as u32, f as u32, p);
-                    chunk.edge_origin[y] = origin;
-                    chunk.edge_level[y] = depth;
+                    chunk.corner_at[y].write((t as u32, f as u32, p));
+                    chunk.edge_origin[y].write(origin);
+                    chunk.edge_level[y].write(depth);
                     // Decrementing keeps 0 (and makes anything not positive 0): skip it there.
-                    chunk.edge_sharpness[y] = if cage <= 0.0 {
+                    chunk.edge_sharpness[y].write(if cage <= 0.0 {
                         0.0
                     } else {
                         (0..depth).fold(cage, |s, _| decrement(s))
-                    };
+                    });
                     y += 1;
                 }
             }
         }
+        // Items 0..x and 0..y of the runs were written, one after the other: all of them (the
+        // runs' lengths are the leaves' template sizes, as `first_triangle` counted them).
+        assert!(
+            x == chunk.triangles.len() && y == chunk.corner_at.len(),
+            "adaptive: a chunk of leaves wrote {x} of {} triangles",
+            chunk.triangles.len()
+        );
     });
+    // SAFETY: the chunks' runs tile the first `n` (`n3`) items of each output, in order
+    // (`LeafChunk::split` of the spare capacities, `n` triangles in all as `first_triangle`
+    // counts them), and every chunk wrote every item of its runs (the assertion above, which
+    // would have unwound past here); `n` and `n3` are within the capacities allocated.
+    unsafe {
+        triangles.set_len(n);
+        face_origin.set_len(n);
+        triangle_level.set_len(n);
+        corner_at.set_len(n3);
+        edge_origin.set_len(n3);
+        edge_level.set_len(n3);
+        edge_sharpness.set_len(n3);
+    }
     let mut leaves_per_level = vec![0u64; max_level + 1];
     for (t, l) in leaves.iter().enumerate() {
         if t <= max_level {
