@@ -58,11 +58,13 @@
 //! not hash maps; the refined sets are the only ones, read by the restriction criterion (the
 //! node lists are made from them only when they grow).
 //!
-//! Measured (instructions, callgrind driver `examples/callgrind.rs`, one thread, 2026-12-03):
-//! `adaptive-flat-4-6` 408M against 799M for `adaptive-uniform-4-6` (0.51x; 0.65x for 3-5,
-//! 0.54x for 4-5). Of the 408M, the partial levels take 185M (`extend_pass`), the closed-form
-//! decisions 117M (about 10k instructions per sibling block, 12k blocks, with the per-level
-//! tables), the triangulation 70M and the restriction criterion 23M (serial).
+//! Measured (instructions, callgrind driver `examples/callgrind.rs`, one thread, 2026-12-04,
+//! 97d4a81): `adaptive-flat-4-6` 382M against 718M for `adaptive-uniform-4-6` in the same build
+//! (0.53x; 0.62x for 3-5, 0.56x for 4-5). Of the 382M, the partial levels take 178M
+//! (`extend_pass`: the topology's refinement 53M, the restrictions around the parents 35M, the
+//! regular windows 22M), the closed-form decisions 105M (about 8k instructions per sibling
+//! block, 12k blocks, with the per-level tables), the triangulation 66M and the restriction
+//! criterion 19M.
 //!
 //! # Refinement
 //! Levels are decided one at a time: level j's nodes are evaluated together with their children
@@ -1600,6 +1602,9 @@ fn refine_topology<T: Sync, U>(
         pin,
     )?;
 
+    // Built even where they cost more than the passes they spare (the adaptive partial levels:
+    // 14M of `adaptive-flat-4-6`'s 400M, 2026-12-04): the kernel's sums are not the passes' bit
+    // for bit, and a partial level's points must be the uniform plan's, which uses them.
     let windows = match ctx.scheme {
         Scheme::Averaging { degree } => Windows::of_step(c, &fine, &network, degree, t)?,
         _ => None,
