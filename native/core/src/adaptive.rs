@@ -58,11 +58,13 @@
 //! not hash maps; the refined sets are the only ones, read by the restriction criterion (the
 //! node lists are made from them only when they grow).
 //!
-//! Measured (instructions, callgrind driver `examples/callgrind.rs`, one thread, 2026-12-03):
-//! `adaptive-flat-4-6` 408M against 799M for `adaptive-uniform-4-6` (0.51x; 0.65x for 3-5,
-//! 0.54x for 4-5). Of the 408M, the partial levels take 185M (`extend_pass`), the closed-form
-//! decisions 117M (about 10k instructions per sibling block, 12k blocks, with the per-level
-//! tables), the triangulation 70M and the restriction criterion 23M (serial).
+//! Measured (instructions, callgrind driver `examples/callgrind.rs`, one thread, 2026-12-04,
+//! 97d4a81): `adaptive-flat-4-6` 382M against 718M for `adaptive-uniform-4-6` in the same build
+//! (0.53x; 0.62x for 3-5, 0.56x for 4-5). Of the 382M, the partial levels take 178M
+//! (`extend_pass`: the topology's refinement 53M, the restrictions around the parents 35M, the
+//! regular windows 22M), the closed-form decisions 105M (about 8k instructions per sibling
+//! block, 12k blocks, with the per-level tables), the triangulation 66M and the restriction
+//! criterion 19M.
 //!
 //! # Refinement
 //! Levels are decided one at a time: level j's nodes are evaluated together with their children
@@ -99,6 +101,7 @@
 
 use std::collections::HashSet;
 use std::hash::{BuildHasherDefault, Hasher};
+use std::mem::MaybeUninit;
 
 use rayon::prelude::*;
 
@@ -108,7 +111,9 @@ use crate::face_varying::{face_varying_mesh, FaceVaryingMode, Topology};
 use crate::memory;
 use crate::mesh::{check_values, validate_geometry, Cage};
 use crate::options::{check_degree, check_levels, Boundary, Options};
-use crate::parallel::{fill_csr, gather_hinted, in_pool, prefix_offsets, zeroed_hinted};
+use crate::parallel::{
+    fill_csr, gather_hinted, in_pool, prefix_offsets, with_capacity_hinted, zeroed_hinted,
+};
 use crate::refinement::Refinement;
 use crate::scalar::{reciprocal, Scalar};
 use crate::scheme::{decrement, Scheme};
@@ -755,7 +760,7 @@ fn carry_face_varying<T: Scalar>(
     base: &Refinement,
     parts: &[Part<T>],
     mesh: &AdaptiveMesh<T>,
-    corner_at: &[(u32, u32, u8)],
+    corner_at: &[CornerAt],
     values: &[T],
     channels: usize,
     topology: Topology,
@@ -818,7 +823,7 @@ fn carry_face_varying<T: Scalar>(
 fn linear_face_varying<T: Scalar>(
     ctx: &Context<T>,
     parts: &[Part<T>],
-    corner_at: &[(u32, u32, u8)],
+    corner_at: &[CornerAt],
     values: &[T],
     channels: usize,
 ) -> Result<Vec<T>> {
@@ -1597,6 +1602,9 @@ fn refine_topology<T: Sync, U>(
         pin,
     )?;
 
+    // Built even where they cost more than the passes they spare (the adaptive partial levels:
+    // 14M of `adaptive-flat-4-6`'s 400M, 2026-12-04): the kernel's sums are not the passes' bit
+    // for bit, and a partial level's points must be the uniform plan's, which uses them.
     let windows = match ctx.scheme {
         Scheme::Averaging { degree } => Windows::of_step(c, &fine, &network, degree, t)?,
         _ => None,
@@ -2234,7 +2242,7 @@ fn block_errors<T: Scalar>(
     // it is made, its data read once.
     let n = grid.weights[0].len() - 2 + span;
     let points = 2 * span + 1;
-    let taps = grid.taps.each_ref().map(|t| t.start..t.end.min(n));
+    let taps = grid.taps.each_ref().map(|t| (t.start, t.end.min(n)));
     let mut magnitude = 0.0f64;
     let mut data = [[0.0f64; 3]; GRID_SIDE + 2];
     let mut grid_points = [[[0.0f64; 3]; 5]; 5];
@@ -2247,35 +2255,42 @@ fn block_errors<T: Scalar>(
             } else {
                 (cells[at(px, py)] >> 2) as usize
             };
-            *d = part.data[item].map(|v| v.to_f64());
-            for v in d.iter() {
-                // As `f64::max`, without its NaN handling (the data are finite).
-                if v.abs() > magnitude {
-                    magnitude = v.abs();
-                }
+            let [a, b, c] = part.data[item].map(|v| v.to_f64());
+            // As `f64::max`, without its NaN handling (the data are finite).
+            let m = a.abs();
+            let m = if b.abs() > m { b.abs() } else { m };
+            let m = if c.abs() > m { c.abs() } else { m };
+            if m > magnitude {
+                magnitude = m;
             }
+            *d = [a, b, c];
         }
+        // Plain index loops over the taps, each sum from 0 in increasing position (the order
+        // of the iterator version they replace: the same bits).
         let mut row = [[0.0f64; 3]; 5];
-        for (sum, (w, t)) in row
-            .iter_mut()
-            .zip(grid.weights.iter().zip(&taps))
-            .take(points)
-        {
-            for (w, d) in w[t.clone()].iter().zip(&data[t.clone()]) {
-                for k in 0..3 {
-                    sum[k] += w * d[k];
-                }
+        for p in 0..points {
+            let (first, end) = taps[p];
+            let w = &grid.weights[p][first..end];
+            let d = &data[first..end];
+            let mut sum = [0.0f64; 3];
+            for i in 0..w.len().min(d.len()) {
+                sum[0] += w[i] * d[i][0];
+                sum[1] += w[i] * d[i][1];
+                sum[2] += w[i] * d[i][2];
             }
+            row[p] = sum;
         }
-        let columns = grid_points.iter_mut().zip(grid.weights.iter().zip(&taps));
-        for (column, (w, t)) in columns.take(points) {
-            if t.contains(&y) {
-                let w = w[y];
-                for (point, r) in column.iter_mut().zip(&row).take(points) {
-                    for k in 0..3 {
-                        point[k] += w * r[k];
-                    }
-                }
+        for q in 0..points {
+            let (first, end) = taps[q];
+            if y < first || y >= end {
+                continue;
+            }
+            let w = grid.weights[q][y];
+            let column = &mut grid_points[q];
+            for p in 0..points {
+                column[p][0] += w * row[p][0];
+                column[p][1] += w * row[p][1];
+                column[p][2] += w * row[p][2];
             }
         }
     }
@@ -2304,50 +2319,78 @@ fn scale_of<T>(ctx: &Context<T>) -> f64 {
 /// Refines the nodes `nodes` of level `t` and, by the vertex restriction criterion, every leaf
 /// parent of a face sharing a vertex with a refined node, down to the roots. Returns the lowest
 /// level at which a node was refined (`t` if none).
-fn restrict_refine<T>(
+///
+/// The criterion only reaches down a level, so the sets are completed level by level from `t`:
+/// the parents a level's new nodes ask for are found in parallel chunks (the sets of the level
+/// below are only read meanwhile), sorted and added. The sets are the same as by any order of
+/// insertion (the smallest ones closed under the criterion).
+fn restrict_refine<T: Sync>(
     parts: &[Part<T>],
     refined: &mut [IdSet],
     t: usize,
     nodes: impl Iterator<Item = u64>,
 ) -> Result<usize> {
     let mut lowest = t;
-    let mut stack: Vec<(usize, u64)> = nodes.map(|u| (t, u)).collect();
-    stack.reverse();
-    while let Some((s, x)) = stack.pop() {
-        reserve_set(&mut refined[s], 1)?;
-        if !refined[s].insert(x) {
-            continue;
-        }
-        lowest = lowest.min(s);
-        if s == 1 {
-            continue;
-        }
+    let nodes: Vec<u64> = nodes.collect();
+    reserve_set(&mut refined[t], nodes.len())?;
+    let mut new: Vec<u64> = nodes
+        .into_iter()
+        .filter(|&x| refined[t].insert(x))
+        .collect();
+    let mut s = t;
+    while !new.is_empty() && s > 1 {
         let part = &parts[s];
-        let f = part.face_of_uid(x).ok_or_else(|| {
-            Error::Internal(format!("adaptive: node {x} of level {s} outside its level"))
-        })?;
-        // The faces around the node's corners have few parents, met in runs, and one of them
-        // is the node's own (refined): each other one is looked up once per run.
-        let mut last = x >> 2;
-        for k in 4 * f..4 * f + 4 {
-            let v = part.level.corner_verts[k] as usize;
-            if !part.is_complete(v) {
-                return Err(Error::Internal(format!(
-                    "adaptive: vertex {} of level {s} is cut off",
-                    part.vert_uid[v]
-                )));
-            }
-            for &d in part.level.corners_of_vertex(v) {
-                let parent = part.face_uid[(d >> 2) as usize] >> 2;
-                if parent != last && parent != x >> 2 && !refined[s - 1].contains(&parent) {
-                    stack.push((s - 1, parent));
+        let below = &refined[s - 1];
+        // The leaf parents asked for by the nodes of one chunk, in the nodes' order.
+        let asked = |chunk: &[u64]| -> Result<Vec<u64>> {
+            let mut out = Vec::new();
+            for &x in chunk {
+                let f = part.face_of_uid(x).ok_or_else(|| {
+                    Error::Internal(format!("adaptive: node {x} of level {s} outside its level"))
+                })?;
+                // The faces around the node's corners have few parents, met in runs, and one
+                // of them is the node's own (refined): each other one is looked up once per run.
+                let mut last = x >> 2;
+                for k in 4 * f..4 * f + 4 {
+                    let v = part.level.corner_verts[k] as usize;
+                    if !part.is_complete(v) {
+                        return Err(Error::Internal(format!(
+                            "adaptive: vertex {} of level {s} is cut off",
+                            part.vert_uid[v]
+                        )));
+                    }
+                    for &d in part.level.corners_of_vertex(v) {
+                        let parent = part.face_uid[(d >> 2) as usize] >> 2;
+                        if parent != last && parent != x >> 2 && !below.contains(&parent) {
+                            out.push(parent);
+                        }
+                        last = parent;
+                    }
                 }
-                last = parent;
             }
+            Ok(out)
+        };
+        let chunks: Vec<Result<Vec<u64>>> = new.par_chunks(RESTRICT_CHUNK).map(asked).collect();
+        let mut parents = Vec::new();
+        for chunk in chunks {
+            parents.extend(chunk?);
         }
+        parents.sort_unstable();
+        parents.dedup();
+        s -= 1;
+        reserve_set(&mut refined[s], parents.len())?;
+        refined[s].extend(parents.iter().copied());
+        if !parents.is_empty() {
+            lowest = s;
+        }
+        new = parents;
     }
     Ok(lowest)
 }
+
+/// Nodes per parallel task of [`restrict_refine`] (each looks at the 16 faces or so around its
+/// node's corners).
+const RESTRICT_CHUNK: usize = 1 << 9;
 
 /// Triangle templates of a leaf quad for the 16 cases of refined edge neighbours (bit k: the
 /// neighbour across edge k, from corner k to corner k + 1, is refined once more). Positions:
@@ -2380,6 +2423,10 @@ fn cage_edge_of<T>(parts: &[Part<T>], t: usize, uid: u64) -> u32 {
     }
 }
 
+/// Where a triangle corner is: the level of its leaf, the leaf (a face of that partial level)
+/// and its template slot (corner `k` is `2k`, the midpoint of edge `k` is `2k + 1`).
+type CornerAt = (u32, u32, u8);
+
 /// The output mesh and where its vertices and triangle corners are in the partial levels.
 struct Drawn<T> {
     mesh: AdaptiveMesh<T>,
@@ -2387,7 +2434,7 @@ struct Drawn<T> {
     vertex_at: Vec<(u32, u32)>,
     /// Per triangle corner: the level of its leaf, the leaf (a face of that partial level) and
     /// its template slot (corner `k` is `2k`, the midpoint of edge `k` is `2k + 1`).
-    corner_at: Vec<(u32, u32, u8)>,
+    corner_at: Vec<CornerAt>,
 }
 
 /// Leaves per chunk of the parallel triangle output.
@@ -2395,15 +2442,17 @@ const LEAF_CHUNK: usize = 1 << 10;
 
 /// A run of leaves (indices into the output order) and the runs of the triangle outputs that
 /// their triangles fill.
+/// The runs start uninitialised: each chunk writes all of them (checked before the outputs'
+/// lengths are set), so they are not filled with zeros first.
 struct LeafChunk<'a> {
     leaves: std::ops::Range<usize>,
-    triangles: &'a mut [[u32; 3]],
-    face_origin: &'a mut [u32],
-    triangle_level: &'a mut [u32],
-    corner_at: &'a mut [(u32, u32, u8)],
-    edge_origin: &'a mut [u32],
-    edge_level: &'a mut [u32],
-    edge_sharpness: &'a mut [f32],
+    triangles: &'a mut [MaybeUninit<[u32; 3]>],
+    face_origin: &'a mut [MaybeUninit<u32>],
+    triangle_level: &'a mut [MaybeUninit<u32>],
+    corner_at: &'a mut [MaybeUninit<CornerAt>],
+    edge_origin: &'a mut [MaybeUninit<u32>],
+    edge_level: &'a mut [MaybeUninit<u32>],
+    edge_sharpness: &'a mut [MaybeUninit<f32>],
 }
 
 impl<'a> LeafChunk<'a> {
@@ -2599,25 +2648,26 @@ fn triangulate<T: Scalar>(
     let first_triangle =
         prefix_offsets(cases.len(), |i| templates[cases[i].1 as usize].len() as u32)?;
     let num_triangles = first_triangle[cases.len()] as usize;
-    let mut triangles = zeroed_hinted::<[u32; 3]>(num_triangles)?;
-    let mut face_origin = zeroed_hinted::<u32>(num_triangles)?;
-    let mut triangle_level = zeroed_hinted::<u32>(num_triangles)?;
-    let mut corner_at = memory::filled(3 * num_triangles, (0u32, 0u32, 0u8))?;
-    let mut edge_origin = zeroed_hinted::<u32>(3 * num_triangles)?;
-    let mut edge_level = zeroed_hinted::<u32>(3 * num_triangles)?;
-    let mut edge_sharpness = zeroed_hinted::<f32>(3 * num_triangles)?;
+    let (n, n3) = (num_triangles, 3 * num_triangles);
+    let mut triangles = with_capacity_hinted::<[u32; 3]>(n)?;
+    let mut face_origin = with_capacity_hinted::<u32>(n)?;
+    let mut triangle_level = with_capacity_hinted::<u32>(n)?;
+    let mut corner_at = with_capacity_hinted::<CornerAt>(n3)?;
+    let mut edge_origin = with_capacity_hinted::<u32>(n3)?;
+    let mut edge_level = with_capacity_hinted::<u32>(n3)?;
+    let mut edge_sharpness = with_capacity_hinted::<f32>(n3)?;
     // Chunks of leaves and the runs of the outputs they write.
     let mut chunks: Vec<LeafChunk> = Vec::new();
     {
         let mut rest = LeafChunk {
             leaves: 0..0,
-            triangles: &mut triangles[..],
-            face_origin: &mut face_origin[..],
-            triangle_level: &mut triangle_level[..],
-            corner_at: &mut corner_at[..],
-            edge_origin: &mut edge_origin[..],
-            edge_level: &mut edge_level[..],
-            edge_sharpness: &mut edge_sharpness[..],
+            triangles: &mut triangles.spare_capacity_mut()[..n],
+            face_origin: &mut face_origin.spare_capacity_mut()[..n],
+            triangle_level: &mut triangle_level.spare_capacity_mut()[..n],
+            corner_at: &mut corner_at.spare_capacity_mut()[..n3],
+            edge_origin: &mut edge_origin.spare_capacity_mut()[..n3],
+            edge_level: &mut edge_level.spare_capacity_mut()[..n3],
+            edge_sharpness: &mut edge_sharpness.spare_capacity_mut()[..n3],
         };
         for first in (0..cases.len()).step_by(LEAF_CHUNK) {
             let end = (first + LEAF_CHUNK).min(cases.len());
@@ -2644,9 +2694,9 @@ fn triangulate<T: Scalar>(
                 )
             });
             for tri in &templates[mask as usize] {
-                chunk.triangles[x] = tri.map(|p| slots[p as usize]);
-                chunk.face_origin[x] = origin;
-                chunk.triangle_level[x] = t as u32;
+                chunk.triangles[x].write(tri.map(|p| slots[p as usize]));
+                chunk.face_origin[x].write(origin);
+                chunk.triangle_level[x].write(t as u32);
                 x += 1;
                 for i in 0..3 {
                     let (p, q) = (tri[i], tri[(i + 1) % 3]);
@@ -2658,20 +2708,40 @@ fn triangulate<T: Scalar>(
                     } else {
                         ctx.features.edge_sharpness[origin as usize]
                     };
-                    chunk.corner_at[y] = (t as u32, f as u32, p);
-                    chunk.edge_origin[y] = origin;
-                    chunk.edge_level[y] = depth;
+                    chunk.corner_at[y].write((t as u32, f as u32, p));
+                    chunk.edge_origin[y].write(origin);
+                    chunk.edge_level[y].write(depth);
                     // Decrementing keeps 0 (and makes anything not positive 0): skip it there.
-                    chunk.edge_sharpness[y] = if cage <= 0.0 {
+                    chunk.edge_sharpness[y].write(if cage <= 0.0 {
                         0.0
                     } else {
                         (0..depth).fold(cage, |s, _| decrement(s))
-                    };
+                    });
                     y += 1;
                 }
             }
         }
+        // Items 0..x and 0..y of the runs were written, one after the other: all of them (the
+        // runs' lengths are the leaves' template sizes, as `first_triangle` counted them).
+        assert!(
+            x == chunk.triangles.len() && y == chunk.corner_at.len(),
+            "adaptive: a chunk of leaves wrote {x} of {} triangles",
+            chunk.triangles.len()
+        );
     });
+    // SAFETY: the chunks' runs tile the first `n` (`n3`) items of each output, in order
+    // (`LeafChunk::split` of the spare capacities, `n` triangles in all as `first_triangle`
+    // counts them), and every chunk wrote every item of its runs (the assertion above, which
+    // would have unwound past here); `n` and `n3` are within the capacities allocated.
+    unsafe {
+        triangles.set_len(n);
+        face_origin.set_len(n);
+        triangle_level.set_len(n);
+        corner_at.set_len(n3);
+        edge_origin.set_len(n3);
+        edge_level.set_len(n3);
+        edge_sharpness.set_len(n3);
+    }
     let mut leaves_per_level = vec![0u64; max_level + 1];
     for (t, l) in leaves.iter().enumerate() {
         if t <= max_level {
