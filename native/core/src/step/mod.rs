@@ -765,10 +765,10 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         fill_zip(olds, &t.vertex_offsets[..nv], |w, _| {
             vertex_corner_mean(&t, f, w)
         });
-        fill_zip(edges, t.edge_corners, |_, &corners| {
-            edge_corner_mean(&t, f, corners)
-        });
         let (quads, _) = f.as_chunks::<4>();
+        fill_zip(edges, t.edge_corners, |_, &corners| {
+            quad_edge_mean(quads, corners)
+        });
         let quarter = T::from_f64(0.25);
         fill_zip(faces, &quads[..faces.len()], |_, q| quad_mean(q, quarter));
         // SAFETY: the three fills initialised the first `n` items (a panic would have unwound
@@ -852,7 +852,7 @@ fn primal_item<T: Scalar, const N: usize>(t: &Tables, f: &[Value<T, N>], w: usiz
     if w < nv {
         vertex_corner_mean(t, f, w)
     } else if w < nv + ne {
-        edge_corner_mean(t, f, t.edge_corners[w - nv])
+        quad_edge_mean(f.as_chunks::<4>().0, t.edge_corners[w - nv])
     } else {
         let g = w - nv - ne;
         quad_mean(&f[4 * g..4 * g + 4], T::from_f64(0.25))
@@ -1103,6 +1103,24 @@ fn edge_corner_mean<T: Scalar, const N: usize>(
             let s = add(add(f[c], f[t.next(c)]), add(f[d], f[t.next(d)]));
             scale(s, T::from_f64(0.25))
         }
+    }
+}
+
+/// [`edge_corner_mean`] on a quad level, from dual data of the fine level as `quads` (the four
+/// fine faces of each coarse quad): a corner and its successor are two faces of one quad, found
+/// with one bounds check and no successor table.
+#[inline(always)]
+fn quad_edge_mean<T: Scalar, const N: usize>(
+    quads: &[[Value<T, N>; 4]],
+    corners: [u32; 2],
+) -> Value<T, N> {
+    let pair = |c: u32| {
+        let (q, k) = (&quads[(c >> 2) as usize], (c & 3) as usize);
+        add(q[k], q[(k + 1) & 3])
+    };
+    match corners {
+        [c, NONE] => scale(pair(c), T::from_f64(0.5)),
+        [c, d] => scale(add(pair(c), pair(d)), T::from_f64(0.25)),
     }
 }
 
