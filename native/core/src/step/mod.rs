@@ -171,8 +171,10 @@ enum CurveData<T: Scalar, const N: usize> {
 #[derive(Default)]
 pub(crate) struct Scratch(Mutex<Vec<Box<dyn Any + Send>>>);
 
-/// Buffers kept at most (the oldest go first).
-const SCRATCH_BUFFERS: usize = 3;
+/// Buffers kept at most (the oldest go first): a windowed step holds four (its input, its
+/// output, and the two that its zone writes in part), which are kept at the length of the
+/// largest level between evaluations so that the partly written ones need no fill.
+const SCRATCH_BUFFERS: usize = 4;
 
 impl Debug for Scratch {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -181,22 +183,38 @@ impl Debug for Scratch {
 }
 
 impl Scratch {
-    /// An empty vector with room for `capacity` items: a kept one if it is large enough.
+    /// An empty vector with room for `capacity` items: a kept one if it is large enough, the
+    /// one with the fewest items (so that [`Scratch::take_longest`] finds the longer ones).
     pub(crate) fn take<V: Send + 'static>(&self, capacity: usize) -> Vec<V> {
+        let mut v = self.kept(capacity, false);
+        v.clear();
+        v
+    }
+
+    /// A vector with room for `capacity` items, as long as a kept one is: the windowed step's
+    /// buffers that its passes write in part need no fill up to that length (their items are
+    /// values from an earlier evaluation, which those passes do not read).
+    pub(crate) fn take_longest<V: Send + 'static>(&self, capacity: usize) -> Vec<V> {
+        self.kept(capacity, true)
+    }
+
+    /// The kept vector of `V` with room for `capacity` items with the most (`longest`) or
+    /// fewest items, as it was given, or a new empty one.
+    fn kept<V: Send + 'static>(&self, capacity: usize, longest: bool) -> Vec<V> {
         let kept = {
             let mut pool = self.0.lock().unwrap_or_else(|e| e.into_inner());
-            pool.iter()
-                .position(|b| {
-                    b.downcast_ref::<Vec<V>>()
-                        .is_some_and(|v| v.capacity() >= capacity)
-                })
-                .map(|i| pool.remove(i))
+            let fitting = pool.iter().enumerate().filter_map(|(i, b)| {
+                let v = b.downcast_ref::<Vec<V>>()?;
+                (v.capacity() >= capacity).then_some((v.len(), i))
+            });
+            let chosen = match longest {
+                true => fitting.max(),
+                false => fitting.min(),
+            };
+            chosen.map(|(_, i)| pool.remove(i))
         };
         match kept.and_then(|b| b.downcast::<Vec<V>>().ok()) {
-            Some(mut v) => {
-                v.clear();
-                *v
-            }
+            Some(v) => *v,
             None => hinted_or_abort(capacity),
         }
     }
@@ -430,9 +448,14 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
             },
         };
         let (n_faces, n_vertices) = (fine.num_faces(), fine.num_vertices);
-        let mut faces = self.take_faces();
+        let spare = self.take_spare();
+        let mut faces = self.partial([spare, None], n_faces);
         initialised(&mut faces, n_faces);
         scatter(&mut faces[..n_faces], &zone.first, |f| children.of(f))?;
+        // The fine vertices' buffer, before the kernel's: that one is written whole, so the
+        // longer kept buffers go to the partly written ones.
+        let old = self.take_own_vertices();
+        let mut vertices = self.partial([old, None], n_vertices);
         // The kernel's output: every child written once, by the kernel or by the last pass.
         let mut out = self.fresh();
         out.clear();
@@ -442,10 +465,10 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         debug_assert_eq!(windows.primal(), primal);
         windows.apply(x, &mut out.spare_capacity_mut()[..n_faces])?;
         self.curve = CurveData::Dual(curve_to_dual(curves, &curve));
-        let mut vertices = match data {
-            Cow::Owned(v) => v,
-            Cow::Borrowed(_) => self.take_vertices(),
-        };
+        // The coarse data's buffer is free now.
+        if let (Cow::Owned(data), Some((scratch, _))) = (data, self.scratch) {
+            scratch.give(data);
+        }
         let quarter = T::from_f64(0.25);
         for (pass, items) in zone.passes.iter().enumerate() {
             if pass % 2 == 0 {
@@ -551,6 +574,45 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         match self.scratch {
             Some((scratch, capacity)) => scratch.take(capacity),
             None => Vec::new(),
+        }
+    }
+
+    /// A buffer for data that a pass writes in part (the windowed step's zone, which reads only
+    /// the items it writes), wanted `n` items long: the longest of the `free` ones and, when
+    /// they are shorter, a kept one, so that [`initialised`] fills little or nothing once the
+    /// buffers have been as long as the largest level. The others go back to the scratch (or,
+    /// without one, the larger becomes the spare buffer).
+    fn partial(&mut self, free: [Option<Vec<Value<T, N>>>; 2], n: usize) -> Vec<Value<T, N>> {
+        let [a, b] = free;
+        let kept = match self.scratch {
+            Some((scratch, capacity)) if a.iter().chain(&b).all(|v| v.len() < n) => {
+                Some(scratch.take_longest(capacity))
+            }
+            _ => None,
+        };
+        let mut candidates = [a, b, kept];
+        candidates.sort_by_key(|v| std::cmp::Reverse(v.as_ref().map(Vec::len)));
+        let [chosen, others @ ..] = candidates;
+        for other in others.into_iter().flatten() {
+            match self.scratch {
+                Some((scratch, _)) => scratch.give(other),
+                None if other.capacity() > self.spare.capacity() => self.spare = other,
+                None => {}
+            }
+        }
+        chosen.unwrap_or_default()
+    }
+
+    /// The spare buffer, if there is one.
+    fn take_spare(&mut self) -> Option<Vec<Value<T, N>>> {
+        Some(std::mem::take(&mut self.spare)).filter(|v| v.capacity() > 0)
+    }
+
+    /// The vertices' buffer when it is ours (outside the steps' data: the caller overwrites it).
+    fn take_own_vertices(&mut self) -> Option<Vec<Value<T, N>>> {
+        match std::mem::replace(&mut self.vertices, Cow::Borrowed(&[])) {
+            Cow::Owned(v) => Some(v),
+            Cow::Borrowed(_) => None,
         }
     }
 
@@ -787,7 +849,18 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
 
     /// Dual -> primal average on the fine level of `step`, with the 1-D half on its curves.
     fn average_to_primal(&mut self, step: &Step) {
-        let mut out = self.take_vertices();
+        // Every vertex is written: a short kept buffer will do, the long ones stay for the
+        // windowed step's partly written buffers ([`LevelData::partial`]).
+        let mut out = match (self.scratch, self.take_own_vertices()) {
+            (Some((scratch, capacity)), old) => {
+                if let Some(old) = old {
+                    scratch.give(old);
+                }
+                scratch.take(capacity)
+            }
+            (None, Some(old)) => old,
+            (None, None) => self.fresh(),
+        };
         self.gather_primal(step, &mut out);
         self.finish_primal(out, step.curves);
     }
@@ -891,9 +964,14 @@ fn quad_mean<T: Scalar, const N: usize>(q: &[Value<T, N>], quarter: T) -> Value<
 }
 
 /// `buffer` holds at least `n` initialised items (the pass after it writes some of them and
-/// reads only those).
+/// reads only those). Its items may be values of an earlier evaluation
+/// ([`LevelData::partial`]): debug builds set them to NaN, so that a pass reading an item it
+/// did not write shows in the results.
 fn initialised<T: Scalar, const N: usize>(buffer: &mut Vec<Value<T, N>>, n: usize) {
-    if buffer.len() < n {
+    if cfg!(debug_assertions) {
+        buffer.clear();
+        buffer.resize(n, [T::from_f64(f64::NAN); N]);
+    } else if buffer.len() < n {
         buffer.resize(n, zero());
     }
 }
