@@ -15,9 +15,9 @@ use crate::step::{Final, LevelData, Parts, Scratch};
 /// primal data, the true dual mesh dual data.
 ///
 /// Every level-sized buffer of the run comes from `scratch`, which is provisioned here first
-/// (fallibly: a refusal is [`crate::Error::OutOfMemory`] before any step runs) with the two
-/// buffers of the largest level that a run takes at most; the steps then only reuse them (the
-/// gathers' `hinted_or_abort` is not reached on this path).
+/// (fallibly: a refusal is [`crate::Error::OutOfMemory`] before any step runs) with the four
+/// buffers of the largest level that a windowed step holds; the steps then mostly reuse them
+/// (the array a run returns is replaced by the next run's provisioning).
 pub(crate) fn run<T: Scalar, const N: usize>(
     refinement: &Refinement,
     scratch: &Scratch,

@@ -23,7 +23,9 @@
 //! step with their output (`parallel::fill_zip`: a quarter fewer instructions than rayon's
 //! per-item collect for cached averaging 4). The
 //! working buffers come from a [`Scratch`] that a plan keeps between evaluations, so that a
-//! cached re-evaluation pays page faults only for the array it returns.
+//! cached re-evaluation pays page faults only for the array it returns; the two that the
+//! windowed zone writes in part keep their length there, so a warm plan does not fill them
+//! again ([`LevelData::partial`]). A cage of quads takes the quad paths from its first step.
 
 pub(crate) mod catmark;
 mod doo_sabin;
