@@ -15,9 +15,9 @@ use crate::step::{Final, LevelData, Parts, Scratch};
 /// primal data, the true dual mesh dual data.
 ///
 /// Every level-sized buffer of the run comes from `scratch`, which is provisioned here first
-/// (fallibly: a refusal is [`crate::Error::OutOfMemory`] before any step runs) with the two
-/// buffers of the largest level that a run takes at most; the steps then only reuse them (the
-/// gathers' `hinted_or_abort` is not reached on this path).
+/// (fallibly: a refusal is [`crate::Error::OutOfMemory`] before any step runs) with the four
+/// buffers of the largest level that a windowed step holds; the steps then mostly reuse them
+/// (the array a run returns is replaced by the next run's provisioning).
 pub(crate) fn run<T: Scalar, const N: usize>(
     refinement: &Refinement,
     scratch: &Scratch,
@@ -51,7 +51,7 @@ fn steps<'a, T: Scalar, const N: usize>(
     let mut data = LevelData::new(cage);
     if steps > 0 {
         let capacity = scratch_capacity(refinement);
-        scratch.provision::<Value<T, N>>(capacity, 3)?;
+        scratch.provision::<Value<T, N>>(capacity, 4)?;
         data = data.with_scratch(scratch, capacity);
     }
     for j in 0..steps {
@@ -176,6 +176,68 @@ mod tests {
             }
             plan.release_buffers();
             assert_eq!(plan.evaluate(&points, 3).unwrap(), first);
+        }
+    }
+
+    /// The windowed step's partly written buffers keep the values of earlier evaluations
+    /// (`LevelData::partial`): the passes read none of them, so evaluating other points in
+    /// between changes no bit. A grid with a boundary, a semi-sharp crease and a hole, of quads
+    /// (the quad paths from the cage on) and with one quad split into two triangles (two
+    /// vertices of valence 5), so that the zone has curves and irregular vertices.
+    #[test]
+    fn kept_values_of_other_points_do_not_change_results() {
+        let side = 6usize;
+        let cage = |split: bool| {
+            let (mut sizes, mut indices) = (Vec::new(), Vec::new());
+            for y in 0..side - 1 {
+                for x in 0..side - 1 {
+                    let v = (y * side + x) as i64;
+                    let s = side as i64;
+                    if split && (x, y) == (2, 3) {
+                        // Two triangles: two vertices of valence 5 (the cage is not all quads).
+                        sizes.extend([3, 3]);
+                        indices.extend([v, v + 1, v + s + 1, v, v + s + 1, v + s]);
+                    } else {
+                        sizes.push(4);
+                        indices.extend([v, v + 1, v + s + 1, v + s]);
+                    }
+                }
+            }
+            Cage::from_indices(side * side, &sizes, &indices)
+                .unwrap()
+                .with_creases(&[(14, 15, 1.5), (15, 16, 1.5), (16, 17, 1.5)])
+                .unwrap()
+                .with_holes(&[12])
+                .unwrap()
+        };
+        let points = |seed: f64| -> Vec<f64> {
+            (0..side * side)
+                .flat_map(|v| {
+                    let (x, y) = ((v % side) as f64, (v / side) as f64);
+                    [x, y, (seed * (x + 2.0 * y)).sin()]
+                })
+                .collect()
+        };
+        let (a, b) = (points(0.7), points(1.9));
+        for (degree, cage) in (3..=9).flat_map(|d| [(d, cage(false)), (d, cage(true))]) {
+            let options = Options {
+                degree,
+                levels: 3,
+                ..Options::default()
+            };
+            let fresh = Plan::new(&cage, &options).unwrap().evaluate(&a, 3).unwrap();
+            let plan = Plan::new(&cage, &options).unwrap();
+            plan.evaluate(&b, 3).unwrap();
+            assert_eq!(plan.evaluate(&a, 3).unwrap(), fresh, "degree {degree}");
+            plan.evaluate(&b, 3).unwrap();
+            let a32: Vec<f32> = a.iter().map(|&x| x as f32).collect();
+            let fresh32 = Plan::new(&cage, &options)
+                .unwrap()
+                .evaluate(&a32, 3)
+                .unwrap();
+            let b32: Vec<f32> = b.iter().map(|&x| x as f32).collect();
+            plan.evaluate(&b32, 3).unwrap();
+            assert_eq!(plan.evaluate(&a32, 3).unwrap(), fresh32, "degree {degree}");
         }
     }
 }
