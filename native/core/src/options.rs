@@ -169,8 +169,9 @@ pub fn estimate(cage: &Cage, options: &Options) -> Result<Estimate> {
         (v, e, f, c) = (v + e + f, 2.0 * e + c, c, 4.0 * c);
         bytes += level_bytes(v, e, c);
     }
-    // Evaluation keeps about four arrays of the larger of vertices and faces (f64 x 3).
-    bytes += 4.0 * 24.0 * v.max(f);
+    // Evaluation keeps about five arrays of the larger of vertices and faces (f64 x 3): the
+    // four buffers of a windowed step, kept by the plan between evaluations, and the output.
+    bytes += 5.0 * 24.0 * v.max(f);
     Ok(Estimate {
         vertices: v as u64,
         faces: f as u64,

@@ -99,8 +99,8 @@ pub(crate) fn zeroed_hinted<T: Default + Copy + Send + Sync>(n: usize) -> Result
 /// request reaches it with a buffer to allocate: every run of steps gets its level-sized
 /// buffers from a [`crate::step::Scratch`] provisioned fallibly first (`evaluate::run` for the
 /// plans and the limits, `LevelData::with_scratch_for` for the adaptive partial levels and the
-/// analysis), and a step takes at most the two buffers provisioned, each with room for the
-/// largest level; the gathers then find room in the buffer they are given.
+/// analysis), and a step takes at most the four buffers provisioned (a windowed step), each
+/// with room for the largest level; the gathers then find room in the buffer they are given.
 pub(crate) fn hinted_or_abort<T>(n: usize) -> Vec<T> {
     let v = Vec::with_capacity(n);
     advise_huge_pages(v.as_ptr() as usize, v.capacity() * std::mem::size_of::<T>());

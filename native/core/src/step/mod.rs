@@ -337,12 +337,13 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
     }
 
     /// For a step run outside a plan (the adaptive partial levels, the analysis): new buffers
-    /// come from `scratch`, first provisioned (fallibly) with the two buffers of the fine
-    /// level's size that a step takes at most, so that the step's gathers never allocate.
+    /// come from `scratch`, first provisioned (fallibly) with the four buffers of the fine
+    /// level's size that a step takes at most (a windowed step), so that the step's gathers
+    /// never allocate.
     pub(crate) fn with_scratch_for(self, scratch: &'a Scratch, step: &Step) -> Result<Self> {
         let fine = step.fine;
         let capacity = fine.num_vertices.max(fine.num_faces());
-        scratch.provision::<Value<T, N>>(capacity, 3)?;
+        scratch.provision::<Value<T, N>>(capacity, SCRATCH_BUFFERS)?;
         Ok(self.with_scratch(scratch, capacity))
     }
 
