@@ -8,7 +8,7 @@ use crate::output::OutputMesh;
 use crate::parallel::in_pool;
 use crate::refinement::Refinement;
 use crate::scalar::{Scalar, Value};
-use crate::step::{Final, LevelData, Parts, Scratch};
+use crate::step::{Final, LevelData, Parts, Scratch, SCRATCH_BUFFERS};
 
 /// Runs `cage` (one value per vertex of `M_0`) through every step of `refinement`, taking and
 /// giving back buffers in `scratch`. `want_dual` selects the final kind: the drawing mesh wants
@@ -51,7 +51,7 @@ fn steps<'a, T: Scalar, const N: usize>(
     let mut data = LevelData::new(cage);
     if steps > 0 {
         let capacity = scratch_capacity(refinement);
-        scratch.provision::<Value<T, N>>(capacity, 4)?;
+        scratch.provision::<Value<T, N>>(capacity, SCRATCH_BUFFERS)?;
         data = data.with_scratch(scratch, capacity);
     }
     for j in 0..steps {

@@ -104,6 +104,14 @@ impl Level {
         self.face_offsets.is_empty()
     }
 
+    /// True when every face is a quad whose corners are `4 f..4 f + 4`: a level stored as quads
+    /// ([`Level::is_quads`]), or a cage of quads, which is stored with its face offsets as any
+    /// cage (one pass over them: ask once per pass, not per face).
+    pub(crate) fn all_quads(&self) -> bool {
+        self.is_quads()
+            || (self.face_offsets.iter().enumerate()).all(|(f, &offset)| offset as usize == 4 * f)
+    }
+
     /// Number of faces.
     pub fn num_faces(&self) -> usize {
         if self.is_quads() {

@@ -955,7 +955,7 @@ fn build(refinement: &Refinement, local: Option<usize>, tiled: bool) -> Result<S
             .rev()
             .find(|&t| {
                 let above = &all_levels[(levels - t) as usize];
-                (0..above.num_faces()).all(|f| above.face_corners(f).len() == 4)
+                above.all_quads()
             })
             .filter(|_| tiled);
         let built = build_stencils(

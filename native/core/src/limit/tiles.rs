@@ -23,10 +23,9 @@
 //! irregular vertex, the walk from the tile's corner goes around it), which keep their stencils.
 
 use std::mem::MaybeUninit;
+use std::sync::Mutex;
 
 use rayon::prelude::*;
-
-use std::sync::Mutex;
 
 use super::{knot_mask, Pooled, Stamps};
 use crate::analysis::neighbourhood_size;
@@ -266,12 +265,10 @@ impl Tiles {
         out: &Out<T, N>,
         wide: bool,
     ) -> Result<()> {
-        if self.width != K
-            || self.data_side > MAX_DATA
-            || self.side > LANES
-            || LANES > MAX_SIDE
-            || LANES + K - 1 > MAX_DATA
-        {
+        // The rows read items up to `LANES + K - 2` of a window row (past a small tile's
+        // side: finite leftovers, in sums no vertex reads).
+        const { assert!(LANES <= MAX_SIDE && LANES + K - 1 <= MAX_DATA) };
+        if self.width != K || self.data_side > MAX_DATA || self.side > LANES {
             return Err(Error::Internal(
                 "limit tiles: a window past its bounds".into(),
             ));

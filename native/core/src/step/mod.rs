@@ -71,15 +71,6 @@ pub(crate) struct Step<'a> {
     pub windows: Option<&'a Windows>,
 }
 
-/// Whether every face of `level` is a quad whose corners are `4 f..4 f + 4`: every refined
-/// level, and a cage of quads (stored with its face offsets, as any cage), whose steps then take
-/// the quad paths too (the same sums in the same order; cached averaging 9 from the 3,840-quad
-/// sphere spent 17 % of its instructions in its first step on the general paths).
-fn all_quads(level: &Level) -> bool {
-    level.is_quads()
-        || (level.face_offsets.iter().enumerate()).all(|(f, &offset)| offset as usize == 4 * f)
-}
-
 /// The tables of a coarse level that a pass reads, looked up once per pass: the accessors of
 /// [`Level`] check per call which tables the level has (a quad level has no face tables, the
 /// edge tables sit behind a `OnceLock`), which cost a tenth of a cached evaluation's
@@ -101,7 +92,10 @@ impl<'a> Tables<'a> {
         let (vertex_offsets, vertex_corners) = level.vertex_corner_table();
         Tables {
             level,
-            quads: all_quads(level),
+            // A cage of quads takes the quad paths too ([`Level::all_quads`]; the same sums in the
+            // same order): cached averaging 9 from the 3,840-quad sphere spent 17 % of its
+            // instructions in its first step on the general paths.
+            quads: level.all_quads(),
             corner_verts: &level.corner_verts,
             edge_verts: level.edge_verts(),
             edge_corners: level.edge_corners(),
@@ -176,7 +170,7 @@ pub(crate) struct Scratch(Mutex<Vec<Box<dyn Any + Send>>>);
 /// Buffers kept at most (the oldest go first): a windowed step holds four (its input, its
 /// output, and the two that its zone writes in part), which are kept at the length of the
 /// largest level between evaluations so that the partly written ones need no fill.
-const SCRATCH_BUFFERS: usize = 4;
+pub(crate) const SCRATCH_BUFFERS: usize = 4;
 
 impl Debug for Scratch {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -400,7 +394,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
     fn average_by_passes(&mut self, step: &Step, degree: u32) {
         // The fused first pass needs, on dual data, a buffer of our own for its old vertices.
         let fusable = self.primal || matches!(self.faces, Cow::Owned(_));
-        let first = if fusable && degree >= 2 && all_quads(step.coarse) {
+        let first = if fusable && degree >= 2 && step.coarse.all_quads() {
             self.first_average_to_dual(step);
             3
         } else {
@@ -742,7 +736,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
     /// bitwise that of the separate passes.
     fn first_average_to_dual(&mut self, step: &Step) {
         let (coarse, fine, curves) = (step.coarse, step.fine, step.curves);
-        debug_assert!(all_quads(coarse));
+        debug_assert!(coarse.all_quads());
         let primal = self.primal;
         self.replicate_curves(curves);
         let nv = coarse.num_vertices;
