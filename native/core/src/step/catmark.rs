@@ -11,7 +11,7 @@
 use std::borrow::Cow;
 use std::mem::MaybeUninit;
 
-use super::{CurveData, LevelData, Step};
+use super::{CurveData, LevelData, Step, Tables};
 use crate::curves::LevelSharpness;
 use crate::error::{Error, Result};
 use crate::options::Creasing;
@@ -58,14 +58,13 @@ pub(crate) fn step_into<T: Scalar, const N: usize>(
         *out = hinted_or_abort(n);
     }
     let (head, faces) = out.spare_capacity_mut()[..n].split_at_mut(nv + ne);
-    let quads = coarse.is_quads();
+    // The tables looked up once, not per vertex (see [`Tables`]).
+    let t = Tables::of(coarse);
     fill(faces, |f| {
-        if quads {
-            let c = 4 * f;
+        if t.quads {
             // The additions of the general case below, in the same order.
-            let at = |i: usize| values[coarse.corner_verts[c + i] as usize];
-            let sum = add(add(add(at(0), at(1)), at(2)), at(3));
-            return scale(sum, T::from_f64(0.25));
+            let [a, b, c, d] = t.at_corners(values, f);
+            return scale(add(add(add(a, b), c), d), T::from_f64(0.25));
         }
         let corners = coarse.face_corners(f);
         let w = T::from_f64(1.0 / corners.len() as f64);
@@ -80,29 +79,29 @@ pub(crate) fn step_into<T: Scalar, const N: usize>(
         unsafe { &*(faces as *const [MaybeUninit<Value<T, N>>] as *const [Value<T, N>]) };
     let (old, edges) = head.split_at_mut(nv);
     if this.is_smooth() {
-        fill(old, |v| smooth_vertex(coarse, v, values, faces));
+        fill(old, |v| smooth_vertex(&t, v, values, faces));
     } else {
         // Most vertices of a level with curves are smooth (a face-varying mesh has boundaries
         // everywhere its seams run): their mask inline, the rule machinery for the rest.
         fill(old, |v| {
             if this.rule(v).is_smooth() {
-                smooth_vertex(coarse, v, values, faces)
+                smooth_vertex(&t, v, values, faces)
             } else {
-                vertex_point(coarse, this, child, creasing, v, values, faces)
+                vertex_point(&t, this, child, creasing, v, values, faces)
             }
         });
     }
     if this.has_sharp_edges() {
         // Likewise for edges: `smooth_edge` is `edge_point` at sharpness 0, in the same order.
         fill(edges, |e| {
-            if this.edge(e) <= 0.0 && coarse.edge_corners()[e][1] != NONE {
-                smooth_edge(coarse, e, values, faces)
+            if this.edge(e) <= 0.0 && t.edge_corners[e][1] != NONE {
+                smooth_edge(&t, e, values, faces)
             } else {
                 edge_point(coarse, this, child, e, nv + e, values, faces)
             }
         });
     } else {
-        fill(edges, |e| smooth_edge(coarse, e, values, faces));
+        fill(edges, |e| smooth_edge(&t, e, values, faces));
     }
     // SAFETY: the three sections, which `fill` wrote completely, are the first `n` items.
     unsafe { out.set_len(n) };
@@ -112,7 +111,7 @@ pub(crate) fn step_into<T: Scalar, const N: usize>(
 /// The vertex point of old vertex `v` (OpenSubdiv's `ComputeVertexVertexMask` with the parent
 /// and child rules known).
 fn vertex_point<T: Scalar, const N: usize>(
-    coarse: &Level,
+    t: &Tables,
     this: &LevelSharpness,
     child: &LevelSharpness,
     creasing: Creasing,
@@ -120,9 +119,10 @@ fn vertex_point<T: Scalar, const N: usize>(
     values: &[Value<T, N>],
     faces: &[Value<T, N>],
 ) -> Value<T, N> {
+    let coarse = t.level;
     let parent_rule = this.rule(v);
     if parent_rule.is_smooth() {
-        return smooth_vertex(coarse, v, values, faces);
+        return smooth_vertex(t, v, values, faces);
     }
     let parent_mask = match parent_rule {
         VertexRule::Crease => crease_vertex(coarse, v, values, |e| this.edge(e as usize)),
@@ -133,7 +133,7 @@ fn vertex_point<T: Scalar, const N: usize>(
         return parent_mask;
     }
     let child_mask = match child_rule {
-        VertexRule::Smooth | VertexRule::Dart => smooth_vertex(coarse, v, values, faces),
+        VertexRule::Smooth | VertexRule::Dart => smooth_vertex(t, v, values, faces),
         VertexRule::Crease => crease_vertex(coarse, v, values, |e| {
             child.edge(coarse.child_half(e, v as u32) as usize)
         }),
@@ -149,17 +149,17 @@ fn vertex_point<T: Scalar, const N: usize>(
 /// faces; `e_i` the edge neighbours, `f_i` the face points).
 #[inline(always)]
 fn smooth_vertex<T: Scalar, const N: usize>(
-    coarse: &Level,
+    t: &Tables,
     v: usize,
     values: &[Value<T, N>],
     faces: &[Value<T, N>],
 ) -> Value<T, N> {
-    let corners = coarse.corners_of_vertex(v);
+    let corners = t.corners_of_vertex(v);
     let mut sum = zero();
     for &c in corners {
         let c = c as usize;
-        let neighbour = values[coarse.corner_verts[coarse.next(c)] as usize];
-        sum = add(sum, add(neighbour, faces[coarse.face_of(c)]));
+        let neighbour = values[t.corner_verts[t.next(c)] as usize];
+        sum = add(sum, add(neighbour, faces[t.face_of(c)]));
     }
     let (vertex, ring) = smooth_vertex_weights(corners.len());
     mad(
@@ -192,20 +192,17 @@ fn crease_vertex<T: Scalar, const N: usize>(
 /// edges where `e` is smooth and has two faces.
 #[inline(always)]
 fn smooth_edge<T: Scalar, const N: usize>(
-    coarse: &Level,
+    t: &Tables,
     e: usize,
     values: &[Value<T, N>],
     faces: &[Value<T, N>],
 ) -> Value<T, N> {
-    let [a, b] = coarse.edge_verts()[e];
-    let [c0, c1] = coarse.edge_corners()[e];
+    let [a, b] = t.edge_verts[e];
+    let [c0, c1] = t.edge_corners[e];
     debug_assert!(c1 != NONE, "a smooth level has no boundary edge");
     // The operations of `edge_point` at sharpness 0 (bitwise equal).
     let (ends, face_total) = SMOOTH_EDGE_WEIGHTS;
-    let f = add(
-        faces[coarse.face_of(c0 as usize)],
-        faces[coarse.face_of(c1 as usize)],
-    );
+    let f = add(faces[t.face_of(c0 as usize)], faces[t.face_of(c1 as usize)]);
     mad(
         scale(f, T::from_f64(face_total / 2.0)),
         T::from_f64(ends),

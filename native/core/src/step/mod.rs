@@ -9,8 +9,8 @@
 //! dual -> primal and primal -> dual (DESIGN.md §1), with the 1-D scheme run in lockstep on the
 //! step's [`CurveNetwork`] (§2); classic Doo-Sabin adds its original weights
 //! ([`doo_sabin`]), classic Catmull-Clark is one pass of OpenSubdiv's masks ([`catmark`]).
-//! From 4 averages on, on a quad level, the fine faces whose support is a grid come from the
-//! tensor B-spline of the whole step ([`regular`]: the regular windows), and the passes run only
+//! On a quad level (from 2 averages of primal input on, 4 of dual input), the fine faces whose
+//! support is a grid come from the tensor B-spline of the whole step ([`regular`]: the regular windows), and the passes run only
 //! over the zone around the others.
 //! Every pass is a parallel gather in a fixed order, so the output is bitwise the same whatever
 //! the number of threads, and the same on a partial level as on the full one wherever the
@@ -447,8 +447,12 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         let (n_faces, n_vertices) = (fine.num_faces(), fine.num_vertices);
         let spare = self.take_spare();
         let mut faces = self.partial([spare, None], n_faces);
-        initialised(&mut faces, n_faces);
-        scatter(&mut faces[..n_faces], &zone.first, |f| children.of(f))?;
+        // A kernel of two averages is the fused first pass's: that pass's children are output.
+        let first_is_last = zone.passes.is_empty();
+        if !first_is_last {
+            initialised(&mut faces, n_faces);
+            scatter(&mut faces[..n_faces], &zone.first, |f| children.of(f))?;
+        }
         // The fine vertices' buffer, before the kernel's: that one is written whole, so the
         // longer kept buffers go to the partly written ones.
         let old = self.take_own_vertices();
@@ -458,6 +462,12 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         out.clear();
         if out.capacity() < n_faces {
             out = hinted_or_abort(n_faces);
+        }
+        if first_is_last {
+            // Every child of these faces, then the kernel's over them: the kernel's children
+            // are the kernel's values, as with more averages.
+            let out = &mut out.spare_capacity_mut()[..n_faces];
+            scatter_uninit(out, &zone.first, |f| children.of(f))?;
         }
         debug_assert_eq!(windows.primal(), primal);
         windows.apply(x, &mut out.spare_capacity_mut()[..n_faces])?;
