@@ -64,7 +64,10 @@
 //! (`extend_pass`: the topology's refinement 53M, the restrictions around the parents 35M, the
 //! regular windows 22M), the closed-form decisions 105M (about 8k instructions per sibling
 //! block, 12k blocks, with the per-level tables), the triangulation 66M and the restriction
-//! criterion 19M.
+//! criterion 19M. Sibling blocks evaluated with their side as a constant ([`block_errors`],
+//! 2026-12-04, same build before/after): the decisions 110.8M -> 104.8M (`block_errors` 86.9M ->
+//! 80.9M over 12.1k blocks); `adaptive-flat-4-6` 391.1M -> 387.2M (uniform 707.5M), 4-5 107.6M ->
+//! 106.3M (uniform 184.0M), 3-5 82.1M -> 81.0M (uniform 127.2M).
 //!
 //! # Refinement
 //! Levels are decided one at a time: level j's nodes are evaluated together with their children
@@ -2164,9 +2167,25 @@ fn block_errors<T: Scalar>(
     span: usize,
     block: &[u64],
 ) -> Option<[(f64, f64); 4]> {
+    // The block's side as a constant, so that the loops over its 2 x span + 1 points unroll
+    // (module notes: `block_errors` 86.9M -> 80.9M instructions in `adaptive-flat-4-6`).
+    match span {
+        2 => block_errors_of::<T, 2>(grid, part, regular, twins, block),
+        _ => block_errors_of::<T, 1>(grid, part, regular, twins, block),
+    }
+}
+
+/// [`block_errors`] for blocks of `SPAN x SPAN` nodes.
+fn block_errors_of<T: Scalar, const SPAN: usize>(
+    grid: &Grid,
+    part: &Part<T>,
+    regular: &[bool],
+    twins: &[u32],
+    block: &[u64],
+) -> Option<[(f64, f64); 4]> {
     let level = &part.level;
     let f = part.face_of_uid(block[0])?;
-    if span == 2
+    if SPAN == 2
         && block
             .iter()
             .enumerate()
@@ -2180,10 +2199,10 @@ fn block_errors<T: Scalar>(
         let d = twins[((fc & !3) | ((fc + k) & 3)) as usize];
         (d != NONE).then_some((d & !3) | ((d + 6 - k) & 3))
     };
-    // Cells -r..=r + span - 1 in both directions, the first node's cell at (0, 0): along
+    // Cells -r..=r + SPAN - 1 in both directions, the first node's cell at (0, 0): along
     // its column, then along each row.
     let r = grid.reach;
-    let top = r + span as i32 - 1;
+    let top = r + SPAN as i32 - 1;
     const STRIDE: usize = GRID_SIDE + 1;
     let mut cells = [0u32; STRIDE * STRIDE];
     let at = |a: i32, b: i32| ((b + r) as usize) * STRIDE + (a + r) as usize;
@@ -2208,7 +2227,7 @@ fn block_errors<T: Scalar>(
     }
     // The siblings lie counterclockwise from the first: cells (1, 0), (1, 1), (0, 1).
     const PLACE: [(i32, i32); 4] = [(0, 0), (1, 0), (1, 1), (0, 1)];
-    if span == 2 {
+    if SPAN == 2 {
         for (k, &(a, b)) in PLACE.iter().enumerate().skip(1) {
             if part.face_uid.get((cells[at(a, b)] >> 2) as usize) != Some(&block[k]) {
                 return None;
@@ -2227,10 +2246,10 @@ fn block_errors<T: Scalar>(
         let fc = cells[at(a, b)];
         level.corner_verts[((fc & !3) | ((fc + k) & 3)) as usize] as usize
     };
-    // Vertices -inner..=inner + span: the corners of cells -inner..inner + span.
+    // Vertices -inner..=inner + SPAN: the corners of cells -inner..inner + SPAN.
     let inner = grid.inner;
-    for b in -inner..inner + span as i32 {
-        for a in -inner..inner + span as i32 {
+    for b in -inner..inner + SPAN as i32 {
+        for a in -inner..inner + SPAN as i32 {
             if !regular[(cells[at(a, b)] >> 2) as usize] {
                 return None;
             }
@@ -2240,8 +2259,8 @@ fn block_errors<T: Scalar>(
     // row(y)[p], over the data positions lo..lo + n (+ 1 for a block). Each sum runs over the
     // nonzero weights only, in increasing position; a row is added to the points as soon as
     // it is made, its data read once.
-    let n = grid.weights[0].len() - 2 + span;
-    let points = 2 * span + 1;
+    let n = grid.weights[0].len() - 2 + SPAN;
+    let points = 2 * SPAN + 1;
     let taps = grid.taps.each_ref().map(|t| (t.start, t.end.min(n)));
     let mut magnitude = 0.0f64;
     let mut data = [[0.0f64; 3]; GRID_SIDE + 2];
@@ -2296,7 +2315,7 @@ fn block_errors<T: Scalar>(
     }
     let slack = grid.slack * magnitude;
     let mut out = [(0.0, 0.0); 4];
-    for (o, &(a, b)) in out.iter_mut().zip(&PLACE).take(span * span) {
+    for (o, &(a, b)) in out.iter_mut().zip(&PLACE).take(SPAN * SPAN) {
         let (a, b) = (2 * a as usize, 2 * b as usize);
         // Point (p, q) of the node is grid_points[b + q][a + p].
         let [r0, r1, r2] = [&grid_points[b], &grid_points[b + 1], &grid_points[b + 2]];
