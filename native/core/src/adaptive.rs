@@ -53,7 +53,8 @@
 //! restriction of the coarser level to them and its refinement, uniform ids and data), deciding
 //! and measuring its nodes and writing the output triangles are gathers and prefix sums in fixed
 //! chunks ([`crate::parallel`]): parallel, with results that do not depend on the number of
-//! threads.
+//! threads. The uniform ids of a whole refined level are plain section copies of the coarse
+//! ones ([`whole_ids`]), serial: a few instructions per item, fewer than a parallel gather's.
 //! Lookups by uniform id go through the sorted id lists (merge walks) and flat per-level tables,
 //! not hash maps; the refined sets are the only ones, read by the restriction criterion (the
 //! node lists are made from them only when they grow).
@@ -67,7 +68,10 @@
 //! criterion 19M. Sibling blocks evaluated with their side as a constant ([`block_errors`],
 //! 2026-12-04, same build before/after): the decisions 110.8M -> 104.8M (`block_errors` 86.9M ->
 //! 80.9M over 12.1k blocks); `adaptive-flat-4-6` 391.1M -> 387.2M (uniform 707.5M), 4-5 107.6M ->
-//! 106.3M (uniform 184.0M), 3-5 82.1M -> 81.0M (uniform 127.2M).
+//! 106.3M (uniform 184.0M), 3-5 82.1M -> 81.0M (uniform 127.2M). The ids and counts of a
+//! whole refined level as section copies ([`whole_ids`]) rather than per-item gathers (about
+//! 20M of `extend_pass`): `adaptive-flat-4-6` 387.2M -> 366.7M (0.52x uniform), 4-5 106.3M ->
+//! 100.7M (0.55x), 3-5 81.0M -> 75.8M (0.60x).
 //!
 //! # Refinement
 //! Levels are decided one at a time: level j's nodes are evaluated together with their children
@@ -1618,12 +1622,13 @@ fn refine_topology<T: Sync, U>(
         Keep::Around(seeds) => (seeds, ctx.margin),
         Keep::Faces(faces) => (faces, 0),
         Keep::All => {
+            let ids = whole_ids(coarse, t, &fine)?;
             let next = Part {
-                face_uid: gather_hinted(fine.num_faces(), corner_uid)?,
-                vert_uid: gather_hinted(fine.num_vertices, vert_uid)?,
-                edge_uid: gather_hinted(fine.num_edges(), edge_uid)?,
-                edge_faces: gather_hinted(fine.num_edges(), edge_faces)?,
-                vert_faces: gather_hinted(fine.num_vertices, vert_faces)?,
+                face_uid: ids.face_uid,
+                vert_uid: ids.vert_uid,
+                edge_uid: ids.edge_uid,
+                edge_faces: ids.edge_faces,
+                vert_faces: ids.vert_faces,
                 curves: network.next_curves(),
                 network: Some(network.clone()),
                 data: Vec::new(),
@@ -1692,6 +1697,67 @@ fn refine_topology<T: Sync, U>(
         windows,
     };
     Ok((step, next))
+}
+
+/// The uniform ids and counts of a whole refined level ([`Keep::All`]).
+struct WholeIds {
+    face_uid: Vec<u64>,
+    vert_uid: Vec<u64>,
+    edge_uid: Vec<u64>,
+    edge_faces: Vec<u32>,
+    vert_faces: Vec<u32>,
+}
+
+/// [`WholeIds`] of `fine`, the whole refinement of `coarse` (level `t`), section by section of
+/// the refined numbering (old vertices, edge points, face points; edge halves, then the edges
+/// inside the faces, one per corner): copies and offsets of the coarse tables in plain loops,
+/// where a gather per item took a three-way branch (module notes: `adaptive-flat-4-6` 387.2M
+/// -> 366.7M instructions).
+fn whole_ids<T>(coarse: &Part<T>, t: usize, fine: &Level) -> Result<WholeIds> {
+    let c = &coarse.level;
+    let [nv, ne, _, _] = coarse.counts;
+    // Past the cage every level is quads: corner k is corner k & 3 of face k >> 2, and fine
+    // face k is that corner's child.
+    let face_uid: Vec<u64> = if t == 0 {
+        memory::collect(0..c.num_corners() as u64)?
+    } else {
+        memory::collect(
+            (coarse.face_uid.iter()).map(|&f| [4 * f, 4 * f + 1, 4 * f + 2, 4 * f + 3]),
+        )?
+        .into_flattened()
+    };
+    let mut vert_uid = with_capacity_hinted::<u64>(fine.num_vertices)?;
+    vert_uid.extend_from_slice(&coarse.vert_uid);
+    vert_uid.extend(coarse.edge_uid.iter().map(|&e| nv + e));
+    vert_uid.extend(coarse.face_uid.iter().map(|&f| nv + ne + f));
+    let mut edge_uid = with_capacity_hinted::<u64>(fine.num_edges())?;
+    edge_uid.extend((coarse.edge_uid.iter()).flat_map(|&e| [2 * e, 2 * e + 1]));
+    edge_uid.extend(face_uid.iter().map(|&k| 2 * ne + k));
+    let mut edge_faces = with_capacity_hinted::<u32>(fine.num_edges())?;
+    edge_faces.extend((coarse.edge_faces.iter()).flat_map(|&n| [n, n]));
+    edge_faces.resize(fine.num_edges(), 2);
+    let mut vert_faces = with_capacity_hinted::<u32>(fine.num_vertices)?;
+    vert_faces.extend_from_slice(&coarse.vert_faces);
+    vert_faces.extend(coarse.edge_faces.iter().map(|&n| 2 * n));
+    vert_faces.extend((0..c.num_faces()).map(|f| c.face_corners(f).len() as u32));
+    if face_uid.len() != fine.num_faces()
+        || vert_uid.len() != fine.num_vertices
+        || edge_uid.len() != fine.num_edges()
+        || edge_faces.len() != fine.num_edges()
+        || vert_faces.len() != fine.num_vertices
+    {
+        return Err(Error::Internal(format!(
+            "adaptive: level {} does not refine its part's tables",
+            t + 1
+        )));
+    }
+    Ok(WholeIds {
+        face_uid,
+        vert_uid,
+        edge_uid,
+        edge_faces,
+        vert_faces,
+    })
 }
 
 /// The faces of the quad level `level` within `rings` vertex rings of the faces `marked`: each
