@@ -53,7 +53,8 @@
 //! restriction of the coarser level to them and its refinement, uniform ids and data), deciding
 //! and measuring its nodes and writing the output triangles are gathers and prefix sums in fixed
 //! chunks ([`crate::parallel`]): parallel, with results that do not depend on the number of
-//! threads.
+//! threads. The uniform ids of a whole refined level are plain section copies of the coarse
+//! ones ([`whole_ids`]), serial: a few instructions per item, fewer than a parallel gather's.
 //! Lookups by uniform id go through the sorted id lists (merge walks) and flat per-level tables,
 //! not hash maps; the refined sets are the only ones, read by the restriction criterion (the
 //! node lists are made from them only when they grow).
@@ -64,7 +65,13 @@
 //! (`extend_pass`: the topology's refinement 53M, the restrictions around the parents 35M, the
 //! regular windows 22M), the closed-form decisions 105M (about 8k instructions per sibling
 //! block, 12k blocks, with the per-level tables), the triangulation 66M and the restriction
-//! criterion 19M.
+//! criterion 19M. Sibling blocks evaluated with their side as a constant ([`block_errors`],
+//! 2026-12-04, same build before/after): the decisions 110.8M -> 104.8M (`block_errors` 86.9M ->
+//! 80.9M over 12.1k blocks); `adaptive-flat-4-6` 391.1M -> 387.2M (uniform 707.5M), 4-5 107.6M ->
+//! 106.3M (uniform 184.0M), 3-5 82.1M -> 81.0M (uniform 127.2M). The ids and counts of a
+//! whole refined level as section copies ([`whole_ids`]) rather than per-item gathers (about
+//! 20M of `extend_pass`): `adaptive-flat-4-6` 387.2M -> 366.7M (0.52x uniform), 4-5 106.3M ->
+//! 100.7M (0.55x), 3-5 81.0M -> 75.8M (0.60x).
 //!
 //! # Refinement
 //! Levels are decided one at a time: level j's nodes are evaluated together with their children
@@ -1615,12 +1622,13 @@ fn refine_topology<T: Sync, U>(
         Keep::Around(seeds) => (seeds, ctx.margin),
         Keep::Faces(faces) => (faces, 0),
         Keep::All => {
+            let ids = whole_ids(coarse, t, &fine)?;
             let next = Part {
-                face_uid: gather_hinted(fine.num_faces(), corner_uid)?,
-                vert_uid: gather_hinted(fine.num_vertices, vert_uid)?,
-                edge_uid: gather_hinted(fine.num_edges(), edge_uid)?,
-                edge_faces: gather_hinted(fine.num_edges(), edge_faces)?,
-                vert_faces: gather_hinted(fine.num_vertices, vert_faces)?,
+                face_uid: ids.face_uid,
+                vert_uid: ids.vert_uid,
+                edge_uid: ids.edge_uid,
+                edge_faces: ids.edge_faces,
+                vert_faces: ids.vert_faces,
                 curves: network.next_curves(),
                 network: Some(network.clone()),
                 data: Vec::new(),
@@ -1689,6 +1697,67 @@ fn refine_topology<T: Sync, U>(
         windows,
     };
     Ok((step, next))
+}
+
+/// The uniform ids and counts of a whole refined level ([`Keep::All`]).
+struct WholeIds {
+    face_uid: Vec<u64>,
+    vert_uid: Vec<u64>,
+    edge_uid: Vec<u64>,
+    edge_faces: Vec<u32>,
+    vert_faces: Vec<u32>,
+}
+
+/// [`WholeIds`] of `fine`, the whole refinement of `coarse` (level `t`), section by section of
+/// the refined numbering (old vertices, edge points, face points; edge halves, then the edges
+/// inside the faces, one per corner): copies and offsets of the coarse tables in plain loops,
+/// where a gather per item took a three-way branch (module notes: `adaptive-flat-4-6` 387.2M
+/// -> 366.7M instructions).
+fn whole_ids<T>(coarse: &Part<T>, t: usize, fine: &Level) -> Result<WholeIds> {
+    let c = &coarse.level;
+    let [nv, ne, _, _] = coarse.counts;
+    // Past the cage every level is quads: corner k is corner k & 3 of face k >> 2, and fine
+    // face k is that corner's child.
+    let face_uid: Vec<u64> = if t == 0 {
+        memory::collect(0..c.num_corners() as u64)?
+    } else {
+        memory::collect(
+            (coarse.face_uid.iter()).map(|&f| [4 * f, 4 * f + 1, 4 * f + 2, 4 * f + 3]),
+        )?
+        .into_flattened()
+    };
+    let mut vert_uid = with_capacity_hinted::<u64>(fine.num_vertices)?;
+    vert_uid.extend_from_slice(&coarse.vert_uid);
+    vert_uid.extend(coarse.edge_uid.iter().map(|&e| nv + e));
+    vert_uid.extend(coarse.face_uid.iter().map(|&f| nv + ne + f));
+    let mut edge_uid = with_capacity_hinted::<u64>(fine.num_edges())?;
+    edge_uid.extend((coarse.edge_uid.iter()).flat_map(|&e| [2 * e, 2 * e + 1]));
+    edge_uid.extend(face_uid.iter().map(|&k| 2 * ne + k));
+    let mut edge_faces = with_capacity_hinted::<u32>(fine.num_edges())?;
+    edge_faces.extend((coarse.edge_faces.iter()).flat_map(|&n| [n, n]));
+    edge_faces.resize(fine.num_edges(), 2);
+    let mut vert_faces = with_capacity_hinted::<u32>(fine.num_vertices)?;
+    vert_faces.extend_from_slice(&coarse.vert_faces);
+    vert_faces.extend(coarse.edge_faces.iter().map(|&n| 2 * n));
+    vert_faces.extend((0..c.num_faces()).map(|f| c.face_corners(f).len() as u32));
+    if face_uid.len() != fine.num_faces()
+        || vert_uid.len() != fine.num_vertices
+        || edge_uid.len() != fine.num_edges()
+        || edge_faces.len() != fine.num_edges()
+        || vert_faces.len() != fine.num_vertices
+    {
+        return Err(Error::Internal(format!(
+            "adaptive: level {} does not refine its part's tables",
+            t + 1
+        )));
+    }
+    Ok(WholeIds {
+        face_uid,
+        vert_uid,
+        edge_uid,
+        edge_faces,
+        vert_faces,
+    })
 }
 
 /// The faces of the quad level `level` within `rings` vertex rings of the faces `marked`: each
@@ -2164,9 +2233,25 @@ fn block_errors<T: Scalar>(
     span: usize,
     block: &[u64],
 ) -> Option<[(f64, f64); 4]> {
+    // The block's side as a constant, so that the loops over its 2 x span + 1 points unroll
+    // (module notes: `block_errors` 86.9M -> 80.9M instructions in `adaptive-flat-4-6`).
+    match span {
+        2 => block_errors_of::<T, 2>(grid, part, regular, twins, block),
+        _ => block_errors_of::<T, 1>(grid, part, regular, twins, block),
+    }
+}
+
+/// [`block_errors`] for blocks of `SPAN x SPAN` nodes.
+fn block_errors_of<T: Scalar, const SPAN: usize>(
+    grid: &Grid,
+    part: &Part<T>,
+    regular: &[bool],
+    twins: &[u32],
+    block: &[u64],
+) -> Option<[(f64, f64); 4]> {
     let level = &part.level;
     let f = part.face_of_uid(block[0])?;
-    if span == 2
+    if SPAN == 2
         && block
             .iter()
             .enumerate()
@@ -2180,10 +2265,10 @@ fn block_errors<T: Scalar>(
         let d = twins[((fc & !3) | ((fc + k) & 3)) as usize];
         (d != NONE).then_some((d & !3) | ((d + 6 - k) & 3))
     };
-    // Cells -r..=r + span - 1 in both directions, the first node's cell at (0, 0): along
+    // Cells -r..=r + SPAN - 1 in both directions, the first node's cell at (0, 0): along
     // its column, then along each row.
     let r = grid.reach;
-    let top = r + span as i32 - 1;
+    let top = r + SPAN as i32 - 1;
     const STRIDE: usize = GRID_SIDE + 1;
     let mut cells = [0u32; STRIDE * STRIDE];
     let at = |a: i32, b: i32| ((b + r) as usize) * STRIDE + (a + r) as usize;
@@ -2208,7 +2293,7 @@ fn block_errors<T: Scalar>(
     }
     // The siblings lie counterclockwise from the first: cells (1, 0), (1, 1), (0, 1).
     const PLACE: [(i32, i32); 4] = [(0, 0), (1, 0), (1, 1), (0, 1)];
-    if span == 2 {
+    if SPAN == 2 {
         for (k, &(a, b)) in PLACE.iter().enumerate().skip(1) {
             if part.face_uid.get((cells[at(a, b)] >> 2) as usize) != Some(&block[k]) {
                 return None;
@@ -2227,10 +2312,10 @@ fn block_errors<T: Scalar>(
         let fc = cells[at(a, b)];
         level.corner_verts[((fc & !3) | ((fc + k) & 3)) as usize] as usize
     };
-    // Vertices -inner..=inner + span: the corners of cells -inner..inner + span.
+    // Vertices -inner..=inner + SPAN: the corners of cells -inner..inner + SPAN.
     let inner = grid.inner;
-    for b in -inner..inner + span as i32 {
-        for a in -inner..inner + span as i32 {
+    for b in -inner..inner + SPAN as i32 {
+        for a in -inner..inner + SPAN as i32 {
             if !regular[(cells[at(a, b)] >> 2) as usize] {
                 return None;
             }
@@ -2240,8 +2325,8 @@ fn block_errors<T: Scalar>(
     // row(y)[p], over the data positions lo..lo + n (+ 1 for a block). Each sum runs over the
     // nonzero weights only, in increasing position; a row is added to the points as soon as
     // it is made, its data read once.
-    let n = grid.weights[0].len() - 2 + span;
-    let points = 2 * span + 1;
+    let n = grid.weights[0].len() - 2 + SPAN;
+    let points = 2 * SPAN + 1;
     let taps = grid.taps.each_ref().map(|t| (t.start, t.end.min(n)));
     let mut magnitude = 0.0f64;
     let mut data = [[0.0f64; 3]; GRID_SIDE + 2];
@@ -2296,7 +2381,7 @@ fn block_errors<T: Scalar>(
     }
     let slack = grid.slack * magnitude;
     let mut out = [(0.0, 0.0); 4];
-    for (o, &(a, b)) in out.iter_mut().zip(&PLACE).take(span * span) {
+    for (o, &(a, b)) in out.iter_mut().zip(&PLACE).take(SPAN * SPAN) {
         let (a, b) = (2 * a as usize, 2 * b as usize);
         // Point (p, q) of the node is grid_points[b + q][a + p].
         let [r0, r1, r2] = [&grid_points[b], &grid_points[b + 1], &grid_points[b + 2]];
