@@ -755,14 +755,29 @@ impl Level {
         let nv = self.num_vertices as u32;
         let ne = self.num_edges() as u32;
         let corner_edges = self.corner_edges();
-        let corner_verts = gather_hinted(self.num_corners(), |c| {
-            [
-                self.corner_verts[c],
-                nv + corner_edges[c],
-                nv + ne + self.face_of(c) as u32,
-                nv + corner_edges[self.prev(c)],
-            ]
-        })?;
+        let corner_verts = if self.all_quads() {
+            // Face by face, no lookups of faces or neighbouring corners (a third of the
+            // instructions).
+            let (quads, _) = self.corner_verts.as_chunks::<4>();
+            let (edge_quads, _) = corner_edges.as_chunks::<4>();
+            let children = gather_hinted(quads.len(), |f| {
+                let (v, e) = (quads[f], edge_quads[f]);
+                let face_point = nv + ne + f as u32;
+                std::array::from_fn::<[u32; 4], 4, _>(|k| {
+                    [v[k], nv + e[k], face_point, nv + e[(k + 3) & 3]]
+                })
+            })?;
+            children.into_flattened()
+        } else {
+            gather_hinted(self.num_corners(), |c| {
+                [
+                    self.corner_verts[c],
+                    nv + corner_edges[c],
+                    nv + ne + self.face_of(c) as u32,
+                    nv + corner_edges[self.prev(c)],
+                ]
+            })?
+        };
         // Tags: old vertices keep theirs, a non-manifold edge's point and halves are tagged.
         let nm_vertices = (self.nm_vertices.iter().copied())
             .chain(self.nm_edges.iter().map(|&e| nv + e))
@@ -796,6 +811,105 @@ impl Level {
 
     /// The edge tables of this level's child (see [`Level::refine`] for their numbering).
     fn child_edges(&self) -> Result<Edges> {
+        if self.edges().more.is_empty() && self.all_quads() {
+            self.child_edges_of_quads()
+        } else {
+            self.child_edges_of_polygons()
+        }
+    }
+
+    /// [`Level::child_edges`] of a level of quads whose edges have at most two faces, face by
+    /// face and edge by edge in two sections (the same tables: the halves of each edge, then
+    /// one interior edge per corner): rayon's `unzip_into_vecs` over one index range was about
+    /// 80 instructions an edge, most of a level's edge tables.
+    fn child_edges_of_quads(&self) -> Result<Edges> {
+        let nv = self.num_vertices as u32;
+        let ne = self.num_edges() as u32;
+        let nc = self.num_corners();
+        let Edges {
+            corner_edges,
+            verts: edge_verts,
+            corners: edge_corners,
+            ..
+        } = self.edges();
+        let (quads, _) = self.corner_verts.as_chunks::<4>();
+        let (edge_quads, _) = corner_edges.as_chunks::<4>();
+        let quad_edges = gather_hinted(quads.len(), |f| {
+            let (v, e) = (quads[f], edge_quads[f]);
+            let half = |k: usize| 2 * e[k] + (edge_verts[e[k] as usize][0] != v[k]) as u32;
+            let arriving =
+                |k: usize, p: usize| 2 * e[p] + (edge_verts[e[p] as usize][1] == v[k]) as u32;
+            let c = 2 * ne + 4 * f as u32;
+            std::array::from_fn::<[u32; 4], 4, _>(|k| {
+                let p = (k + 3) & 3;
+                [half(k), c + k as u32, c + p as u32, arriving(k, p)]
+            })
+        })?;
+        let total_edges = 2 * ne as usize + nc;
+        let mut verts = zeroed_hinted::<[u32; 2]>(total_edges)?;
+        let mut corners = zeroed_hinted::<[u32; 2]>(total_edges)?;
+        let (half_verts, inner_verts) = verts.split_at_mut(2 * ne as usize);
+        let (half_corners, inner_corners) = corners.split_at_mut(2 * ne as usize);
+        // Halves: the corner leaving the edge's first vertex starts half 0 and ends half 1.
+        let slots = |first: u32, c: u32| {
+            let c = c as usize;
+            let (start, end) = (4 * c as u32, 4 * quad_next(c) as u32 + 3);
+            if self.corner_verts[c] == first {
+                [start, end]
+            } else {
+                [end, start]
+            }
+        };
+        half_verts
+            .par_chunks_mut(2 * CHUNK)
+            .zip(half_corners.par_chunks_mut(2 * CHUNK))
+            .enumerate()
+            .for_each(|(chunk, (hv, hc))| {
+                let start = chunk * CHUNK;
+                let rows = edge_verts[start..].iter().zip(&edge_corners[start..]);
+                for (i, ((hv, hc), (&[a, b], &[c0, c1]))) in hv
+                    .chunks_exact_mut(2)
+                    .zip(hc.chunks_exact_mut(2))
+                    .zip(rows)
+                    .enumerate()
+                {
+                    let mid = nv + (start + i) as u32;
+                    let s0 = slots(a, c0);
+                    let s1 = if c1 == NONE { [NONE; 2] } else { slots(a, c1) };
+                    hv[0] = [a, mid];
+                    hv[1] = [mid, b];
+                    hc[0] = [s0[0], s1[0]];
+                    hc[1] = [s0[1], s1[1]];
+                }
+            });
+        // Interior edges: from the edge point of a corner's outgoing edge to the face point.
+        inner_verts
+            .par_chunks_mut(CHUNK)
+            .zip(inner_corners.par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(chunk, (iv, ic))| {
+                let start = chunk * CHUNK;
+                for (i, ((iv, ic), &e)) in iv
+                    .iter_mut()
+                    .zip(ic)
+                    .zip(&corner_edges[start..])
+                    .enumerate()
+                {
+                    let c = start + i;
+                    *iv = [nv + e, nv + ne + (c >> 2) as u32];
+                    *ic = [4 * c as u32 + 1, 4 * quad_next(c) as u32 + 2];
+                }
+            });
+        Ok(Edges {
+            corner_edges: quad_edges.into_flattened().into_flattened(),
+            verts,
+            corners,
+            more: Vec::new(),
+        })
+    }
+
+    /// [`Level::child_edges`] of any level.
+    fn child_edges_of_polygons(&self) -> Result<Edges> {
         let nv = self.num_vertices as u32;
         let ne = self.num_edges() as u32;
         let nc = self.num_corners();
@@ -1262,6 +1376,11 @@ mod tests {
                         let slow = parent.child_vertex_corners_of_polygons(n, increasing).unwrap();
                         prop_assert_eq!(fast, slow);
                     }
+                    let (fast, slow) = (
+                        parent.child_edges_of_quads().unwrap(),
+                        parent.child_edges_of_polygons().unwrap(),
+                    );
+                    prop_assert!(same_edges(&fast, &slow));
                 }
             }
         }
