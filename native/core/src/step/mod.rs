@@ -9,8 +9,8 @@
 //! dual -> primal and primal -> dual (DESIGN.md §1), with the 1-D scheme run in lockstep on the
 //! step's [`CurveNetwork`] (§2); classic Doo-Sabin adds its original weights
 //! ([`doo_sabin`]), classic Catmull-Clark is one pass of OpenSubdiv's masks ([`catmark`]).
-//! On a quad level (from 2 averages of primal input on, 4 of dual input), the fine faces whose
-//! support is a grid come from the tensor B-spline of the whole step ([`regular`]: the regular windows), and the passes run only
+//! On a quad level (from 2 averages on), the fine faces whose support is a grid come from the
+//! tensor B-spline of the whole step ([`regular`]: the regular windows), and the passes run only
 //! over the zone around the others.
 //! Every pass is a parallel gather in a fixed order, so the output is bitwise the same whatever
 //! the number of threads, and the same on a partial level as on the full one wherever the
@@ -463,14 +463,14 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         if out.capacity() < n_faces {
             out = hinted_or_abort(n_faces);
         }
+        debug_assert_eq!(windows.primal(), primal);
+        windows.apply(x, &mut out.spare_capacity_mut()[..n_faces])?;
         if first_is_last {
-            // Every child of these faces, then the kernel's over them: the kernel's children
-            // are the kernel's values, as with more averages.
+            // Every child of these faces, after the kernel: its writes spill into the next
+            // child ([`regular`]'s `put`), which the pass then writes.
             let out = &mut out.spare_capacity_mut()[..n_faces];
             scatter_uninit(out, &zone.first, |f| children.of(f))?;
         }
-        debug_assert_eq!(windows.primal(), primal);
-        windows.apply(x, &mut out.spare_capacity_mut()[..n_faces])?;
         self.curve = CurveData::Dual(curve_to_dual(curves, &curve));
         // The coarse data's buffer is free now.
         if let (Cow::Owned(data), Some((scratch, _))) = (data, self.scratch) {

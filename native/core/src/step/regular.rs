@@ -27,12 +27,13 @@
 //! 188.5M (flat cage, degree 4, level 5) and 565.2M -> 620.2M -> 563.2M (degree 4). For 2 or 3
 //! averages the per-face filter cost more than the passes it saves (degree 3 cached 36M -> 67M
 //! instructions in a first version), so those kept the passes. With the vectors (below) and the
-//! fused first pass, two averages of primal input (degree 3: a net of the face's own four
-//! vertices, no shared rows) do pay (2026-12-04, callgrind driver): cached averaging 3 30.2M ->
-//! 23.9M (level 2: 7.3M -> 6.1M), a new plan 118.0M -> 128.4M (the classification). Two of dual
-//! input (the steps of degree 2 after the first) still take the passes: a first try of that
-//! kernel parted from the passes by 0.17 on the open grids of `kernel_matches_the_passes`
-//! (boundaries, creases), for a reason not found.
+//! fused first pass, two averages do pay (2026-12-04, callgrind driver): of primal input
+//! (degree 3: a net of the face's own four vertices, no shared rows) cached averaging 3 30.2M ->
+//! 23.9M (level 2: 7.3M -> 6.1M), a new plan 118.0M -> 128.4M (the classification); of dual
+//! input (degree 2 after its first step) cached averaging 2 43.1M -> 25.3M (level 2: 9.9M ->
+//! 6.4M), cached `limit-ico-2` 85.5M -> 67.5M. With two averages the fused first pass is the
+//! step's last: it writes its children after the kernel, whose padded writes spill into the
+//! next child ([`put`]).
 //!
 //! Rows shared (2026-12-03; instruction counts on the callgrind driver, same sphere, level 3,
 //! one thread): at a refined level a face's frame is fixed by the parity of its place in its
@@ -115,8 +116,7 @@ pub(super) struct Zone {
     pub passes: Vec<Vec<u32>>,
 }
 
-/// Fewest averages the kernel makes (see the module documentation): two on primal input, four
-/// on dual input.
+/// Fewest averages the kernel makes (see the module documentation).
 const MIN_AVERAGES: u32 = 2;
 /// Most averages the kernel makes: its net fits [`MAX_SIDE`].
 const MAX_AVERAGES: u32 = 8;
@@ -180,7 +180,6 @@ impl Windows {
     ) -> Result<Option<Windows>> {
         let averages = degree - degree % 2;
         if !(MIN_AVERAGES..=MAX_AVERAGES).contains(&averages)
-            || (averages == 2 && !primal)
             || !coarse.is_quads()
             || coarse.num_faces() == 0
         {
@@ -292,6 +291,7 @@ impl Windows {
     ) -> Result<()> {
         match (self.side, self.averages / 2 + 1) {
             (2, 2) => self.apply_with::<T, N, L, 2, 2>(x, out, wide),
+            (3, 2) => self.apply_with::<T, N, L, 3, 2>(x, out, wide),
             (3, 3) => self.apply_with::<T, N, L, 3, 3>(x, out, wide),
             (4, 3) => self.apply_with::<T, N, L, 4, 3>(x, out, wide),
             (4, 4) => self.apply_with::<T, N, L, 4, 4>(x, out, wide),
@@ -1656,8 +1656,8 @@ mod tests {
 
     /// The kernel computes what the passes compute (f64, to 1e-12 of the cage's size) on
     /// closed and open cages, with irregular vertices, creases (sharp and semi-sharp), corners
-    /// and non-quad faces, for every degree (those from 3 on do have kernel children: odd
-    /// degrees on primal input, even ones from 4 on dual input).
+    /// and non-quad faces, for every degree (those from 2 on do have kernel children, on
+    /// primal and dual input).
     #[test]
     fn kernel_matches_the_passes() {
         let cages = [cube_grid(3), open_grid(7, 6, 10.0), open_grid(6, 7, 1.5)];
@@ -1676,8 +1676,8 @@ mod tests {
                     .count();
                 assert_eq!(
                     kernel_steps > 0,
-                    degree >= 3,
-                    "degree {degree}: the kernel from 2 averages of primal input, 4 of dual"
+                    degree >= 2,
+                    "degree {degree}: the kernel from 2 averages on"
                 );
                 let with = run(&refinement, points, degree, true);
                 let without = run(&refinement, points, degree, false);
