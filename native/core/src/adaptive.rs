@@ -2235,6 +2235,7 @@ fn block_errors<T: Scalar>(
 ) -> Option<[(f64, f64); 4]> {
     // The block's side as a constant, so that the loops over its 2 x span + 1 points unroll
     // (module notes: `block_errors` 86.9M -> 80.9M instructions in `adaptive-flat-4-6`).
+    debug_assert!(span == 1 || span == 2, "sibling blocks of 1 or 2 x 2 nodes");
     match span {
         2 => block_errors_of::<T, 2>(grid, part, regular, twins, block),
         _ => block_errors_of::<T, 1>(grid, part, regular, twins, block),

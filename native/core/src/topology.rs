@@ -112,6 +112,12 @@ impl Level {
             || (self.face_offsets.iter().enumerate()).all(|(f, &offset)| offset as usize == 4 * f)
     }
 
+    /// True when every face is a quad ([`Level::all_quads`]) and no edge has more than two faces
+    /// (no fins): the levels whose child tables are built face by face and edge by edge.
+    fn quads_without_fins(&self) -> bool {
+        self.edges().more.is_empty() && self.all_quads()
+    }
+
     /// Number of faces.
     pub fn num_faces(&self) -> usize {
         if self.is_quads() {
@@ -811,7 +817,7 @@ impl Level {
 
     /// The edge tables of this level's child (see [`Level::refine`] for their numbering).
     fn child_edges(&self) -> Result<Edges> {
-        if self.edges().more.is_empty() && self.all_quads() {
+        if self.quads_without_fins() {
             self.child_edges_of_quads()
         } else {
             self.child_edges_of_polygons()
@@ -985,7 +991,7 @@ impl Level {
         new_vertices: usize,
         increasing: bool,
     ) -> Result<(Vec<u32>, Vec<u32>)> {
-        if self.edges().more.is_empty() && self.all_quads() {
+        if self.quads_without_fins() {
             self.child_vertex_corners_of_quads(increasing)
         } else {
             self.child_vertex_corners_of_polygons(new_vertices, increasing)
@@ -1369,7 +1375,7 @@ mod tests {
             // The table of a quad level's child, section by section, equals the one built
             // vertex by vertex.
             for parent in [&level, &full, &grand] {
-                if parent.edges().more.is_empty() && parent.all_quads() {
+                if parent.quads_without_fins() {
                     let n = parent.num_vertices + parent.num_edges() + parent.num_faces();
                     for increasing in [false, true] {
                         let fast = parent.child_vertex_corners_of_quads(increasing).unwrap();
