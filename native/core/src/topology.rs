@@ -1106,31 +1106,48 @@ impl Level {
                 *o = 4 * c;
             }
             if increasing && !out.is_sorted() {
-                out.sort_unstable();
+                sort_short(out);
             }
         });
-        fill_csr(
-            &offsets[nv..=nv + edge_corners.len()],
-            edge_points,
-            |e, out| {
-                let [c0, c1] = edge_corners[e];
-                let pair = |c: u32| [4 * c + 1, 4 * quad_next(c as usize) as u32 + 3];
-                if c1 == NONE {
-                    if let Ok(out) = <&mut [u32; 2]>::try_from(out) {
-                        *out = pair(c0);
-                        if increasing && out[0] > out[1] {
-                            out.swap(0, 1);
+        let pair = |c: u32| [4 * c + 1, 4 * quad_next(c as usize) as u32 + 3];
+        if at as usize == nc + 4 * edge_corners.len() {
+            // No boundary: four entries per edge, written in fixed rows.
+            edge_points
+                .par_chunks_mut(4 * CHUNK)
+                .zip(edge_corners.par_chunks(CHUNK))
+                .for_each(|(out, rows)| {
+                    for (out, &[c0, c1]) in out.chunks_exact_mut(4).zip(rows) {
+                        let ([a, b], [c, d]) = (pair(c0), pair(c1));
+                        let mut four = [a, b, c, d];
+                        if increasing {
+                            sort4(&mut four);
+                        }
+                        out.copy_from_slice(&four);
+                    }
+                });
+        } else {
+            fill_csr(
+                &offsets[nv..=nv + edge_corners.len()],
+                edge_points,
+                |e, out| {
+                    let [c0, c1] = edge_corners[e];
+                    if c1 == NONE {
+                        if let Ok(out) = <&mut [u32; 2]>::try_from(out) {
+                            *out = pair(c0);
+                            if increasing && out[0] > out[1] {
+                                out.swap(0, 1);
+                            }
+                        }
+                    } else if let Ok(out) = <&mut [u32; 4]>::try_from(out) {
+                        let ([a, b], [c, d]) = (pair(c0), pair(c1));
+                        *out = [a, b, c, d];
+                        if increasing {
+                            sort4(out);
                         }
                     }
-                } else if let Ok(out) = <&mut [u32; 4]>::try_from(out) {
-                    let ([a, b], [c, d]) = (pair(c0), pair(c1));
-                    *out = [a, b, c, d];
-                    if increasing {
-                        sort4(out);
-                    }
-                }
-            },
-        );
+                },
+            );
+        }
         // A face point's corners are its face's, in order: child corner `4 c + 2` of corner c.
         face_points
             .par_chunks_mut(CHUNK)
@@ -1141,6 +1158,24 @@ impl Level {
                 }
             });
         Ok((offsets, vert_corners))
+    }
+}
+
+/// Sorts a short list by insertion (the lists out of order in a vertex -> corner table are an
+/// old edge point's, four entries on a manifold level), a long one by `sort_unstable`.
+fn sort_short(list: &mut [u32]) {
+    if list.len() > 8 {
+        list.sort_unstable();
+        return;
+    }
+    for i in 1..list.len() {
+        let x = list[i];
+        let mut j = i;
+        while j > 0 && list[j - 1] > x {
+            list[j] = list[j - 1];
+            j -= 1;
+        }
+        list[j] = x;
     }
 }
 
