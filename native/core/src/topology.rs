@@ -1322,19 +1322,20 @@ mod tests {
             let mut offsets = vec![0u32];
             let mut verts = Vec::new();
             if seed % 2 == 0 {
-                // A (w x h) grid of quads, wrapped in one direction when seed % 4 == 0.
+                // A (w x h) grid of quads, wrapped in one direction when seed % 4 == 0 and
+                // closed (a torus: no boundary) when seed % 8 == 0.
                 let (w, h) = (2 + next(5) as usize, 2 + next(5) as usize);
-                let wrap = seed % 4 == 0;
+                let (wrap, closed) = (seed % 4 == 0, seed % 8 == 0);
                 let cols = if wrap { w } else { w + 1 };
-                let id = |i: usize, j: usize| (j * cols + i % cols) as u32;
+                let rows = if closed { h } else { h + 1 };
+                let id = |i: usize, j: usize| ((j % rows) * cols + i % cols) as u32;
                 for j in 0..h {
                     for i in 0..w {
                         verts.extend([id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)]);
                         offsets.push(verts.len() as u32);
                     }
                 }
-                let used = cols * (h + 1);
-                return (used, offsets, verts);
+                return (cols * rows, offsets, verts);
             }
             for _ in 0..faces {
                 let size = 3 + next(4) as usize;
