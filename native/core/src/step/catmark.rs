@@ -6,16 +6,24 @@
 //!
 //! The face points are written straight into the last section of the output (the fine level
 //! numbers old vertices, then edge points, then face points), then the vertex and edge points
-//! read them from there: one buffer per step, no copy, and no per-vertex branch on the section.
+//! read them from there: no copy, and no per-vertex branch on the section.
+//!
+//! On a quad level (every level after the first) the smooth points come from the averaging form
+//! of the same rules ([`bilinear_children`]): the fine faces' bilinear values first, four per
+//! coarse face, then each face point, smooth edge point and smooth valence-4 vertex point as the
+//! mean of its four fine faces; the classic masks only at the other vertices and edges. The
+//! results equal the masks' in exact arithmetic (to about 1e-15 relative in f64; the summation
+//! order differs) and cost fewer scattered reads: cached classic 3 on the callgrind driver's
+//! 3,840-quad sphere, level 3, one thread, 29.4M -> 23.3M instructions (2026-12-04).
 
 use std::borrow::Cow;
 use std::mem::MaybeUninit;
 
-use super::{CurveData, LevelData, Step, Tables};
+use super::{quad_edge_mean, quad_mean, vertex_corner_mean, CurveData, LevelData, Step, Tables};
 use crate::curves::LevelSharpness;
 use crate::error::{Error, Result};
 use crate::options::Creasing;
-use crate::parallel::{fill, hinted_or_abort};
+use crate::parallel::{fill, fill_zip, hinted_or_abort};
 use crate::scalar::{add, lerp, mad, scale, zero, Scalar, Value};
 use crate::scheme::catmark::{
     blended_edge_weights, fractional_weight, smooth_vertex_weights, VertexRule, CREASE_EDGE_WEIGHT,
@@ -29,7 +37,11 @@ impl<T: Scalar, const N: usize> LevelData<'_, T, N> {
     pub(super) fn catmark(&mut self, step: &Step, creasing: Creasing) -> Result<()> {
         debug_assert!(self.primal, "Catmull-Clark data is primal");
         let mut out = self.fresh();
-        step_into(step, creasing, &self.vertices, &mut out)?;
+        // The dual buffer is free while the data is primal: it holds the fine faces' values of
+        // a smooth quad level, and stays there for the next step.
+        let mut fine_faces = self.take_faces();
+        step_into(step, creasing, &self.vertices, &mut out, &mut fine_faces)?;
+        self.faces = Cow::Owned(fine_faces);
         if let Cow::Owned(old) = std::mem::replace(&mut self.vertices, Cow::Owned(out)) {
             self.spare = old;
         }
@@ -39,13 +51,30 @@ impl<T: Scalar, const N: usize> LevelData<'_, T, N> {
 }
 
 /// One step of `values` (per vertex of `step.coarse`) into `out` (its previous contents are
-/// dropped; its allocation is reused when large enough). A step without the levels' sharpness
-/// tables (which `Refinement` builds for these rules) is an internal error.
+/// dropped; its allocation is reused when large enough). `fine_faces` is a buffer for the fine
+/// faces' values on a quad level ([`bilinear_children`]; its contents are dropped too). A step
+/// without the levels' sharpness tables (which `Refinement` builds for these rules) is an
+/// internal error.
 pub(crate) fn step_into<T: Scalar, const N: usize>(
     step: &Step,
     creasing: Creasing,
     values: &[Value<T, N>],
     out: &mut Vec<Value<T, N>>,
+    fine_faces: &mut Vec<Value<T, N>>,
+) -> Result<()> {
+    let quads = step.coarse.all_quads();
+    step_by(step, creasing, values, out, fine_faces, quads)
+}
+
+/// [`step_into`], the smooth points from the fine faces when `by_fine_faces` (a level of quads
+/// only), else by the masks over the coarse level (any level; the tests compare the two).
+pub(crate) fn step_by<T: Scalar, const N: usize>(
+    step: &Step,
+    creasing: Creasing,
+    values: &[Value<T, N>],
+    out: &mut Vec<Value<T, N>>,
+    fine_faces: &mut Vec<Value<T, N>>,
+    by_fine_faces: bool,
 ) -> Result<()> {
     let (coarse, fine) = (step.coarse, step.fine);
     let (this, child) = step.sharpness.ok_or_else(|| {
@@ -58,54 +87,161 @@ pub(crate) fn step_into<T: Scalar, const N: usize>(
         *out = hinted_or_abort(n);
     }
     let (head, faces) = out.spare_capacity_mut()[..n].split_at_mut(nv + ne);
+    let (old, edges) = head.split_at_mut(nv);
     // The tables looked up once, not per vertex (see [`Tables`]).
     let t = Tables::of(coarse);
-    fill(faces, |f| {
-        if t.quads {
-            // The additions of the general case below, in the same order.
-            let [a, b, c, d] = t.at_corners(values, f);
-            return scale(add(add(add(a, b), c), d), T::from_f64(0.25));
+    if by_fine_faces {
+        if !t.quads {
+            return Err(Error::Internal(
+                "Catmull-Clark by fine faces on a level that is not all quads".into(),
+            ));
         }
-        let corners = coarse.face_corners(f);
-        let w = T::from_f64(1.0 / corners.len() as f64);
-        let sum = corners.fold(zero(), |s, c| {
-            add(s, values[coarse.corner_verts[c] as usize])
+        let fine = bilinear_children(&t, values, fine_faces);
+        let quarter = T::from_f64(0.25);
+        fill_zip(faces, fine, |_, q| quad_mean(q, quarter));
+        // SAFETY: `fill_zip` wrote every item of `faces` (a panic would have unwound past
+        // here), and `MaybeUninit<V>` has the layout of `V`.
+        let faces = unsafe { assume_init(faces) };
+        let flat = fine.as_flattened();
+        vertex_and_edge_points(
+            &t,
+            (this, child, creasing),
+            values,
+            faces,
+            old,
+            edges,
+            #[inline(always)]
+            |v| match t.corners_of_vertex(v).len() {
+                4 => vertex_corner_mean(&t, flat, v),
+                _ => smooth_vertex(&t, v, values, faces),
+            },
+            #[inline(always)]
+            |_, &corners| quad_edge_mean(fine, corners),
+        );
+    } else {
+        fill(faces, |f| {
+            let corners = coarse.face_corners(f);
+            let w = T::from_f64(1.0 / corners.len() as f64);
+            let sum = corners.fold(zero(), |s, c| {
+                add(s, values[coarse.corner_verts[c] as usize])
+            });
+            scale(sum, w)
         });
-        scale(sum, w)
-    });
-    // SAFETY: `fill` wrote every item of `faces` (a panic would have unwound past here), and
-    // `MaybeUninit<V>` has the layout of `V`.
-    let faces: &[Value<T, N>] =
-        unsafe { &*(faces as *const [MaybeUninit<Value<T, N>>] as *const [Value<T, N>]) };
-    let (old, edges) = head.split_at_mut(nv);
+        // SAFETY: as above.
+        let faces = unsafe { assume_init(faces) };
+        vertex_and_edge_points(
+            &t,
+            (this, child, creasing),
+            values,
+            faces,
+            old,
+            edges,
+            #[inline(always)]
+            |v| smooth_vertex(&t, v, values, faces),
+            #[inline(always)]
+            |e, _| smooth_edge(&t, e, values, faces),
+        );
+    }
+    // SAFETY: the three sections, written completely above, are the first `n` items.
+    unsafe { out.set_len(n) };
+    Ok(())
+}
+
+/// `items`, every one of which has been written, as initialised values.
+///
+/// # Safety
+/// Every item of `items` must be initialised.
+unsafe fn assume_init<V>(items: &mut [MaybeUninit<V>]) -> &[V] {
+    // SAFETY: the caller's promise, and `MaybeUninit<V>` has the layout of `V`.
+    unsafe { &*(items as *const [MaybeUninit<V>] as *const [V]) }
+}
+
+/// The old vertices' and the edge points of a step (`old` and `edges`) from the coarse
+/// `values` and the new face points `faces`: smooth vertices and edges by `smooth_vertex_at`
+/// and `smooth_edge_at` (the smooth masks; an edge's with its two corners), the others by the rules
+/// of `sharpness` (this level's, the child's, and the creasing method).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn vertex_and_edge_points<T: Scalar, const N: usize>(
+    t: &Tables,
+    sharpness: (&LevelSharpness, &LevelSharpness, Creasing),
+    values: &[Value<T, N>],
+    faces: &[Value<T, N>],
+    old: &mut [MaybeUninit<Value<T, N>>],
+    edges: &mut [MaybeUninit<Value<T, N>>],
+    smooth_vertex_at: impl Fn(usize) -> Value<T, N> + Sync + Send,
+    smooth_edge_at: impl Fn(usize, &[u32; 2]) -> Value<T, N> + Sync + Send,
+) {
+    let (this, child, creasing) = sharpness;
+    let (coarse, nv) = (t.level, old.len());
+    // The old vertices and edges walk a table of their own only to go through `fill_zip`: with
+    // the plain `fill` LLVM stopped inlining the smooth closures (cached classic 3: +10 %
+    // instructions), as in the averaging step's `gather_primal`.
     if this.is_smooth() {
-        fill(old, |v| smooth_vertex(&t, v, values, faces));
+        fill_zip(old, &t.vertex_offsets[..nv], |v, _| smooth_vertex_at(v));
     } else {
         // Most vertices of a level with curves are smooth (a face-varying mesh has boundaries
         // everywhere its seams run): their mask inline, the rule machinery for the rest.
         fill(old, |v| {
             if this.rule(v).is_smooth() {
-                smooth_vertex(&t, v, values, faces)
+                smooth_vertex_at(v)
             } else {
-                vertex_point(&t, this, child, creasing, v, values, faces)
+                vertex_point(t, this, child, creasing, v, values, faces)
             }
         });
     }
     if this.has_sharp_edges() {
-        // Likewise for edges: `smooth_edge` is `edge_point` at sharpness 0, in the same order.
-        fill(edges, |e| {
-            if this.edge(e) <= 0.0 && t.edge_corners[e][1] != NONE {
-                smooth_edge(&t, e, values, faces)
+        // Likewise for edges: the smooth edge point is `edge_point` at sharpness 0.
+        fill_zip(edges, t.edge_corners, |e, corners| {
+            if this.edge(e) <= 0.0 && corners[1] != NONE {
+                smooth_edge_at(e, corners)
             } else {
                 edge_point(coarse, this, child, e, nv + e, values, faces)
             }
         });
     } else {
-        fill(edges, |e| smooth_edge(&t, e, values, faces));
+        fill_zip(edges, t.edge_corners, smooth_edge_at);
     }
-    // SAFETY: the three sections, which `fill` wrote completely, are the first `n` items.
-    unsafe { out.set_len(n) };
-    Ok(())
+}
+
+/// The values of a quad level's fine faces in the averaging form of Catmull-Clark (DESIGN.md §1;
+/// the paper's degree 3: replication, then one centroid average): each takes the bilinear value
+/// at its centre, `(9 p_k + 3 p_(k+1) + 3 p_(k-1) + p_(k+2)) / 16` over its parent's corners
+/// `p`, four per coarse face (face `4 f + k` of the fine level is corner `k` of face `f`), in
+/// `buffer` (its contents are dropped).
+///
+/// The mean of a fine vertex's fine faces is then Catmull-Clark's face point, its smooth edge
+/// point (an edge of two quads) and its smooth vertex point at valence 4, in exact arithmetic;
+/// at other valences the two differ, and those vertices keep the classic mask. Four gathers of
+/// a coarse face's corners make its four fine faces, and the edge and face points read those in
+/// place: fewer scattered reads than the masks over the coarse level (module documentation).
+fn bilinear_children<'b, T: Scalar, const N: usize>(
+    t: &Tables,
+    values: &[Value<T, N>],
+    buffer: &'b mut Vec<Value<T, N>>,
+) -> &'b [[Value<T, N>; 4]] {
+    let (quads, _) = t.corner_verts.as_chunks::<4>();
+    let n = 4 * quads.len();
+    buffer.clear();
+    if buffer.capacity() < n {
+        *buffer = hinted_or_abort(n);
+    }
+    let (groups, _) = buffer.spare_capacity_mut()[..n].as_chunks_mut::<4>();
+    // SAFETY: `[MaybeUninit<V>; 4]` has the layout of `MaybeUninit<[V; 4]>`.
+    let groups: &mut [MaybeUninit<[Value<T, N>; 4]>] =
+        unsafe { std::slice::from_raw_parts_mut(groups.as_mut_ptr().cast(), groups.len()) };
+    let (half, eighth, sixteenth) = (T::from_f64(0.5), T::from_f64(0.125), T::from_f64(0.0625));
+    fill_zip(groups, quads, |_, q| {
+        let p: [Value<T, N>; 4] = std::array::from_fn(|k| values[q[k] as usize]);
+        let centre = scale(add(add(p[0], p[1]), add(p[2], p[3])), sixteenth);
+        std::array::from_fn(|k| {
+            let sides = add(p[(k + 1) & 3], p[(k + 3) & 3]);
+            mad(mad(centre, half, p[k]), eighth, sides)
+        })
+    });
+    // SAFETY: `fill_zip` wrote every group (a panic would have unwound past here).
+    unsafe { buffer.set_len(n) };
+    buffer.as_chunks::<4>().0
 }
 
 /// The vertex point of old vertex `v` (OpenSubdiv's `ComputeVertexVertexMask` with the parent
@@ -187,9 +323,8 @@ fn crease_vertex<T: Scalar, const N: usize>(
     )
 }
 
-/// The smooth edge point `1/4 (a + b + f_0 + f_1)` of an interior edge `e` of a level without
-/// sharp edges (where every edge has two faces: boundaries are sharp), or of a level with sharp
-/// edges where `e` is smooth and has two faces.
+/// The smooth edge point `1/4 (a + b + f_0 + f_1)` of an interior edge `e` of two faces of a
+/// level that is not all quads (on quads [`bilinear_children`] make it).
 #[inline(always)]
 fn smooth_edge<T: Scalar, const N: usize>(
     t: &Tables,

@@ -4,12 +4,12 @@
 //! the crate: it reads the per-level sharpness and rules and runs the Catmull-Clark step
 //! directly.)
 
-use super::common::{self, cage, torus, Random};
+use super::common::{self, cage, grid, torus, Random};
 use crate::scheme::catmark::{
     dart_limit_mask, fractional_weight, subdivide_edge_sharpness, vertex_rule, VertexRule,
 };
 use crate::scheme::{decrement, doo_sabin_weight};
-use crate::step::catmark::step_into;
+use crate::step::catmark::{step_by, step_into};
 use crate::{Boundary, Cage, Creasing, Options, OutputKind, Plan, Rules};
 
 fn classic(degree: u32, levels: u32) -> Options {
@@ -595,12 +595,70 @@ fn step_into_reuses_a_dirty_buffer_and_matches_step() {
         for j in 0..2 {
             let step = plan.refinement().step(j);
             let mut expected = Vec::new();
-            step_into(&step, creasing, &values, &mut expected).unwrap();
-            step_into(&step, creasing, &values, &mut buffer).unwrap();
+            let mut fine_faces = vec![[f64::NAN; 3]; 3];
+            step_into(&step, creasing, &values, &mut expected, &mut Vec::new()).unwrap();
+            step_into(&step, creasing, &values, &mut buffer, &mut fine_faces).unwrap();
             assert_eq!(buffer.len(), levels[j + 1].num_vertices);
             let bits = |v: &[P]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&buffer), bits(&expected));
             values = expected;
         }
     }
+}
+
+#[test]
+fn quad_levels_by_fine_faces_equal_the_masks() {
+    // The smooth points of a quad level as means of bilinear fine faces equal the classic masks
+    // to rounding, wherever the rules are smooth, creased, semi-sharp, blended or at corners;
+    // at irregular valences (the bipyramid's apexes and its triangles' children) the masks run
+    // on both sides.
+    let (bi, bi_points) = bipyramid(5);
+    let creased = torus(4, 5)
+        .with_creases(&[(0, 1, 2.5), (1, 2, 10.0), (6, 7, 0.5)])
+        .unwrap()
+        .with_corners(&[(12, 1.5)])
+        .unwrap();
+    let (open, open_points) = grid(3, 4);
+    let open = open.with_creases(&[(6, 7, 1.25)]).unwrap();
+    let mut r = Random(3);
+    let open_points: Vec<f64> = open_points.iter().map(|x| x + 0.3 * r.next()).collect();
+    let cases = [
+        (bi, bi_points, Boundary::EdgeOnly),
+        (creased, random_points(20, 7), Boundary::EdgeOnly),
+        (open.clone(), open_points.clone(), Boundary::EdgeOnly),
+        (open, open_points, Boundary::EdgeAndCorner),
+    ];
+    let mut compared = 0;
+    for (cage, points, boundary) in cases {
+        for creasing in [Creasing::Uniform, Creasing::Chaikin] {
+            let options = Options {
+                boundary,
+                creasing,
+                ..classic(3, 3)
+            };
+            let plan = Plan::new(&cage, &options).unwrap();
+            let mut values: Vec<P> = pts(&points);
+            for j in 0..3 {
+                let step = plan.refinement().step(j);
+                let (mut masks, mut faces) = (Vec::new(), Vec::new());
+                step_by(&step, creasing, &values, &mut masks, &mut faces, false).unwrap();
+                if step.coarse.all_quads() {
+                    let mut by_faces = Vec::new();
+                    step_by(&step, creasing, &values, &mut by_faces, &mut faces, true).unwrap();
+                    assert_eq!(by_faces.len(), masks.len());
+                    let scale = masks.iter().flatten().fold(1.0f64, |m, x| m.max(x.abs()));
+                    for (a, b) in by_faces.iter().zip(&masks) {
+                        assert!((0..3).all(|k| (a[k] - b[k]).abs() <= 1e-12 * scale));
+                    }
+                    compared += 1;
+                } else {
+                    let err = step_by(&step, creasing, &values, &mut Vec::new(), &mut faces, true);
+                    assert!(matches!(err, Err(crate::Error::Internal(_))));
+                }
+                values = masks;
+            }
+        }
+    }
+    // Levels 1 and 2 of every case, and the torus's and grids' cages.
+    assert_eq!(compared, 2 * (4 * 2 + 3));
 }
