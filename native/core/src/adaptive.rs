@@ -119,7 +119,8 @@ use crate::memory;
 use crate::mesh::{check_values, validate_geometry, Cage};
 use crate::options::{check_degree, check_levels, Boundary, Options};
 use crate::parallel::{
-    fill_csr, gather_hinted, in_pool, prefix_offsets, with_capacity_hinted, zeroed_hinted,
+    fill_csr, gather_grain, gather_hinted, in_pool, prefix_offsets, with_capacity_hinted,
+    zeroed_hinted,
 };
 use crate::refinement::Refinement;
 use crate::scalar::{reciprocal, Scalar};
@@ -2133,30 +2134,39 @@ fn decide<T: Scalar>(
         1
     };
     let scale_by = scale_of(ctx);
-    let blocks = gather_hinted(nodes.len() / span / span, |i| -> [Option<bool>; 4] {
-        let block = &nodes[span * span * i..span * span * (i + 1)];
-        let mut out = [None; 4];
-        if let Some(errors) = block_errors(grid, part, &regular, &twins, span, block) {
-            for (o, (error, slack)) in out.iter_mut().zip(errors) {
-                let error = error * scale_by;
-                let slack = slack * scale_by;
-                *o = if error + slack < tolerance {
-                    Some(false)
-                } else if error - slack > tolerance {
-                    Some(true)
-                } else {
-                    None
-                };
+    let blocks = gather_grain(
+        nodes.len() / span / span,
+        BLOCK_GRAIN,
+        |i| -> [Option<bool>; 4] {
+            let block = &nodes[span * span * i..span * span * (i + 1)];
+            let mut out = [None; 4];
+            if let Some(errors) = block_errors(grid, part, &regular, &twins, span, block) {
+                for (o, (error, slack)) in out.iter_mut().zip(errors) {
+                    let error = error * scale_by;
+                    let slack = slack * scale_by;
+                    *o = if error + slack < tolerance {
+                        Some(false)
+                    } else if error - slack > tolerance {
+                        Some(true)
+                    } else {
+                        None
+                    };
+                }
             }
-        }
-        out
-    })?;
+            out
+        },
+    )?;
     memory::collect(
         (blocks.iter())
             .flat_map(|b| b[..span * span].iter().copied())
             .take(nodes.len()),
     )
 }
+
+/// Sibling blocks per parallel task of [`decide`]: about 8k instructions each, so that a level
+/// of a few thousand blocks is shared out over many threads (in [`crate::parallel::CHUNK`]s of
+/// blocks, the decisions of level 4 of `adaptive-flat-4-6` were one task).
+const BLOCK_GRAIN: usize = 32;
 
 /// Per face of `part`: whether its four vertices can all be inside a grid (complete, interior,
 /// manifold, of valence 4, on no curve edge of the step and no tagged corner). A grid's
@@ -2681,7 +2691,7 @@ fn triangulate<T: Scalar>(
     let leaf_at: Vec<(u32, u32)> = memory::collect(
         (1..=max_level).flat_map(|t| leaf_faces[t].iter().map(move |&f| (t as u32, f as u32))),
     )?;
-    let cases = gather_hinted(leaf_at.len(), |i| -> Result<([u32; 8], u8)> {
+    let cases = gather_grain(leaf_at.len(), LEAF_CHUNK, |i| -> Result<([u32; 8], u8)> {
         let (t, f) = (leaf_at[i].0 as usize, leaf_at[i].1 as usize);
         let part = &parts[t];
         let level = &part.level;
