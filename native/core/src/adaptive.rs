@@ -55,6 +55,15 @@
 //! chunks ([`crate::parallel`]): parallel, with results that do not depend on the number of
 //! threads. The uniform ids of a whole refined level are plain section copies of the coarse
 //! ones ([`whole_ids`]), serial: a few instructions per item, fewer than a parallel gather's.
+//! Threads: the partial levels are small (1k-54k faces in `adaptive-flat-4-6`), so a run is some
+//! 380 short parallel passes (about 36 us each on one thread, 2026-12-04), which one at a time
+//! leave a second thread mostly waking up. Tables that do not depend on each other are made side
+//! by side (`rayon::join`): a level's faces, edge tables and vertex corners ([`Level::refine`])
+//! beside its curve network, its regular windows beside the copies of its ids, the decisions'
+//! two tables ([`regular_faces`], [`grid_twins`]); the sibling blocks of the decisions (about 8k
+//! instructions each) go in tasks of [`BLOCK_GRAIN`]. Still serial (one thread, `4-6`, 22 ms a
+//! run under load): the triangulation's vertex numbering (0.9 ms), the restriction criterion's
+//! set inserts and sorts (part of its 1.6 ms), the node lists and leaves (0.6 ms).
 //! Lookups by uniform id go through the sorted id lists (merge walks) and flat per-level tables,
 //! not hash maps; the refined sets are the only ones, read by the restriction criterion (the
 //! node lists are made from them only when they grow).
@@ -1538,7 +1547,6 @@ fn refine_topology<T: Sync, U>(
     keep: Keep,
 ) -> Result<(PartStep, Part<T>)> {
     let c = &coarse.level;
-    let fine = c.refine()?;
     let [nv, ne, nf, ncorners] = coarse.counts;
     let (cnv, cne) = (c.num_vertices, c.num_edges());
     let corner_uid = |k: usize| -> u64 {
@@ -1600,30 +1608,50 @@ fn refine_topology<T: Sync, U>(
         }
     };
     let odd = ctx.degree % 2 == 1;
-    let network = CurveNetwork::build(
-        c,
-        &coarse.curves,
-        &corners,
-        t as u32,
-        coarse.network.as_ref(),
-        odd,
-        pin,
-    )?;
+    // The refinement and the curve network read only the coarse level: side by side.
+    let (fine, network) = rayon::join(
+        || c.refine(),
+        || {
+            CurveNetwork::build(
+                c,
+                &coarse.curves,
+                &corners,
+                t as u32,
+                coarse.network.as_ref(),
+                odd,
+                pin,
+            )
+        },
+    );
+    let (fine, network) = (fine?, network?);
 
     // Built even where they cost more than the passes they spare (the adaptive partial levels:
     // 14M of `adaptive-flat-4-6`'s 400M, 2026-12-04): the kernel's sums are not the passes' bit
-    // for bit, and a partial level's points must be the uniform plan's, which uses them.
-    let windows = match ctx.scheme {
-        Scheme::Averaging { degree } => Windows::of_step(c, &fine, &network, degree, t)?,
-        _ => None,
-    };
+    // for bit, and a partial level's points must be the uniform plan's, which uses them. The
+    // uniform ids of a whole level (serial section copies) are made beside them.
+    let scheme = ctx.scheme;
+    let (windows, ids) = rayon::join(
+        || match scheme {
+            Scheme::Averaging { degree } => Windows::of_step(c, &fine, &network, degree, t),
+            _ => Ok(None),
+        },
+        || match keep {
+            Keep::All => whole_ids(coarse, t, &fine).map(Some),
+            _ => Ok(None),
+        },
+    );
+    let (windows, ids) = (windows?, ids?);
     let counts = [nv + ne + nf, 2 * ne + ncorners, ncorners, 4 * ncorners];
     // The seeds and the margin rings around them, or the faces named.
-    let (seeds, margin) = match keep {
-        Keep::Around(seeds) => (seeds, ctx.margin),
-        Keep::Faces(faces) => (faces, 0),
-        Keep::All => {
-            let ids = whole_ids(coarse, t, &fine)?;
+    let (seeds, margin) = match (keep, ids) {
+        (Keep::Around(seeds), _) => (seeds, ctx.margin),
+        (Keep::Faces(faces), _) => (faces, 0),
+        (Keep::All, None) => {
+            return Err(Error::Internal(
+                "adaptive: a whole level without its ids".into(),
+            ))
+        }
+        (Keep::All, Some(ids)) => {
             let next = Part {
                 face_uid: ids.face_uid,
                 vert_uid: ids.vert_uid,
@@ -2124,8 +2152,9 @@ fn decide<T: Scalar>(
     let Some(grid) = grid else {
         return memory::filled(nodes.len(), None);
     };
-    let regular = regular_faces(ctx, part)?;
-    let twins = grid_twins(part)?;
+    // Two independent tables, side by side (each a few short passes).
+    let (regular, twins) = rayon::join(|| regular_faces(ctx, part), || grid_twins(part));
+    let (regular, twins) = (regular?, twins?);
     // Blocks of nodes: the four siblings from level 2 on (always all four: nodes are the
     // children of refined nodes, and holes are whole cage faces), single nodes at level 1.
     let span = if t >= 2 && nodes.len().is_multiple_of(4) {
