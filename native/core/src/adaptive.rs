@@ -1826,10 +1826,41 @@ struct Sub {
 /// sum in fixed chunks ([`crate::parallel`]), so the result does not depend on the threads.
 fn restrict(fine: &Level, keep: &[bool]) -> Result<Sub> {
     let kept_face = |c: u32| c != NONE && keep[c as usize >> 2];
+    let (offsets, corners) = fine.vertex_corner_table();
+    let corners_of = |v: usize| &corners[offsets[v] as usize..offsets[v + 1] as usize];
+    let manifold = fine.edges().more.is_empty();
     // New ids: prefix sums of what is kept (the maps have the whole level's size, as the limit
-    // restricts a plan's last level: fallible).
-    let face_at = prefix_offsets(keep.len(), |f| keep[f] as u32)?;
-    let faces = kept_items(&face_at)?;
+    // restricts a plan's last level: fallible). Those of faces, of vertices and of edges read
+    // only `keep`: side by side (each is a few passes too short to share out on their own), as
+    // are the tables made from them below.
+    let kept_faces = || -> Result<_> {
+        let face_at = prefix_offsets(keep.len(), |f| keep[f] as u32)?;
+        let faces = kept_items(&face_at)?;
+        Ok((face_at, faces))
+    };
+    // Per vertex, its corners kept: a vertex is kept with its first.
+    let kept_vertices = || -> Result<_> {
+        let vert_count = gather_hinted(fine.num_vertices, |v| {
+            corners_of(v).iter().filter(|&&c| kept_face(c)).count() as u32
+        })?;
+        let vert_at = prefix_offsets(fine.num_vertices, |v| (vert_count[v] > 0) as u32)?;
+        Ok((vert_count, kept_items(&vert_at)?, new_ids(&vert_at)?))
+    };
+    let kept_edges = || -> Result<_> {
+        let edge_at = prefix_offsets(fine.num_edges(), |e| {
+            let kept = if manifold {
+                fine.edge_corners()[e].into_iter().any(kept_face)
+            } else {
+                fine.edge_slots(e).any(kept_face)
+            };
+            kept as u32
+        })?;
+        Ok((kept_items(&edge_at)?, new_ids(&edge_at)?))
+    };
+    let ((faces, vertices), edges) =
+        rayon::join(|| rayon::join(kept_faces, kept_vertices), kept_edges);
+    let ((face_at, faces), (vert_count, vertices, vert_map), (edges, edge_map)) =
+        (faces?, vertices?, edges?);
     let corner_map = |c: u32| -> u32 {
         let f = c as usize >> 2;
         if keep[f] {
@@ -1838,76 +1869,71 @@ fn restrict(fine: &Level, keep: &[bool]) -> Result<Sub> {
             NONE
         }
     };
-    let (offsets, corners) = fine.vertex_corner_table();
-    let corners_of = |v: usize| &corners[offsets[v] as usize..offsets[v + 1] as usize];
-    // Per vertex, its corners kept: a vertex is kept with its first.
-    let vert_count = gather_hinted(fine.num_vertices, |v| {
-        corners_of(v).iter().filter(|&&c| kept_face(c)).count() as u32
-    })?;
-    let vert_at = prefix_offsets(fine.num_vertices, |v| (vert_count[v] > 0) as u32)?;
-    let vertices = kept_items(&vert_at)?;
-    let vert_map = new_ids(&vert_at)?;
-    let manifold = fine.edges().more.is_empty();
-    let edge_at = prefix_offsets(fine.num_edges(), |e| {
-        let kept = if manifold {
-            fine.edge_corners()[e].into_iter().any(kept_face)
-        } else {
-            fine.edge_slots(e).any(kept_face)
-        };
-        kept as u32
-    })?;
-    let edges = kept_items(&edge_at)?;
-    let edge_map = new_ids(&edge_at)?;
     // A face's four corners at once (one lookup of the face).
     let quad_of = |table: &[u32], map: &[u32], i: usize| -> [u32; 4] {
         let first = 4 * faces[i] as usize;
         std::array::from_fn(|k| map[table[first + k] as usize])
     };
-    let corner_verts =
-        gather_hinted(faces.len(), |i| quad_of(&fine.corner_verts, &vert_map, i))?.into_flattened();
-    let corner_edges = gather_hinted(faces.len(), |i| quad_of(fine.corner_edges(), &edge_map, i))?
-        .into_flattened();
-    let edge_verts = gather_hinted(edges.len(), |i| {
-        fine.edge_verts()[edges[i] as usize].map(|v| vert_map[v as usize])
-    })?;
-    let mut more = Vec::new();
-    let edge_corners: Vec<[u32; 2]> = if manifold {
-        // Two slots at most: the common case, without the slot iterator.
-        gather_hinted(edges.len(), |i| {
-            let [a, b] = fine.edge_corners()[edges[i] as usize].map(|c| {
-                if c == NONE {
-                    NONE
-                } else {
-                    corner_map(c)
-                }
-            });
-            if a == NONE {
-                [b, NONE]
-            } else {
-                [a, b]
-            }
-        })?
-    } else {
-        let mut edge_corners = memory::with_capacity(edges.len())?;
-        for (i, &e) in edges.iter().enumerate() {
-            let mut slots = (fine.edge_slots(e as usize))
-                .map(corner_map)
-                .filter(|&c| c != NONE);
-            edge_corners.push([slots.next().unwrap_or(NONE), slots.next().unwrap_or(NONE)]);
-            more.extend(slots.map(|c| (i as u32, c)));
-        }
-        edge_corners
+    let face_tables = || -> Result<_> {
+        let corner_verts =
+            gather_hinted(faces.len(), |i| quad_of(&fine.corner_verts, &vert_map, i))?;
+        let corner_edges =
+            gather_hinted(faces.len(), |i| quad_of(fine.corner_edges(), &edge_map, i))?;
+        Ok((corner_verts.into_flattened(), corner_edges.into_flattened()))
     };
-    let vert_corner_offsets = prefix_offsets(vertices.len(), |i| vert_count[vertices[i] as usize])?;
-    let mut vert_corners = zeroed_hinted::<u32>(corner_verts.len())?;
-    fill_csr(&vert_corner_offsets, &mut vert_corners, |i, out| {
-        let kept = (corners_of(vertices[i] as usize).iter())
-            .map(|&c| corner_map(c))
-            .filter(|&c| c != NONE);
-        for (o, c) in out.iter_mut().zip(kept) {
-            *o = c;
-        }
-    });
+    let edge_tables = || -> Result<_> {
+        let edge_verts = gather_hinted(edges.len(), |i| {
+            fine.edge_verts()[edges[i] as usize].map(|v| vert_map[v as usize])
+        })?;
+        let mut more = Vec::new();
+        let edge_corners: Vec<[u32; 2]> = if manifold {
+            // Two slots at most: the common case, without the slot iterator.
+            gather_hinted(edges.len(), |i| {
+                let [a, b] = fine.edge_corners()[edges[i] as usize].map(|c| {
+                    if c == NONE {
+                        NONE
+                    } else {
+                        corner_map(c)
+                    }
+                });
+                if a == NONE {
+                    [b, NONE]
+                } else {
+                    [a, b]
+                }
+            })?
+        } else {
+            let mut edge_corners = memory::with_capacity(edges.len())?;
+            for (i, &e) in edges.iter().enumerate() {
+                let mut slots = (fine.edge_slots(e as usize))
+                    .map(corner_map)
+                    .filter(|&c| c != NONE);
+                edge_corners.push([slots.next().unwrap_or(NONE), slots.next().unwrap_or(NONE)]);
+                more.extend(slots.map(|c| (i as u32, c)));
+            }
+            edge_corners
+        };
+        Ok((edge_verts, edge_corners, more))
+    };
+    let vertex_tables = || -> Result<_> {
+        let vert_corner_offsets =
+            prefix_offsets(vertices.len(), |i| vert_count[vertices[i] as usize])?;
+        let mut vert_corners = zeroed_hinted::<u32>(4 * faces.len())?;
+        fill_csr(&vert_corner_offsets, &mut vert_corners, |i, out| {
+            let kept = (corners_of(vertices[i] as usize).iter())
+                .map(|&c| corner_map(c))
+                .filter(|&c| c != NONE);
+            for (o, c) in out.iter_mut().zip(kept) {
+                *o = c;
+            }
+        });
+        Ok((vert_corner_offsets, vert_corners))
+    };
+    let ((face_tables, edge_tables), vertex_tables) =
+        rayon::join(|| rayon::join(face_tables, edge_tables), vertex_tables);
+    let ((corner_verts, corner_edges), (edge_verts, edge_corners, more)) =
+        (face_tables?, edge_tables?);
+    let (vert_corner_offsets, vert_corners) = vertex_tables?;
     let mut level = Level::from_quad_tables(
         vertices.len(),
         corner_verts,
