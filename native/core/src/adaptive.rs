@@ -59,8 +59,9 @@
 //! 380 short parallel passes (about 36 us each on one thread, 2026-12-04), which one at a time
 //! leave a second thread mostly waking up. Tables that do not depend on each other are made side
 //! by side (`rayon::join`): a level's faces, edge tables and vertex corners ([`Level::refine`])
-//! beside its curve network, its regular windows beside the copies of its ids, the decisions'
-//! two tables ([`regular_faces`], [`grid_twins`]); the sibling blocks of the decisions (about 8k
+//! beside its curve network, its regular windows beside the copies of its ids, the ids and then
+//! the tables of a restriction ([`restrict`]), the decisions' two tables ([`regular_faces`],
+//! [`grid_twins`]); the sibling blocks of the decisions (about 8k
 //! instructions each) go in tasks of [`BLOCK_GRAIN`]. Still serial (one thread, `4-6`, 22 ms a
 //! run under load): the triangulation's vertex numbering (0.9 ms), the restriction criterion's
 //! set inserts and sorts (part of its 1.6 ms), the node lists and leaves (0.6 ms).
