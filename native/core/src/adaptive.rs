@@ -55,6 +55,16 @@
 //! chunks ([`crate::parallel`]): parallel, with results that do not depend on the number of
 //! threads. The uniform ids of a whole refined level are plain section copies of the coarse
 //! ones ([`whole_ids`]), serial: a few instructions per item, fewer than a parallel gather's.
+//! Threads: the partial levels are small (1k-54k faces in `adaptive-flat-4-6`), so a run is some
+//! 380 short parallel passes (about 36 us each on one thread, 2026-12-04), which one at a time
+//! leave a second thread mostly waking up. Tables that do not depend on each other are made side
+//! by side (`rayon::join`): a level's faces, edge tables and vertex corners ([`Level::refine`])
+//! beside its curve network, its regular windows beside the copies of its ids, the ids and then
+//! the tables of a restriction ([`restrict`]), the decisions' two tables ([`regular_faces`],
+//! [`grid_twins`]); the sibling blocks of the decisions (about 8k
+//! instructions each) go in tasks of [`BLOCK_GRAIN`]. Still serial (one thread, `4-6`, 22 ms a
+//! run under load): the triangulation's vertex numbering (0.9 ms), the restriction criterion's
+//! set inserts and sorts (part of its 1.6 ms), the node lists and leaves (0.6 ms).
 //! Lookups by uniform id go through the sorted id lists (merge walks) and flat per-level tables,
 //! not hash maps; the refined sets are the only ones, read by the restriction criterion (the
 //! node lists are made from them only when they grow).
@@ -119,7 +129,8 @@ use crate::memory;
 use crate::mesh::{check_values, validate_geometry, Cage};
 use crate::options::{check_degree, check_levels, Boundary, Options};
 use crate::parallel::{
-    fill_csr, gather_hinted, in_pool, prefix_offsets, with_capacity_hinted, zeroed_hinted,
+    fill_csr, gather_grain, gather_hinted, in_pool, prefix_offsets, with_capacity_hinted,
+    zeroed_hinted,
 };
 use crate::refinement::Refinement;
 use crate::scalar::{reciprocal, Scalar};
@@ -1537,7 +1548,6 @@ fn refine_topology<T: Sync, U>(
     keep: Keep,
 ) -> Result<(PartStep, Part<T>)> {
     let c = &coarse.level;
-    let fine = c.refine()?;
     let [nv, ne, nf, ncorners] = coarse.counts;
     let (cnv, cne) = (c.num_vertices, c.num_edges());
     let corner_uid = |k: usize| -> u64 {
@@ -1599,30 +1609,50 @@ fn refine_topology<T: Sync, U>(
         }
     };
     let odd = ctx.degree % 2 == 1;
-    let network = CurveNetwork::build(
-        c,
-        &coarse.curves,
-        &corners,
-        t as u32,
-        coarse.network.as_ref(),
-        odd,
-        pin,
-    )?;
+    // The refinement and the curve network read only the coarse level: side by side.
+    let (fine, network) = rayon::join(
+        || c.refine(),
+        || {
+            CurveNetwork::build(
+                c,
+                &coarse.curves,
+                &corners,
+                t as u32,
+                coarse.network.as_ref(),
+                odd,
+                pin,
+            )
+        },
+    );
+    let (fine, network) = (fine?, network?);
 
     // Built even where they cost more than the passes they spare (the adaptive partial levels:
     // 14M of `adaptive-flat-4-6`'s 400M, 2026-12-04): the kernel's sums are not the passes' bit
-    // for bit, and a partial level's points must be the uniform plan's, which uses them.
-    let windows = match ctx.scheme {
-        Scheme::Averaging { degree } => Windows::of_step(c, &fine, &network, degree, t)?,
-        _ => None,
-    };
+    // for bit, and a partial level's points must be the uniform plan's, which uses them. The
+    // uniform ids of a whole level (serial section copies) are made beside them.
+    let scheme = ctx.scheme;
+    let (windows, ids) = rayon::join(
+        || match scheme {
+            Scheme::Averaging { degree } => Windows::of_step(c, &fine, &network, degree, t),
+            _ => Ok(None),
+        },
+        || match keep {
+            Keep::All => whole_ids(coarse, t, &fine).map(Some),
+            _ => Ok(None),
+        },
+    );
+    let (windows, ids) = (windows?, ids?);
     let counts = [nv + ne + nf, 2 * ne + ncorners, ncorners, 4 * ncorners];
     // The seeds and the margin rings around them, or the faces named.
-    let (seeds, margin) = match keep {
-        Keep::Around(seeds) => (seeds, ctx.margin),
-        Keep::Faces(faces) => (faces, 0),
-        Keep::All => {
-            let ids = whole_ids(coarse, t, &fine)?;
+    let (seeds, margin) = match (keep, ids) {
+        (Keep::Around(seeds), _) => (seeds, ctx.margin),
+        (Keep::Faces(faces), _) => (faces, 0),
+        (Keep::All, None) => {
+            return Err(Error::Internal(
+                "adaptive: a whole level without its ids".into(),
+            ))
+        }
+        (Keep::All, Some(ids)) => {
             let next = Part {
                 face_uid: ids.face_uid,
                 vert_uid: ids.vert_uid,
@@ -1797,10 +1827,41 @@ struct Sub {
 /// sum in fixed chunks ([`crate::parallel`]), so the result does not depend on the threads.
 fn restrict(fine: &Level, keep: &[bool]) -> Result<Sub> {
     let kept_face = |c: u32| c != NONE && keep[c as usize >> 2];
+    let (offsets, corners) = fine.vertex_corner_table();
+    let corners_of = |v: usize| &corners[offsets[v] as usize..offsets[v + 1] as usize];
+    let manifold = fine.edges().more.is_empty();
     // New ids: prefix sums of what is kept (the maps have the whole level's size, as the limit
-    // restricts a plan's last level: fallible).
-    let face_at = prefix_offsets(keep.len(), |f| keep[f] as u32)?;
-    let faces = kept_items(&face_at)?;
+    // restricts a plan's last level: fallible). Those of faces, of vertices and of edges read
+    // only `keep`: side by side (each is a few passes too short to share out on their own), as
+    // are the tables made from them below.
+    let kept_faces = || -> Result<_> {
+        let face_at = prefix_offsets(keep.len(), |f| keep[f] as u32)?;
+        let faces = kept_items(&face_at)?;
+        Ok((face_at, faces))
+    };
+    // Per vertex, its corners kept: a vertex is kept with its first.
+    let kept_vertices = || -> Result<_> {
+        let vert_count = gather_hinted(fine.num_vertices, |v| {
+            corners_of(v).iter().filter(|&&c| kept_face(c)).count() as u32
+        })?;
+        let vert_at = prefix_offsets(fine.num_vertices, |v| (vert_count[v] > 0) as u32)?;
+        Ok((vert_count, kept_items(&vert_at)?, new_ids(&vert_at)?))
+    };
+    let kept_edges = || -> Result<_> {
+        let edge_at = prefix_offsets(fine.num_edges(), |e| {
+            let kept = if manifold {
+                fine.edge_corners()[e].into_iter().any(kept_face)
+            } else {
+                fine.edge_slots(e).any(kept_face)
+            };
+            kept as u32
+        })?;
+        Ok((kept_items(&edge_at)?, new_ids(&edge_at)?))
+    };
+    let ((faces, vertices), edges) =
+        rayon::join(|| rayon::join(kept_faces, kept_vertices), kept_edges);
+    let ((face_at, faces), (vert_count, vertices, vert_map), (edges, edge_map)) =
+        (faces?, vertices?, edges?);
     let corner_map = |c: u32| -> u32 {
         let f = c as usize >> 2;
         if keep[f] {
@@ -1809,76 +1870,71 @@ fn restrict(fine: &Level, keep: &[bool]) -> Result<Sub> {
             NONE
         }
     };
-    let (offsets, corners) = fine.vertex_corner_table();
-    let corners_of = |v: usize| &corners[offsets[v] as usize..offsets[v + 1] as usize];
-    // Per vertex, its corners kept: a vertex is kept with its first.
-    let vert_count = gather_hinted(fine.num_vertices, |v| {
-        corners_of(v).iter().filter(|&&c| kept_face(c)).count() as u32
-    })?;
-    let vert_at = prefix_offsets(fine.num_vertices, |v| (vert_count[v] > 0) as u32)?;
-    let vertices = kept_items(&vert_at)?;
-    let vert_map = new_ids(&vert_at)?;
-    let manifold = fine.edges().more.is_empty();
-    let edge_at = prefix_offsets(fine.num_edges(), |e| {
-        let kept = if manifold {
-            fine.edge_corners()[e].into_iter().any(kept_face)
-        } else {
-            fine.edge_slots(e).any(kept_face)
-        };
-        kept as u32
-    })?;
-    let edges = kept_items(&edge_at)?;
-    let edge_map = new_ids(&edge_at)?;
     // A face's four corners at once (one lookup of the face).
     let quad_of = |table: &[u32], map: &[u32], i: usize| -> [u32; 4] {
         let first = 4 * faces[i] as usize;
         std::array::from_fn(|k| map[table[first + k] as usize])
     };
-    let corner_verts =
-        gather_hinted(faces.len(), |i| quad_of(&fine.corner_verts, &vert_map, i))?.into_flattened();
-    let corner_edges = gather_hinted(faces.len(), |i| quad_of(fine.corner_edges(), &edge_map, i))?
-        .into_flattened();
-    let edge_verts = gather_hinted(edges.len(), |i| {
-        fine.edge_verts()[edges[i] as usize].map(|v| vert_map[v as usize])
-    })?;
-    let mut more = Vec::new();
-    let edge_corners: Vec<[u32; 2]> = if manifold {
-        // Two slots at most: the common case, without the slot iterator.
-        gather_hinted(edges.len(), |i| {
-            let [a, b] = fine.edge_corners()[edges[i] as usize].map(|c| {
-                if c == NONE {
-                    NONE
-                } else {
-                    corner_map(c)
-                }
-            });
-            if a == NONE {
-                [b, NONE]
-            } else {
-                [a, b]
-            }
-        })?
-    } else {
-        let mut edge_corners = memory::with_capacity(edges.len())?;
-        for (i, &e) in edges.iter().enumerate() {
-            let mut slots = (fine.edge_slots(e as usize))
-                .map(corner_map)
-                .filter(|&c| c != NONE);
-            edge_corners.push([slots.next().unwrap_or(NONE), slots.next().unwrap_or(NONE)]);
-            more.extend(slots.map(|c| (i as u32, c)));
-        }
-        edge_corners
+    let face_tables = || -> Result<_> {
+        let corner_verts =
+            gather_hinted(faces.len(), |i| quad_of(&fine.corner_verts, &vert_map, i))?;
+        let corner_edges =
+            gather_hinted(faces.len(), |i| quad_of(fine.corner_edges(), &edge_map, i))?;
+        Ok((corner_verts.into_flattened(), corner_edges.into_flattened()))
     };
-    let vert_corner_offsets = prefix_offsets(vertices.len(), |i| vert_count[vertices[i] as usize])?;
-    let mut vert_corners = zeroed_hinted::<u32>(corner_verts.len())?;
-    fill_csr(&vert_corner_offsets, &mut vert_corners, |i, out| {
-        let kept = (corners_of(vertices[i] as usize).iter())
-            .map(|&c| corner_map(c))
-            .filter(|&c| c != NONE);
-        for (o, c) in out.iter_mut().zip(kept) {
-            *o = c;
-        }
-    });
+    let edge_tables = || -> Result<_> {
+        let edge_verts = gather_hinted(edges.len(), |i| {
+            fine.edge_verts()[edges[i] as usize].map(|v| vert_map[v as usize])
+        })?;
+        let mut more = Vec::new();
+        let edge_corners: Vec<[u32; 2]> = if manifold {
+            // Two slots at most: the common case, without the slot iterator.
+            gather_hinted(edges.len(), |i| {
+                let [a, b] = fine.edge_corners()[edges[i] as usize].map(|c| {
+                    if c == NONE {
+                        NONE
+                    } else {
+                        corner_map(c)
+                    }
+                });
+                if a == NONE {
+                    [b, NONE]
+                } else {
+                    [a, b]
+                }
+            })?
+        } else {
+            let mut edge_corners = memory::with_capacity(edges.len())?;
+            for (i, &e) in edges.iter().enumerate() {
+                let mut slots = (fine.edge_slots(e as usize))
+                    .map(corner_map)
+                    .filter(|&c| c != NONE);
+                edge_corners.push([slots.next().unwrap_or(NONE), slots.next().unwrap_or(NONE)]);
+                more.extend(slots.map(|c| (i as u32, c)));
+            }
+            edge_corners
+        };
+        Ok((edge_verts, edge_corners, more))
+    };
+    let vertex_tables = || -> Result<_> {
+        let vert_corner_offsets =
+            prefix_offsets(vertices.len(), |i| vert_count[vertices[i] as usize])?;
+        let mut vert_corners = zeroed_hinted::<u32>(4 * faces.len())?;
+        fill_csr(&vert_corner_offsets, &mut vert_corners, |i, out| {
+            let kept = (corners_of(vertices[i] as usize).iter())
+                .map(|&c| corner_map(c))
+                .filter(|&c| c != NONE);
+            for (o, c) in out.iter_mut().zip(kept) {
+                *o = c;
+            }
+        });
+        Ok((vert_corner_offsets, vert_corners))
+    };
+    let ((face_tables, edge_tables), vertex_tables) =
+        rayon::join(|| rayon::join(face_tables, edge_tables), vertex_tables);
+    let ((corner_verts, corner_edges), (edge_verts, edge_corners, more)) =
+        (face_tables?, edge_tables?);
+    let (vert_corner_offsets, vert_corners) = vertex_tables?;
     let mut level = Level::from_quad_tables(
         vertices.len(),
         corner_verts,
@@ -2123,8 +2179,9 @@ fn decide<T: Scalar>(
     let Some(grid) = grid else {
         return memory::filled(nodes.len(), None);
     };
-    let regular = regular_faces(ctx, part)?;
-    let twins = grid_twins(part)?;
+    // Two independent tables, side by side (each a few short passes).
+    let (regular, twins) = rayon::join(|| regular_faces(ctx, part), || grid_twins(part));
+    let (regular, twins) = (regular?, twins?);
     // Blocks of nodes: the four siblings from level 2 on (always all four: nodes are the
     // children of refined nodes, and holes are whole cage faces), single nodes at level 1.
     let span = if t >= 2 && nodes.len().is_multiple_of(4) {
@@ -2133,30 +2190,39 @@ fn decide<T: Scalar>(
         1
     };
     let scale_by = scale_of(ctx);
-    let blocks = gather_hinted(nodes.len() / span / span, |i| -> [Option<bool>; 4] {
-        let block = &nodes[span * span * i..span * span * (i + 1)];
-        let mut out = [None; 4];
-        if let Some(errors) = block_errors(grid, part, &regular, &twins, span, block) {
-            for (o, (error, slack)) in out.iter_mut().zip(errors) {
-                let error = error * scale_by;
-                let slack = slack * scale_by;
-                *o = if error + slack < tolerance {
-                    Some(false)
-                } else if error - slack > tolerance {
-                    Some(true)
-                } else {
-                    None
-                };
+    let blocks = gather_grain(
+        nodes.len() / span / span,
+        BLOCK_GRAIN,
+        |i| -> [Option<bool>; 4] {
+            let block = &nodes[span * span * i..span * span * (i + 1)];
+            let mut out = [None; 4];
+            if let Some(errors) = block_errors(grid, part, &regular, &twins, span, block) {
+                for (o, (error, slack)) in out.iter_mut().zip(errors) {
+                    let error = error * scale_by;
+                    let slack = slack * scale_by;
+                    *o = if error + slack < tolerance {
+                        Some(false)
+                    } else if error - slack > tolerance {
+                        Some(true)
+                    } else {
+                        None
+                    };
+                }
             }
-        }
-        out
-    })?;
+            out
+        },
+    )?;
     memory::collect(
         (blocks.iter())
             .flat_map(|b| b[..span * span].iter().copied())
             .take(nodes.len()),
     )
 }
+
+/// Sibling blocks per parallel task of [`decide`]: about 8k instructions each, so that a level
+/// of a few thousand blocks is shared out over many threads (in [`crate::parallel::CHUNK`]s of
+/// blocks, the decisions of level 4 of `adaptive-flat-4-6` were one task).
+const BLOCK_GRAIN: usize = 32;
 
 /// Per face of `part`: whether its four vertices can all be inside a grid (complete, interior,
 /// manifold, of valence 4, on no curve edge of the step and no tagged corner). A grid's
@@ -2681,7 +2747,7 @@ fn triangulate<T: Scalar>(
     let leaf_at: Vec<(u32, u32)> = memory::collect(
         (1..=max_level).flat_map(|t| leaf_faces[t].iter().map(move |&f| (t as u32, f as u32))),
     )?;
-    let cases = gather_hinted(leaf_at.len(), |i| -> Result<([u32; 8], u8)> {
+    let cases = gather_grain(leaf_at.len(), LEAF_CHUNK, |i| -> Result<([u32; 8], u8)> {
         let (t, f) = (leaf_at[i].0 as usize, leaf_at[i].1 as usize);
         let part = &parts[t];
         let level = &part.level;

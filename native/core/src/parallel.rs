@@ -72,6 +72,22 @@ pub(crate) fn gather_hinted<V: Send>(
     Ok(v)
 }
 
+/// [`gather_hinted`] in tasks of `grain` items rather than [`CHUNK`]: for items of thousands of
+/// instructions each (the adaptive decisions' sibling blocks), of which a level has too few for
+/// [`CHUNK`] to make more than one or two tasks. Each item is still written by one task, so the
+/// result does not depend on the grain or the threads.
+pub(crate) fn gather_grain<V: Send>(
+    n: usize,
+    grain: usize,
+    f: impl Fn(usize) -> V + Sync + Send,
+) -> Result<Vec<V>> {
+    let mut v = with_capacity_hinted(n)?;
+    fill_grain(&mut v.spare_capacity_mut()[..n], grain, f);
+    // SAFETY: `fill_grain` initialised the first `n` items (a panic would have unwound past here).
+    unsafe { v.set_len(n) };
+    Ok(v)
+}
+
 /// `out[i] = source[index[i]]` for every `i`, in parallel chunks, into a hinted allocation:
 /// the gathers of rows by a table (values at corners from values at vertices). The index is
 /// walked in step with the output (one bounds check per item, on `source`), about a third of
@@ -261,10 +277,20 @@ pub(crate) fn gather_zip<R: Sync, V: Send>(
 /// `out[i] = f(i)` (initialising every item), in parallel chunks of [`CHUNK`] items, each
 /// item written by one task, so the result does not depend on the number of threads.
 pub(crate) fn fill<V: Send, F: Fn(usize) -> V + Sync + Send>(out: &mut [MaybeUninit<V>], f: F) {
-    out.par_chunks_mut(CHUNK)
+    fill_grain(out, CHUNK, f)
+}
+
+/// [`fill`] in chunks of `grain` items.
+#[inline(always)]
+fn fill_grain<V: Send, F: Fn(usize) -> V + Sync + Send>(
+    out: &mut [MaybeUninit<V>],
+    grain: usize,
+    f: F,
+) {
+    out.par_chunks_mut(grain)
         .enumerate()
         .for_each(|(chunk, items)| {
-            let start = chunk * CHUNK;
+            let start = chunk * grain;
             for (i, item) in items.iter_mut().enumerate() {
                 item.write(f(start + i));
             }

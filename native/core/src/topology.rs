@@ -743,9 +743,22 @@ impl Level {
     /// Child edges: `2e` and `2e + 1` are the halves of edge `e` (containing its first and second
     /// vertex), `2E + c` joins the edge point of `c`'s outgoing edge to the face point.
     pub(crate) fn refine(&self) -> Result<Level> {
-        let child = self.refine_faces()?;
-        child.add_edges_from(self)?;
-        let (offsets, vert_corners) = self.child_vertex_corners(child.num_vertices, false)?;
+        // The child's faces, edge tables and vertex -> corner table each read only this level:
+        // made side by side, so that a small level (the adaptive partial levels, whose passes
+        // are too short to share out one by one) still keeps two threads busy.
+        let new_vertices = self.num_vertices + self.num_edges() + self.num_faces();
+        let (child, (edges, corners)) = rayon::join(
+            || self.refine_faces(),
+            || {
+                rayon::join(
+                    || self.child_edges(),
+                    || self.child_vertex_corners(new_vertices, false),
+                )
+            },
+        );
+        let child = child?;
+        let _ = child.edges.set(edges?);
+        let (offsets, vert_corners) = corners?;
         Ok(Level {
             vert_corner_offsets: offsets,
             vert_corners,
