@@ -8,13 +8,17 @@
 //! numbers old vertices, then edge points, then face points), then the vertex and edge points
 //! read them from there: no copy, and no per-vertex branch on the section.
 //!
-//! On a quad level (every level after the first) the smooth points come from the averaging form
-//! of the same rules ([`bilinear_children`]): the fine faces' bilinear values first, four per
-//! coarse face, then each face point, smooth edge point and smooth valence-4 vertex point as the
-//! mean of its four fine faces; the classic masks only at the other vertices and edges. The
-//! results equal the masks' in exact arithmetic (to about 1e-15 relative in f64; the summation
-//! order differs) and cost fewer scattered reads: cached classic 3 on the callgrind driver's
-//! 3,840-quad sphere, level 3, one thread, 29.4M -> 23.3M instructions (2026-12-04).
+//! On a small quad level (every level after the first, while [`FINE_FACES_BYTES`] holds its fine
+//! faces) the smooth points come from the averaging form of the same rules
+//! ([`bilinear_children`]): the fine faces' bilinear values first, four per coarse face, then each
+//! face point, smooth edge point and smooth valence-4 vertex point as the mean of its four fine
+//! faces; the classic masks only at the other vertices and edges. The results equal the masks' in
+//! exact arithmetic (to about 1e-15 relative in f64; the summation order differs) with fewer
+//! instructions: cached classic 3 on the callgrind driver's 3,840-quad sphere, one thread, with
+//! every quad level by fine faces, 7.10M / 29.47M / 118.9M -> 5.71M / 23.60M / 95.1M at levels 2 /
+//! 3 / 4 (2026-12-04). But the buffer of fine faces is four times the coarse level's faces: in
+//! wall time the change paid only while that buffer stayed in cache (the constant's figures), so
+//! larger levels keep the masks.
 
 use std::borrow::Cow;
 use std::mem::MaybeUninit;
@@ -62,9 +66,20 @@ pub(crate) fn step_into<T: Scalar, const N: usize>(
     out: &mut Vec<Value<T, N>>,
     fine_faces: &mut Vec<Value<T, N>>,
 ) -> Result<()> {
-    let quads = step.coarse.all_quads();
-    step_by(step, creasing, values, out, fine_faces, quads)
+    let coarse = step.coarse;
+    let buffer = 4 * coarse.num_faces() * std::mem::size_of::<Value<T, N>>();
+    let by_fine_faces = buffer <= FINE_FACES_BYTES && coarse.all_quads();
+    step_by(step, creasing, values, out, fine_faces, by_fine_faces)
 }
+
+/// Largest buffer of fine faces' values (bytes) for which a quad level takes its smooth points
+/// from the fine faces (module documentation): the buffer is four times the coarse level's face
+/// count, and once it outgrows a core's cache the extra memory traffic costs more than the
+/// instructions it saves. Measured 2026-12-04 (quiet machine, cached classic 3 on the 3,840-quad
+/// sphere, f32 points): all steps by fine faces were 17 % faster at level 2 (largest buffer
+/// 0.7 MiB), even at level 3 on one thread and 7 % slower on two (2.9 MiB), 15 % slower at
+/// level 4 (11.8 MiB).
+const FINE_FACES_BYTES: usize = 1 << 20;
 
 /// [`step_into`], the smooth points from the fine faces when `by_fine_faces` (a level of quads
 /// only), else by the masks over the coarse level (any level; the tests compare the two).
@@ -120,6 +135,11 @@ pub(crate) fn step_by<T: Scalar, const N: usize>(
         );
     } else {
         fill(faces, |f| {
+            if t.quads {
+                // The additions of the general case below, in the same order.
+                let [a, b, c, d] = t.at_corners(values, f);
+                return scale(add(add(add(a, b), c), d), T::from_f64(0.25));
+            }
             let corners = coarse.face_corners(f);
             let w = T::from_f64(1.0 / corners.len() as f64);
             let sum = corners.fold(zero(), |s, c| {
