@@ -13,7 +13,8 @@
 //! ([`bilinear_children`]): the fine faces' bilinear values first, four per coarse face, then each
 //! face point, smooth edge point and smooth valence-4 vertex point as the mean of its four fine
 //! faces; the classic masks only at the other vertices and edges. The results equal the masks' in
-//! exact arithmetic (to about 1e-15 relative in f64; the summation order differs) with fewer
+//! exact arithmetic (within 1e-12 of the data's scale in f64, tested; the summation order
+//! differs) with fewer
 //! instructions: cached classic 3 on the callgrind driver's 3,840-quad sphere, one thread, with
 //! every quad level by fine faces, 7.10M / 29.47M / 118.9M -> 5.71M / 23.60M / 95.1M at levels 2 /
 //! 3 / 4 (2026-12-04). But the buffer of fine faces is four times the coarse level's faces: in
@@ -42,7 +43,7 @@ impl<T: Scalar, const N: usize> LevelData<'_, T, N> {
         debug_assert!(self.primal, "Catmull-Clark data is primal");
         let mut out = self.fresh();
         // The dual buffer is free while the data is primal: it holds the fine faces' values of
-        // a smooth quad level, and stays there for the next step.
+        // a small quad level ([`step_into`]), and stays there for the next step.
         let mut fine_faces = self.take_faces();
         step_into(step, creasing, &self.vertices, &mut out, &mut fine_faces)?;
         self.faces = Cow::Owned(fine_faces);
