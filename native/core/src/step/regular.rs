@@ -65,10 +65,11 @@
 //! inner vertices that can be inside a grid) instead of setting a bit each, walking again for
 //! the bits only where one fails ([`place`]). A new plan of degree 9 153.4M -> 140.3M (level
 //! 2: 43.3M -> 40.7M), 4 99.3M -> 97.7M (29.6M -> 29.2M); degree 3, whose walk is one cell,
-//! 75.1M -> 76.1M (23.2M -> 23.4M; nothing of its walk changed but the build's inlining);
+//! 75.1M -> 76.1M (23.2M -> 23.4M; not profiled: it has no spills to lose);
 //! cached degree 4 28.8M as before. With the mask of a face that passes set at once (not
 //! tested child by child): degree 9 137.2M (level 2 40.1M), 4 95.3M (28.8M), 3 73.9M
-//! (22.9M).
+//! (22.9M); with the bounds of the walk's tables checked by folds that vectorize
+//! ([`Flags::of`]): 9 135.6M (39.8M), 4 93.7M (28.5M), 3 72.3M (22.6M).
 //!
 //! [`Windows`] holds, per step, what the kernel needs (per coarse face, the ids of its net in
 //! its frame and the children it writes) and the zone that the passes must still compute: the
@@ -793,10 +794,13 @@ impl Flags {
         verts.extend_from_slice(&coarse.corner_verts);
         verts.extend([0; 4]);
         // What lets the walk read its tables unchecked ([`Tables`]); a level's tables always
-        // hold it, so a failure is a bug, reported rather than read out of bounds.
-        let in_bounds = twin.iter().all(|&d| d <= dead)
+        // hold it, so a failure is a bug, reported rather than read out of bounds. Largest
+        // entries by folds without an early exit, which vectorize (a test per entry cost 1.6M
+        // instructions of a new plan of level 3 on the callgrind driver's sphere).
+        let largest = |table: &[u32]| table.iter().fold(0, |m, &x| m.max(x));
+        let in_bounds = largest(&twin) <= dead
             && verts.len() == twin.len()
-            && verts.iter().all(|&v| (v as usize) < nv)
+            && (largest(&verts) as usize) < nv
             && clean_face.len() == nf + 1;
         if !in_bounds {
             return Err(Error::Internal(
