@@ -756,13 +756,12 @@ impl Level {
                 )
             },
         );
-        let child = child?;
-        let _ = child.edges.set(edges?);
         let (offsets, vert_corners) = corners?;
         Ok(Level {
+            edges: OnceLock::from(edges?),
             vert_corner_offsets: offsets,
             vert_corners,
-            ..child
+            ..child?
         })
     }
 

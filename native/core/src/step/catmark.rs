@@ -14,8 +14,7 @@
 //! face point, smooth edge point and smooth valence-4 vertex point as the mean of its four fine
 //! faces; the classic masks only at the other vertices and edges. The results equal the masks' in
 //! exact arithmetic (within 1e-12 of the data's scale in f64, tested; the summation order
-//! differs) with fewer
-//! instructions: cached classic 3 on the callgrind driver's 3,840-quad sphere, one thread, with
+//! differs) with fewer instructions: cached classic 3 on the callgrind driver's 3,840-quad sphere, one thread, with
 //! every quad level by fine faces, 7.10M / 29.47M / 118.9M -> 5.71M / 23.60M / 95.1M at levels 2 /
 //! 3 / 4 (2026-12-04). But the buffer of fine faces is four times the coarse level's faces: in
 //! wall time the change paid only while that buffer stayed in cache (the constant's figures), so
@@ -344,8 +343,8 @@ fn crease_vertex<T: Scalar, const N: usize>(
     )
 }
 
-/// The smooth edge point `1/4 (a + b + f_0 + f_1)` of an interior edge `e` of two faces of a
-/// level that is not all quads (on quads [`bilinear_children`] make it).
+/// The smooth edge point `1/4 (a + b + f_0 + f_1)` of an interior edge `e` of two faces, by the
+/// mask (on a level that takes the fine faces, [`bilinear_children`] make it instead).
 #[inline(always)]
 fn smooth_edge<T: Scalar, const N: usize>(
     t: &Tables,
