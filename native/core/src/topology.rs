@@ -489,9 +489,9 @@ impl Level {
     /// non-manifold (see the module documentation).
     ///
     /// Edges are numbered by their (smaller, larger) vertex pair (then by instance); each edge's
-    /// slots are its halves in increasing order of corner. Every vertex finds the edges to
-    /// larger vertices among its own corners, so the work is parallel over vertices and needs
-    /// no global sort.
+    /// slots are its halves in increasing order of corner. The halves are grouped by their
+    /// smaller vertex in one counting sort over the corners ([`Level::halves_by_owner`]), so
+    /// each vertex then finds its edges in parallel, and no global sort is needed.
     pub(crate) fn from_polygons(
         num_vertices: usize,
         face_offsets: Vec<u32>,
@@ -519,37 +519,38 @@ impl Level {
         Ok(level)
     }
 
-    /// Calls `f` with the halves (corners) of the edges from `a` to vertices `b >= a`, as
-    /// `(b, corner)` in increasing order: the corners at `a` whose next vertex is `b`, and the
-    /// corners at `b` whose next vertex is `a` (the predecessors of corners at `a`).
-    fn owned_halves<R>(&self, a: usize, f: impl FnOnce(&[(u32, u32)]) -> R) -> R {
-        const STACK: usize = 64;
-        let corners = self.corners_of_vertex(a);
-        let (mut stack, mut heap) = ([(0u32, 0u32); STACK], Vec::new());
-        let buf: &mut [(u32, u32)] = if 2 * corners.len() <= STACK {
-            &mut stack
-        } else {
-            heap.resize(2 * corners.len(), (0, 0));
-            &mut heap
-        };
-        let a = a as u32;
-        let mut n = 0;
-        for &c in corners {
-            let (prev, next) = (self.prev(c as usize), self.next(c as usize));
-            let out_end = self.corner_verts[next];
-            if out_end >= a {
-                buf[n] = (out_end, c);
-                n += 1;
-            }
-            let in_end = self.corner_verts[prev];
-            if in_end > a {
-                buf[n] = (in_end, prev as u32);
-                n += 1;
-            }
+    /// Every corner's half of its edge, grouped by the edge's smaller vertex (its owner) as
+    /// `(larger vertex, corner)` in increasing order: CSR offsets per vertex and the halves. A
+    /// counting sort by owner keeps the corners of an owner in increasing order, so only the
+    /// few halves of each vertex are sorted, by other end.
+    fn halves_by_owner(&self) -> Result<(Vec<u32>, Vec<(u32, u32)>)> {
+        let ends = gather_hinted(self.num_corners(), |c| {
+            let (a, b) = (self.corner_verts[c], self.corner_verts[self.next(c)]);
+            (a.min(b), a.max(b))
+        })?;
+        let mut offsets = memory::zeroed::<u32>(self.num_vertices + 1)?;
+        for &(a, _) in &ends {
+            offsets[a as usize + 1] += 1;
         }
-        let halves = &mut buf[..n];
-        halves.sort_unstable();
-        f(halves)
+        for v in 0..self.num_vertices {
+            offsets[v + 1] += offsets[v];
+        }
+        let mut at = memory::collect(offsets[..self.num_vertices].iter().copied())?;
+        let mut halves = zeroed_hinted::<(u32, u32)>(ends.len())?;
+        for (c, &(a, b)) in ends.iter().enumerate() {
+            halves[at[a as usize] as usize] = (b, c as u32);
+            at[a as usize] += 1;
+        }
+        fill_csr(&offsets, &mut halves, |_, own| {
+            if own.len() == 2 {
+                if own[1].0 < own[0].0 {
+                    own.swap(0, 1);
+                }
+            } else if own.len() > 2 {
+                own.sort_unstable();
+            }
+        });
+        Ok((offsets, halves))
     }
 
     /// The edges made of the halves of one vertex pair (`group`, sorted by corner): one edge
@@ -605,20 +606,20 @@ impl Level {
     /// The edge tables of a polygon level (see [`Level::from_polygons`]) and its non-manifold
     /// edges.
     fn find_edges(&self) -> Result<(Edges, Vec<u32>)> {
+        let (owned, halves) = self.halves_by_owner()?;
+        let halves_of = |a: usize| &halves[owned[a] as usize..owned[a + 1] as usize];
         let unusual = AtomicBool::new(false);
         let offsets = prefix_offsets(self.num_vertices, |a| {
-            self.owned_halves(a, |halves| {
-                let mut count = 0;
-                for group in halves.chunk_by(|x, y| x.0 == y.0) {
-                    self.edges_of_pair(a as u32, group, |slots, nm| {
-                        if nm || slots.len() > 2 {
-                            unusual.store(true, Ordering::Relaxed);
-                        }
-                        count += 1;
-                    });
-                }
-                count
-            })
+            let mut count = 0;
+            for group in halves_of(a).chunk_by(|x, y| x.0 == y.0) {
+                self.edges_of_pair(a as u32, group, |slots, nm| {
+                    if nm || slots.len() > 2 {
+                        unusual.store(true, Ordering::Relaxed);
+                    }
+                    count += 1;
+                });
+            }
+            count
         })?;
         let num_edges = offsets[self.num_vertices] as usize;
         let mut corners = zeroed_hinted::<[u32; 2]>(num_edges)?;
@@ -626,36 +627,31 @@ impl Level {
         let corner_edges: Vec<AtomicU32> =
             gather_hinted(self.num_corners(), |_| AtomicU32::new(0))?;
         fill_csr(&offsets, &mut corners, |a, out| {
-            self.owned_halves(a, |halves| {
-                let mut k = 0;
-                for group in halves.chunk_by(|x, y| x.0 == y.0) {
-                    self.edges_of_pair(a as u32, group, |slots, _| {
-                        out[k] = [slots[0], slots.get(1).copied().unwrap_or(NONE)];
-                        for &c in slots {
-                            corner_edges[c as usize]
-                                .store(offsets[a] + k as u32, Ordering::Relaxed);
-                        }
-                        k += 1;
-                    });
-                }
-            })
+            let mut k = 0;
+            for group in halves_of(a).chunk_by(|x, y| x.0 == y.0) {
+                self.edges_of_pair(a as u32, group, |slots, _| {
+                    out[k] = [slots[0], slots.get(1).copied().unwrap_or(NONE)];
+                    for &c in slots {
+                        corner_edges[c as usize].store(offsets[a] + k as u32, Ordering::Relaxed);
+                    }
+                    k += 1;
+                });
+            }
         });
         // The extra slots and the non-manifold edges, only on a level that has some.
         let (mut more, mut nm_edges) = (Vec::new(), Vec::new());
         if unusual.into_inner() {
             for (a, &first) in offsets[..self.num_vertices].iter().enumerate() {
-                self.owned_halves(a, |halves| {
-                    let mut e = first;
-                    for group in halves.chunk_by(|x, y| x.0 == y.0) {
-                        self.edges_of_pair(a as u32, group, |slots, nm| {
-                            more.extend(slots.iter().skip(2).map(|&c| (e, c)));
-                            if nm {
-                                nm_edges.push(e);
-                            }
-                            e += 1;
-                        });
-                    }
-                });
+                let mut e = first;
+                for group in halves_of(a).chunk_by(|x, y| x.0 == y.0) {
+                    self.edges_of_pair(a as u32, group, |slots, nm| {
+                        more.extend(slots.iter().skip(2).map(|&c| (e, c)));
+                        if nm {
+                            nm_edges.push(e);
+                        }
+                        e += 1;
+                    });
+                }
             }
         }
         let verts = gather_hinted(num_edges, |e| {
