@@ -523,7 +523,7 @@ impl Level {
     /// `(larger vertex, corner)` in increasing order: CSR offsets per vertex and the halves. A
     /// counting sort by owner keeps the corners of an owner in increasing order, so only the
     /// few halves of each vertex are sorted, by other end.
-    fn halves_by_owner(&self) -> Result<(Vec<u32>, Vec<(u32, u32)>)> {
+    fn halves_by_owner(&self) -> Result<(Vec<u32>, Vec<Half>)> {
         let ends = gather_hinted(self.num_corners(), |c| {
             let (a, b) = (self.corner_verts[c], self.corner_verts[self.next(c)]);
             (a.min(b), a.max(b))
@@ -1195,6 +1195,9 @@ fn sort4(v: &mut [u32; 4]) {
         (v[i], v[j]) = (lo, hi);
     }
 }
+
+/// An edge half as [`Level::halves_by_owner`] lists it: the edge's larger vertex and the corner.
+type Half = (u32, u32);
 
 /// Vertex -> corners by counting sort (corners in increasing order).
 fn vertex_corners(num_vertices: usize, corner_verts: &[u32]) -> Result<(Vec<u32>, Vec<u32>)> {

@@ -36,6 +36,7 @@ pub(crate) use regular::Windows;
 use std::any::Any;
 use std::borrow::Cow;
 use std::fmt::Debug;
+use std::mem::MaybeUninit;
 use std::sync::Mutex;
 
 use rayon::prelude::*;
@@ -463,6 +464,10 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         if out.capacity() < n_faces {
             out = hinted_or_abort(n_faces);
         }
+        if windows.partial() {
+            // Windows for some items leave the other children unwritten.
+            out.spare_capacity_mut()[..n_faces].fill(MaybeUninit::new(zero()));
+        }
         debug_assert_eq!(windows.primal(), primal);
         windows.apply(x, &mut out.spare_capacity_mut()[..n_faces])?;
         if first_is_last {
@@ -512,7 +517,10 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         self.spare = faces;
         self.primal = false;
         if windows.degree() % 2 == 1 {
-            self.average_to_primal(step);
+            match windows.last_vertices() {
+                Some(items) => self.average_to_primal_at(step, items)?,
+                None => self.average_to_primal(step),
+            }
         }
         Ok(())
     }
@@ -856,9 +864,29 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
 
     /// Dual -> primal average on the fine level of `step`, with the 1-D half on its curves.
     fn average_to_primal(&mut self, step: &Step) {
-        // Every vertex is written: a short kept buffer will do, the long ones stay for the
-        // windowed step's partly written buffers ([`LevelData::partial`]).
-        let mut out = match (self.scratch, self.take_own_vertices()) {
+        let mut out = self.vertex_buffer();
+        self.gather_primal(step, &mut out);
+        self.finish_primal(out, step.curves);
+    }
+
+    /// [`LevelData::average_to_primal`] on the fine vertices `items` (sorted) alone, for a
+    /// caller that reads no other (the other vertices hold zeros or earlier values).
+    fn average_to_primal_at(&mut self, step: &Step, items: &[u32]) -> Result<()> {
+        let n = step.fine.num_vertices;
+        let mut out = self.vertex_buffer();
+        initialised(&mut out, n);
+        let t = Tables::of(step.coarse);
+        let f: &[Value<T, N>] = &self.faces;
+        scatter(&mut out[..n], items, |w| [primal_item(&t, f, w)])?;
+        self.finish_primal(out, step.curves);
+        Ok(())
+    }
+
+    /// A buffer for the fine vertices of a dual -> primal average, which writes every vertex
+    /// it keeps: a short kept buffer will do, the long ones stay for the windowed step's partly
+    /// written buffers ([`LevelData::partial`]).
+    fn vertex_buffer(&mut self) -> Vec<Value<T, N>> {
+        match (self.scratch, self.take_own_vertices()) {
             (Some((scratch, capacity)), old) => {
                 if let Some(old) = old {
                     scratch.give(old);
@@ -867,9 +895,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
             }
             (None, Some(old)) => old,
             (None, None) => self.fresh(),
-        };
-        self.gather_primal(step, &mut out);
-        self.finish_primal(out, step.curves);
+        }
     }
 
     /// Primal -> dual average on `fine`: each face takes the centroid of its four corners, each

@@ -71,6 +71,10 @@
 //! (22.9M); with the bounds of the walk's tables checked by folds that vectorize
 //! ([`Flags::of`]): 9 135.6M (39.8M), 4 93.7M (28.5M), 3 72.3M (22.6M).
 //!
+//! Windows can also be made for some of a step's items ([`Windows::for_items`]): the limit's
+//! partial levels read a quarter of each step's children, and the kernel and the passes then
+//! make only those and what they read (each item's sums are the same, so its bits are).
+//!
 //! [`Windows`] holds, per step, what the kernel needs (per coarse face, the ids of its net in
 //! its frame and the children it writes) and the zone that the passes must still compute: the
 //! other children and, pass by pass backwards, what they read. Everything here is topology: a
@@ -115,6 +119,10 @@ pub(crate) struct Windows {
     shares: Vec<u8>,
     /// What the passes still compute.
     zone: Zone,
+    /// Whether the kernel and the zone make only some of the step's items ([`Windows::for_items`]).
+    partial: bool,
+    /// With an odd degree made for some items, the fine vertices its last average makes.
+    last_vertices: Option<Vec<u32>>,
 }
 
 /// The items the passes of a step still compute, in increasing order: the coarse faces whose
@@ -214,7 +222,7 @@ impl Windows {
         if masks.iter().all(|&m| m == 0) {
             return Ok(None);
         }
-        let zone = Zone::of(coarse, fine, averages, &masks)?;
+        let zone = Zone::of(coarse, fine, averages, &masks, None)?;
         let shares = shares(&masks, &nets, side)?;
         Ok(Some(Windows {
             degree,
@@ -227,7 +235,92 @@ impl Windows {
             reach: if primal { coarse.num_vertices } else { nf },
             shares,
             zone,
+            partial: false,
+            last_vertices: None,
         }))
+    }
+
+    /// The windows of the same step made for the fine items `needed` alone (sorted: fine faces
+    /// for even degrees, fine vertices of an odd degree's last average): the kernel writes only
+    /// the needed children, the zone holds only what they read, and an odd degree's last
+    /// average runs over `needed`. Each needed item gets the value of the whole step bit for
+    /// bit (an item's sums do not depend on which others are made); the others are left as a
+    /// partial buffer holds them. `windows` are the step's own (`None`: no kernel child);
+    /// they come back unchanged when the step has no windowed form for `primal` input (not a
+    /// quad level, a degree without a kernel, windows made for the other kind of data).
+    pub(crate) fn for_items(
+        windows: Option<Windows>,
+        coarse: &Level,
+        fine: &Level,
+        degree: u32,
+        primal: bool,
+        needed: &[u32],
+    ) -> Result<Option<Windows>> {
+        let averages = degree - degree % 2;
+        if !(MIN_AVERAGES..=MAX_AVERAGES).contains(&averages)
+            || !coarse.is_quads()
+            || coarse.num_faces() == 0
+            || windows
+                .as_ref()
+                .is_some_and(|w| w.primal != primal || w.degree != degree)
+        {
+            return Ok(windows);
+        }
+        let odd = degree % 2 == 1;
+        let faces = match odd {
+            true => faces_read(coarse, fine, needed)?,
+            false => {
+                let mut faces = Bits::new(fine.num_faces())?;
+                for &f in needed {
+                    faces.set(f as usize);
+                }
+                faces
+            }
+        };
+        let g = Geometry::of(averages, primal);
+        let nf = coarse.num_faces();
+        let (masks, nets, reach) = match windows {
+            Some(w) => {
+                let masks =
+                    memory::collect((w.masks.iter().enumerate()).map(|(f, &m)| m & faces.quad(f)))?;
+                (masks, w.nets, w.reach)
+            }
+            None => (memory::zeroed(nf)?, Vec::new(), 0),
+        };
+        let zone = Zone::of(coarse, fine, averages, &masks, Some(&faces))?;
+        let shares = match nets.is_empty() {
+            true => memory::zeroed(nf)?,
+            false => shares(&masks, &nets, g.side)?,
+        };
+        Ok(Some(Windows {
+            degree,
+            averages,
+            primal,
+            lo: g.lo,
+            side: g.side,
+            masks,
+            nets,
+            reach,
+            shares,
+            zone,
+            partial: true,
+            last_vertices: match odd {
+                true => Some(memory::collect(needed.iter().copied())?),
+                false => None,
+            },
+        }))
+    }
+
+    /// Whether the kernel and the zone make only some of the step's items
+    /// ([`Windows::for_items`]): the kernel's output buffer must be initialised first.
+    pub(super) fn partial(&self) -> bool {
+        self.partial
+    }
+
+    /// The fine vertices an odd degree's last average makes, when not every one
+    /// ([`Windows::for_items`]).
+    pub(super) fn last_vertices(&self) -> Option<&[u32]> {
+        self.last_vertices.as_deref()
     }
 
     /// The step's degree.
@@ -1123,19 +1216,27 @@ fn visit<const C: usize, const PRIMAL: bool, const N: usize, const BITS: bool>(
 impl Zone {
     /// The zone of a step whose kernel makes `averages` (even) and writes the children of
     /// `masks` (module documentation of [`Windows`]).
-    fn of(coarse: &Level, fine: &Level, averages: u32, masks: &[u8]) -> Result<Zone> {
-        let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
+    /// With `needed` (fine faces), only those children are made.
+    fn of(
+        coarse: &Level,
+        fine: &Level,
+        averages: u32,
+        masks: &[u8],
+        needed: Option<&Bits>,
+    ) -> Result<Zone> {
         // The children the kernel leaves, counted first: the list is made fallibly at its size.
-        let left: usize = (masks.iter())
-            .map(|&m| 4 - (m & 0xf).count_ones() as usize)
+        let wanted = |f: usize| needed.map_or(0xf, |b| b.quad(f));
+        let left: usize = (masks.iter().enumerate())
+            .map(|(f, &m)| (wanted(f) & !m & 0xf).count_ones() as usize)
             .sum();
         let mut last = memory::with_capacity(left)?;
         for (f, &mask) in masks.iter().enumerate() {
-            if mask == 0xf {
+            let left = wanted(f) & !mask & 0xf;
+            if left == 0 {
                 continue;
             }
             for k in 0..4 {
-                if mask & (1 << k) == 0 {
+                if left & (1 << k) != 0 {
                     last.push((4 * f + k) as u32);
                 }
             }
@@ -1146,30 +1247,7 @@ impl Zone {
         for a in (3..=averages).rev() {
             let items = passes.last().expect("the last pass");
             let read = if a % 2 == 1 {
-                // Dual -> primal on the fine vertices: they read the fine faces around them,
-                // which are coarse corners.
-                let mut read = Bits::new(fine.num_faces())?;
-                let (offsets, vertex_corners) = coarse.vertex_corner_table();
-                let edge_corners = coarse.edge_corners();
-                for &w in items {
-                    let w = w as usize;
-                    if w < nv {
-                        let corners = offsets[w] as usize..offsets[w + 1] as usize;
-                        for &c in &vertex_corners[corners] {
-                            read.set(c as usize);
-                        }
-                    } else if w < nv + ne {
-                        for c in edge_corners[w - nv] {
-                            if c != NONE {
-                                read.set(c as usize);
-                                read.set(quad_next(c as usize));
-                            }
-                        }
-                    } else {
-                        read.set_quad(w - nv - ne);
-                    }
-                }
-                read
+                faces_read(coarse, fine, items)?
             } else {
                 // Primal -> dual on the fine faces: they read their corners.
                 let mut read = Bits::new(fine.num_vertices)?;
@@ -1191,6 +1269,34 @@ impl Zone {
     }
 }
 
+/// The fine faces that a dual -> primal average reads for the fine vertices `items`: the fine
+/// faces around them, which are coarse corners.
+fn faces_read(coarse: &Level, fine: &Level, items: &[u32]) -> Result<Bits> {
+    let (nv, ne) = (coarse.num_vertices, coarse.num_edges());
+    let mut read = Bits::new(fine.num_faces())?;
+    let (offsets, vertex_corners) = coarse.vertex_corner_table();
+    let edge_corners = coarse.edge_corners();
+    for &w in items {
+        let w = w as usize;
+        if w < nv {
+            let corners = offsets[w] as usize..offsets[w + 1] as usize;
+            for &c in &vertex_corners[corners] {
+                read.set(c as usize);
+            }
+        } else if w < nv + ne {
+            for c in edge_corners[w - nv] {
+                if c != NONE {
+                    read.set(c as usize);
+                    read.set(quad_next(c as usize));
+                }
+            }
+        } else {
+            read.set_quad(w - nv - ne);
+        }
+    }
+    Ok(read)
+}
+
 /// A set of items of a level as bits: the list of those set comes out in increasing order
 /// without a sort, for a pass over a word per 64 items.
 struct Bits(Vec<u64>);
@@ -1209,6 +1315,12 @@ impl Bits {
     #[inline(always)]
     fn set_quad(&mut self, q: usize) {
         self.0[q / 16] |= 0xf << (4 * q % 64);
+    }
+
+    /// The bits of items `4q..4q + 4` (never across a word).
+    #[inline(always)]
+    fn quad(&self, q: usize) -> u8 {
+        ((self.0[q / 16] >> (4 * q % 64)) & 0xf) as u8
     }
 
     fn list(&self) -> Result<Vec<u32>> {
@@ -1610,6 +1722,103 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Windows made for some items give each of them the bits of the whole step, on every step
+    /// past the cage of a cube and of a grid with a semi-sharp or sharp crease, for degrees 2
+    /// to 9 (primal and dual data, with and without kernel children) and pseudo-random quarters
+    /// of the items.
+    #[test]
+    fn windows_for_items_give_the_whole_steps_values() {
+        let mut seed = 99u32;
+        let mut next = move || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            seed >> 8
+        };
+        let (mut restricted, mut with_kernel) = (0, 0);
+        for (cage, _) in [cube_grid(3), open_grid(7, 6, 1.5), open_grid(6, 7, 10.0)] {
+            for degree in 2..=9 {
+                let options = Options {
+                    degree,
+                    levels: 3,
+                    rules: Rules::Averaging,
+                    ..Options::default()
+                };
+                let refinement = Refinement::new(&cage, &options).unwrap();
+                let networks = refinement.curve_networks();
+                for j in 1..networks.len() {
+                    let step = refinement.step(j);
+                    let (coarse, fine) = (step.coarse, step.fine);
+                    let primal = degree % 2 == 1;
+                    let items = match primal {
+                        true => coarse.num_vertices,
+                        false => coarse.num_faces(),
+                    };
+                    let values: Vec<[f64; 3]> = (0..items)
+                        .map(|_| std::array::from_fn(|_| next() as f64 / (1 << 24) as f64))
+                        .collect();
+                    // The 1-D data read off the 2-D data, as the subdivision matrices do.
+                    let curve: Vec<[f64; 3]> = match primal {
+                        true => (networks[j - 1].vertices().iter())
+                            .map(|cv| values[cv.vertex as usize])
+                            .collect(),
+                        false => (networks[j - 1].edges().iter())
+                            .map(|ce| {
+                                let c = coarse.edge_corners()[ce.edge as usize][0];
+                                values[coarse.face_of(c as usize)]
+                            })
+                            .collect(),
+                    };
+                    let cage_points = vec![[0.0f64; 3]; refinement.cage_level().num_vertices];
+                    let run = |step: &crate::step::Step| {
+                        let mut data =
+                            LevelData::on_level(&cage_points, primal, &values, curve.clone());
+                        data.step(step).unwrap();
+                        data.into_parts().0
+                    };
+                    let whole = run(&step);
+                    let outputs = match primal {
+                        true => fine.num_vertices,
+                        false => fine.num_faces(),
+                    };
+                    let needed: Vec<u32> =
+                        (0..outputs as u32).filter(|_| next() % 4 == 0).collect();
+                    let own = step
+                        .windows
+                        .map(|w| Windows::build(coarse, fine, step.curves, degree, w.primal))
+                        .transpose()
+                        .unwrap()
+                        .flatten();
+                    let had_kernel = own.is_some();
+                    let Some(w) =
+                        Windows::for_items(own, coarse, fine, degree, primal, &needed).unwrap()
+                    else {
+                        continue;
+                    };
+                    if !w.partial() {
+                        continue;
+                    }
+                    let part = run(&crate::step::Step {
+                        windows: Some(&w),
+                        ..step
+                    });
+                    for &i in &needed {
+                        let (a, b) = (whole[i as usize], part[i as usize]);
+                        assert_eq!(
+                            a.map(f64::to_bits),
+                            b.map(f64::to_bits),
+                            "degree {degree}, step {j}, item {i}"
+                        );
+                    }
+                    restricted += 1;
+                    with_kernel += usize::from(had_kernel);
+                }
+            }
+        }
+        assert!(
+            restricted > 20 && with_kernel > 10,
+            "{restricted} {with_kernel}"
+        );
     }
 
     /// The kernel's children are bitwise the same in AVX2 vectors and without, on every step
