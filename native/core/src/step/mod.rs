@@ -875,6 +875,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         let n = step.fine.num_vertices;
         let mut out = self.vertex_buffer();
         initialised(&mut out, n);
+        out.truncate(n);
         let t = Tables::of(step.coarse);
         let f: &[Value<T, N>] = &self.faces;
         scatter(&mut out[..n], items, |w| [primal_item(&t, f, w)])?;
