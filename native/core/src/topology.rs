@@ -1108,16 +1108,46 @@ impl Level {
         let mut vert_corners = zeroed_hinted::<u32>(4 * nc)?;
         let (old, rest) = vert_corners.split_at_mut(nc);
         let (edge_points, face_points) = rest.split_at_mut(2 * nc);
-        fill_csr(&offsets[..=nv], old, |w, out| {
-            let from = parent_offsets[w] as usize;
-            for (o, &c) in out.iter_mut().zip(&parent_corners[from..]) {
-                *o = 4 * c;
-            }
-            if increasing && !out.is_sorted() {
-                sort_short(out);
-            }
-        });
+        // An old vertex's corners are its corners here, times four (the offsets are the same),
+        // so the section is one map; the lists out of order are then sorted vertex by vertex.
+        old.par_chunks_mut(CHUNK)
+            .zip(parent_corners.par_chunks(CHUNK))
+            .for_each(|(out, from)| {
+                for (o, &c) in out.iter_mut().zip(from) {
+                    *o = 4 * c;
+                }
+            });
+        if increasing {
+            fill_csr(&offsets[..=nv], old, |_, out| {
+                if !out.is_sorted() {
+                    sort_short(out);
+                }
+            });
+        }
+        // The two child corners of slot c, and the same in increasing order: they are in c's
+        // face, `4 next(c) + 3` first when `next(c)` wraps round to the face's first corner.
         let pair = |c: u32| [4 * c + 1, 4 * quad_next(c as usize) as u32 + 3];
+        let sorted_pair = |c: u32| {
+            let [a, b] = pair(c);
+            if c & 3 == 3 {
+                [b, a]
+            } else {
+                [a, b]
+            }
+        };
+        // An edge's four child corners in increasing order: the two slots are in two faces
+        // (a face using an edge twice has two edges), so the earlier face's pair comes first.
+        let sorted_four = |c0: u32, c1: u32| {
+            if c0 >> 2 == c1 >> 2 {
+                let ([a, b], [c, d]) = (pair(c0), pair(c1));
+                let mut four = [a, b, c, d];
+                sort4(&mut four);
+                four
+            } else {
+                let ([a, b], [c, d]) = (sorted_pair(c0.min(c1)), sorted_pair(c0.max(c1)));
+                [a, b, c, d]
+            }
+        };
         if at as usize == nc + 4 * edge_corners.len() {
             // No boundary: four entries per edge, written in fixed rows.
             edge_points
@@ -1125,11 +1155,12 @@ impl Level {
                 .zip(edge_corners.par_chunks(CHUNK))
                 .for_each(|(out, rows)| {
                     for (out, &[c0, c1]) in out.chunks_exact_mut(4).zip(rows) {
-                        let ([a, b], [c, d]) = (pair(c0), pair(c1));
-                        let mut four = [a, b, c, d];
-                        if increasing {
-                            sort4(&mut four);
-                        }
+                        let four = if increasing {
+                            sorted_four(c0, c1)
+                        } else {
+                            let ([a, b], [c, d]) = (pair(c0), pair(c1));
+                            [a, b, c, d]
+                        };
                         out.copy_from_slice(&four);
                     }
                 });
@@ -1141,17 +1172,15 @@ impl Level {
                     let [c0, c1] = edge_corners[e];
                     if c1 == NONE {
                         if let Ok(out) = <&mut [u32; 2]>::try_from(out) {
-                            *out = pair(c0);
-                            if increasing && out[0] > out[1] {
-                                out.swap(0, 1);
-                            }
+                            *out = if increasing { sorted_pair(c0) } else { pair(c0) };
                         }
                     } else if let Ok(out) = <&mut [u32; 4]>::try_from(out) {
-                        let ([a, b], [c, d]) = (pair(c0), pair(c1));
-                        *out = [a, b, c, d];
-                        if increasing {
-                            sort4(out);
-                        }
+                        *out = if increasing {
+                            sorted_four(c0, c1)
+                        } else {
+                            let ([a, b], [c, d]) = (pair(c0), pair(c1));
+                            [a, b, c, d]
+                        };
                     }
                 },
             );
