@@ -292,6 +292,16 @@ impl Level {
         }
     }
 
+    /// [`Level::next`], with no lookup when `quads` (every face a quad, [`Level::all_quads`]).
+    #[inline(always)]
+    fn next_of(&self, quads: bool, corner: usize) -> usize {
+        if quads {
+            quad_next(corner)
+        } else {
+            self.next(corner)
+        }
+    }
+
     /// The previous corner around the face of `corner`.
     #[inline]
     pub fn prev(&self, corner: usize) -> usize {
@@ -511,11 +521,13 @@ impl Level {
             vert_corners,
             ..Level::default()
         };
-        let (edges, nm_edges) = level.find_edges()?;
+        // A cage of quads walks its faces with no lookups (asked once, as `all_quads` scans).
+        let quads = level.all_quads();
+        let (edges, nm_edges) = level.find_edges(quads)?;
         level.num_edges = edges.verts.len();
         level.edges = OnceLock::from(edges);
         level.nm_edges = nm_edges;
-        level.nm_vertices = level.find_non_manifold_vertices()?;
+        level.nm_vertices = level.find_non_manifold_vertices(quads)?;
         Ok(level)
     }
 
@@ -523,9 +535,9 @@ impl Level {
     /// `(larger vertex, corner)` in increasing order: CSR offsets per vertex and the halves. A
     /// counting sort by owner keeps the corners of an owner in increasing order, so only the
     /// few halves of each vertex are sorted, by other end.
-    fn halves_by_owner(&self) -> Result<(Vec<u32>, Vec<(u32, u32)>)> {
+    fn halves_by_owner(&self, quads: bool) -> Result<(Vec<u32>, Vec<(u32, u32)>)> {
         let ends = gather_hinted(self.num_corners(), |c| {
-            let (a, b) = (self.corner_verts[c], self.corner_verts[self.next(c)]);
+            let (a, b) = (self.corner_verts[c], self.corner_verts[self.next_of(quads, c)]);
             (a.min(b), a.max(b))
         })?;
         let mut offsets = memory::zeroed::<u32>(self.num_vertices + 1)?;
@@ -605,8 +617,8 @@ impl Level {
 
     /// The edge tables of a polygon level (see [`Level::from_polygons`]) and its non-manifold
     /// edges.
-    fn find_edges(&self) -> Result<(Edges, Vec<u32>)> {
-        let (owned, halves) = self.halves_by_owner()?;
+    fn find_edges(&self, quads: bool) -> Result<(Edges, Vec<u32>)> {
+        let (owned, halves) = self.halves_by_owner(quads)?;
         let halves_of = |a: usize| &halves[owned[a] as usize..owned[a + 1] as usize];
         let unusual = AtomicBool::new(false);
         let offsets = prefix_offsets(self.num_vertices, |a| {
@@ -656,7 +668,7 @@ impl Level {
         }
         let verts = gather_hinted(num_edges, |e| {
             let c = corners[e][0] as usize;
-            [self.corner_verts[c], self.corner_verts[self.next(c)]]
+            [self.corner_verts[c], self.corner_verts[self.next_of(quads, c)]]
         })?;
         let edges = Edges {
             corner_edges: memory::collect(corner_edges.into_iter().map(AtomicU32::into_inner))?,
@@ -670,7 +682,7 @@ impl Level {
     /// The vertices of a polygon level that are non-manifold: the ends of non-manifold edges,
     /// vertices a face uses twice, and vertices whose faces are not one fan (OpenSubdiv's
     /// `orderVertexFacesAndEdges` failing: a bowtie, open or closed).
-    fn find_non_manifold_vertices(&self) -> Result<Vec<u32>> {
+    fn find_non_manifold_vertices(&self, quads: bool) -> Result<Vec<u32>> {
         let mut on_nm_edge = memory::zeroed::<bool>(self.num_vertices)?;
         for &e in &self.nm_edges {
             for v in self.edge_verts()[e as usize] {
@@ -680,24 +692,32 @@ impl Level {
         Ok((0..self.num_vertices as u32)
             .into_par_iter()
             .with_min_len(CHUNK)
-            .filter(|&v| on_nm_edge[v as usize] || !self.is_one_fan(v as usize))
+            .filter(|&v| on_nm_edge[v as usize] || !self.is_one_fan(v as usize, quads))
             .collect::<Vec<u32>>())
     }
 
     /// True if the faces at `v` (whose edges are all manifold) form one fan, open or closed.
-    fn is_one_fan(&self, v: usize) -> bool {
+    /// `quads` when every face is a quad ([`Level::all_quads`]).
+    fn is_one_fan(&self, v: usize, quads: bool) -> bool {
         let corners = self.corners_of_vertex(v);
         let n = corners.len();
-        if corners
-            .windows(2)
-            .any(|w| self.face_of(w[0] as usize) == self.face_of(w[1] as usize))
-        {
+        let face = |c: usize| if quads { c >> 2 } else { self.face_of(c) };
+        if corners.windows(2).any(|w| face(w[0] as usize) == face(w[1] as usize)) {
             return false;
         }
+        let edges = self.edges();
+        // The corner across edge `e` from `c` ([`Level::opposite`] with no search of the
+        // non-manifold edges: none is at `v`).
+        let across = |e: u32, c: usize| {
+            let [a, b] = edges.corners[e as usize];
+            let other = if a as usize == c { b } else { a };
+            (other != NONE).then_some(other as usize)
+        };
+        let prev = |c: usize| if quads { quad_prev(c) } else { self.prev(c) };
         let start = corners[0] as usize;
         let mut seen = 1;
         let mut c = start;
-        while let Some(next) = self.next_around_vertex(c) {
+        while let Some(next) = across(edges.corner_edges[prev(c)], prev(c)) {
             if next == start {
                 return seen == n;
             }
@@ -708,9 +728,8 @@ impl Level {
             }
         }
         let mut c = start;
-        while let Some(back) = self
-            .opposite(self.corner_edges()[c] as usize, c)
-            .map(|d| self.next(d))
+        while let Some(back) =
+            across(edges.corner_edges[c], c).map(|d| self.next_of(quads, d))
         {
             seen += 1;
             c = back;
@@ -850,13 +869,16 @@ impl Level {
         let (edge_quads, _) = corner_edges.as_chunks::<4>();
         let quad_edges = gather_hinted(quads.len(), |f| {
             let (v, e) = (quads[f], edge_quads[f]);
-            let half = |k: usize| 2 * e[k] + (edge_verts[e[k] as usize][0] != v[k]) as u32;
-            let arriving =
-                |k: usize, p: usize| 2 * e[p] + (edge_verts[e[p] as usize][1] == v[k]) as u32;
+            // The half of each corner's outgoing edge at the corner; the other half of the
+            // previous corner's is the incoming edge's half at the corner (for a degenerate
+            // edge too: the half leaving, then the half arriving).
+            let half: [u32; 4] = std::array::from_fn(|k| {
+                2 * e[k] + (edge_verts[e[k] as usize][0] != v[k]) as u32
+            });
             let c = 2 * ne + 4 * f as u32;
             std::array::from_fn::<[u32; 4], 4, _>(|k| {
                 let p = (k + 3) & 3;
-                [half(k), c + k as u32, c + p as u32, arriving(k, p)]
+                [half[k], c + k as u32, c + p as u32, half[p] ^ 1]
             })
         })?;
         let total_edges = 2 * ne as usize + nc;
