@@ -615,6 +615,30 @@ impl Level {
         }
     }
 
+    /// The slots of the edge of a vertex pair's halves (`group`, as in [`Level::edges_of_pair`])
+    /// when it is an ordinary manifold edge, as most are (not degenerate; one face, or two
+    /// distinct faces running opposite ways), the second slot `NONE` on a boundary; `None`
+    /// when [`Level::edges_of_pair`] must sort the group out. `quads` as [`Level::all_quads`].
+    #[inline(always)]
+    fn ordinary_edge(&self, quads: bool, a: u32, group: &[(u32, u32)]) -> Option<[u32; 2]> {
+        match *group {
+            [(b, c0)] if b != a => Some([c0, NONE]),
+            [(b, c0), (_, c1)] if b != a => {
+                let face = |c: u32| {
+                    if quads {
+                        c as usize >> 2
+                    } else {
+                        self.corner_faces[c as usize] as usize
+                    }
+                };
+                let opposite_ways =
+                    self.corner_verts[c0 as usize] != self.corner_verts[c1 as usize];
+                (face(c0) != face(c1) && opposite_ways).then_some([c0, c1])
+            }
+            _ => None,
+        }
+    }
+
     /// The edge tables of a polygon level (see [`Level::from_polygons`]) and its non-manifold
     /// edges.
     fn find_edges(&self, quads: bool) -> Result<(Edges, Vec<u32>)> {
@@ -624,6 +648,10 @@ impl Level {
         let offsets = prefix_offsets(self.num_vertices, |a| {
             let mut count = 0;
             for group in halves_of(a).chunk_by(|x, y| x.0 == y.0) {
+                if self.ordinary_edge(quads, a as u32, group).is_some() {
+                    count += 1;
+                    continue;
+                }
                 self.edges_of_pair(a as u32, group, |slots, nm| {
                     if nm || slots.len() > 2 {
                         unusual.store(true, Ordering::Relaxed);
@@ -640,11 +668,21 @@ impl Level {
             gather_hinted(self.num_corners(), |_| AtomicU32::new(0))?;
         fill_csr(&offsets, &mut corners, |a, out| {
             let mut k = 0;
+            let e = |k: usize| offsets[a] + k as u32;
             for group in halves_of(a).chunk_by(|x, y| x.0 == y.0) {
+                if let Some([c0, c1]) = self.ordinary_edge(quads, a as u32, group) {
+                    out[k] = [c0, c1];
+                    corner_edges[c0 as usize].store(e(k), Ordering::Relaxed);
+                    if c1 != NONE {
+                        corner_edges[c1 as usize].store(e(k), Ordering::Relaxed);
+                    }
+                    k += 1;
+                    continue;
+                }
                 self.edges_of_pair(a as u32, group, |slots, _| {
                     out[k] = [slots[0], slots.get(1).copied().unwrap_or(NONE)];
                     for &c in slots {
-                        corner_edges[c as usize].store(offsets[a] + k as u32, Ordering::Relaxed);
+                        corner_edges[c as usize].store(e(k), Ordering::Relaxed);
                     }
                     k += 1;
                 });
@@ -1141,7 +1179,11 @@ impl Level {
             });
         if increasing {
             fill_csr(&offsets[..=nv], old, |_, out| {
-                if !out.is_sorted() {
+                if let Ok(four) = <&mut [u32; 4]>::try_from(&mut *out) {
+                    if !(four[0] <= four[1] && four[1] <= four[2] && four[2] <= four[3]) {
+                        sort4(four);
+                    }
+                } else if !out.is_sorted() {
                     sort_short(out);
                 }
             });
