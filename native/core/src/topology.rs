@@ -1159,11 +1159,19 @@ impl Level {
         let mut offsets = with_capacity_hinted::<u32>(nv + edge_corners.len() + nf + 1)?;
         offsets.extend_from_slice(parent_offsets);
         // Every corner is at one vertex and is one slot of one edge (two child corners each).
+        // A closed level's edge offsets step by four (a count of the boundary edges is one
+        // vectorised pass; the running sum is not).
+        let boundary = edge_corners.iter().filter(|&&[_, c1]| c1 == NONE).count();
         let mut at = nc as u32;
-        offsets.extend(edge_corners.iter().map(|&[_, c1]| {
-            at += if c1 == NONE { 2 } else { 4 };
-            at
-        }));
+        if boundary == 0 {
+            offsets.extend((1..=edge_corners.len() as u32).map(|e| at + 4 * e));
+            at += 4 * edge_corners.len() as u32;
+        } else {
+            offsets.extend(edge_corners.iter().map(|&[_, c1]| {
+                at += if c1 == NONE { 2 } else { 4 };
+                at
+            }));
+        }
         offsets.extend((1..=nf as u32).map(|f| at + 4 * f));
         let mut vert_corners = zeroed_hinted::<u32>(4 * nc)?;
         let (old, rest) = vert_corners.split_at_mut(nc);
@@ -1178,26 +1186,15 @@ impl Level {
                 }
             });
         if increasing {
-            fill_csr(&offsets[..=nv], old, |_, out| {
-                if let Ok(four) = <&mut [u32; 4]>::try_from(&mut *out) {
-                    if !(four[0] <= four[1] && four[1] <= four[2] && four[2] <= four[3]) {
-                        sort4(four);
-                    }
-                } else if !out.is_sorted() {
-                    sort_short(out);
-                }
-            });
+            sort_lists(&offsets[..=nv], old);
         }
         // The two child corners of slot c, and the same in increasing order: they are in c's
         // face, `4 next(c) + 3` first when `next(c)` wraps round to the face's first corner.
         let pair = |c: u32| [4 * c + 1, 4 * quad_next(c as usize) as u32 + 3];
         let sorted_pair = |c: u32| {
-            let [a, b] = pair(c);
-            if c & 3 == 3 {
-                [b, a]
-            } else {
-                [a, b]
-            }
+            // `next(c)` wraps round to `c - 3` (child corner `4 c - 9`) from the fourth corner.
+            let wrap = u32::from(c & 3 == 3);
+            [4 * c + 1 - 10 * wrap, 4 * c + 7 - 6 * wrap]
         };
         // An edge's four child corners in increasing order: the two slots are in two faces
         // (a face using an edge twice has two edges), so the earlier face's pair comes first.
@@ -1260,6 +1257,36 @@ impl Level {
             });
         Ok((offsets, vert_corners))
     }
+}
+
+/// Sorts the lists of a CSR table that are out of order (each list short: [`sort_short`]), in
+/// the fixed chunks of [`fill_csr`], each list read through its two offsets once.
+fn sort_lists(offsets: &[u32], data: &mut [u32]) {
+    let items = offsets.len() - 1;
+    let mut pieces = Vec::with_capacity(items / CHUNK + 1);
+    let mut rest = data;
+    let mut start = 0;
+    while start < items {
+        let end = (start + CHUNK).min(items);
+        let (piece, tail) = rest.split_at_mut((offsets[end] - offsets[start]) as usize);
+        pieces.push((&offsets[start..=end], piece));
+        rest = tail;
+        start = end;
+    }
+    pieces.into_par_iter().for_each(|(offsets, piece)| {
+        let mut rest = piece;
+        for pair in offsets.windows(2) {
+            let (list, tail) = rest.split_at_mut((pair[1] - pair[0]) as usize);
+            rest = tail;
+            if let Ok(four) = <&mut [u32; 4]>::try_from(&mut *list) {
+                if !(four[0] <= four[1] && four[1] <= four[2] && four[2] <= four[3]) {
+                    sort4(four);
+                }
+            } else if !list.is_sorted() {
+                sort_short(list);
+            }
+        }
+    });
 }
 
 /// Sorts a short list by insertion (the lists out of order in a vertex -> corner table are an
