@@ -934,44 +934,46 @@ impl Level {
                 [end, start]
             }
         };
+        // Both halves of an edge as one row, in step with the edge's rows.
+        let (half_verts, _) = half_verts.as_chunks_mut::<2>();
+        let (half_corners, _) = half_corners.as_chunks_mut::<2>();
         half_verts
-            .par_chunks_mut(2 * CHUNK)
-            .zip(half_corners.par_chunks_mut(2 * CHUNK))
+            .par_chunks_mut(CHUNK)
+            .zip(half_corners.par_chunks_mut(CHUNK))
+            .zip(edge_verts.par_chunks(CHUNK))
+            .zip(edge_corners.par_chunks(CHUNK))
             .enumerate()
-            .for_each(|(chunk, (hv, hc))| {
+            .for_each(|(chunk, (((hv, hc), verts), corners))| {
                 let start = chunk * CHUNK;
-                let rows = edge_verts[start..].iter().zip(&edge_corners[start..]);
-                for (i, ((hv, hc), (&[a, b], &[c0, c1]))) in hv
-                    .chunks_exact_mut(2)
-                    .zip(hc.chunks_exact_mut(2))
-                    .zip(rows)
-                    .enumerate()
+                let rows = verts.iter().zip(corners);
+                for (i, ((hv, hc), (&[a, b], &[c0, c1]))) in
+                    hv.iter_mut().zip(hc).zip(rows).enumerate()
                 {
                     let mid = nv + (start + i) as u32;
                     let s0 = slots(a, c0);
                     let s1 = if c1 == NONE { [NONE; 2] } else { slots(a, c1) };
-                    hv[0] = [a, mid];
-                    hv[1] = [mid, b];
-                    hc[0] = [s0[0], s1[0]];
-                    hc[1] = [s0[1], s1[1]];
+                    *hv = [[a, mid], [mid, b]];
+                    *hc = [[s0[0], s1[0]], [s0[1], s1[1]]];
                 }
             });
-        // Interior edges: from the edge point of a corner's outgoing edge to the face point.
+        // Interior edges: from the edge point of a corner's outgoing edge to the face point,
+        // face by face (the next corner of the k-th is the `(k + 1) % 4`-th, no arithmetic).
+        let (inner_verts, _) = inner_verts.as_chunks_mut::<4>();
+        let (inner_corners, _) = inner_corners.as_chunks_mut::<4>();
         inner_verts
             .par_chunks_mut(CHUNK)
             .zip(inner_corners.par_chunks_mut(CHUNK))
+            .zip(edge_quads.par_chunks(CHUNK))
             .enumerate()
-            .for_each(|(chunk, (iv, ic))| {
+            .for_each(|(chunk, ((iv, ic), rows))| {
                 let start = chunk * CHUNK;
-                for (i, ((iv, ic), &e)) in iv
-                    .iter_mut()
-                    .zip(ic)
-                    .zip(&corner_edges[start..])
-                    .enumerate()
-                {
-                    let c = start + i;
-                    *iv = [nv + e, nv + ne + (c >> 2) as u32];
-                    *ic = [4 * c as u32 + 1, 4 * quad_next(c) as u32 + 2];
+                for (i, ((iv, ic), e)) in iv.iter_mut().zip(ic).zip(rows).enumerate() {
+                    let f = (start + i) as u32;
+                    let face_point = nv + ne + f;
+                    *iv = std::array::from_fn(|k| [nv + e[k], face_point]);
+                    *ic = std::array::from_fn(|k| {
+                        [16 * f + 4 * k as u32 + 1, 16 * f + 4 * ((k as u32 + 1) & 3) + 2]
+                    });
                 }
             });
         Ok(Edges {
