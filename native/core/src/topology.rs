@@ -536,10 +536,23 @@ impl Level {
     /// counting sort by owner keeps the corners of an owner in increasing order, so only the
     /// few halves of each vertex are sorted, by other end.
     fn halves_by_owner(&self, quads: bool) -> Result<(Vec<u32>, Vec<(u32, u32)>)> {
-        let ends = gather_hinted(self.num_corners(), |c| {
-            let (a, b) = (self.corner_verts[c], self.corner_verts[self.next_of(quads, c)]);
-            (a.min(b), a.max(b))
-        })?;
+        let ends = if quads {
+            // Face by face, the corners' next ones known.
+            let (faces, _) = self.corner_verts.as_chunks::<4>();
+            let ends = gather_hinted(faces.len(), |f| {
+                let v = faces[f];
+                std::array::from_fn::<_, 4, _>(|k| {
+                    let (a, b) = (v[k], v[(k + 1) & 3]);
+                    (a.min(b), a.max(b))
+                })
+            })?;
+            ends.into_flattened()
+        } else {
+            gather_hinted(self.num_corners(), |c| {
+                let (a, b) = (self.corner_verts[c], self.corner_verts[self.next(c)]);
+                (a.min(b), a.max(b))
+            })?
+        };
         let mut offsets = memory::zeroed::<u32>(self.num_vertices + 1)?;
         for &(a, _) in &ends {
             offsets[a as usize + 1] += 1;
@@ -1253,8 +1266,11 @@ impl Level {
             .par_chunks_mut(CHUNK)
             .enumerate()
             .for_each(|(chunk, out)| {
-                for (i, o) in out.iter_mut().enumerate() {
-                    *o = 4 * (chunk * CHUNK + i) as u32 + 2;
+                // A counter of its own, in 32 bits, which vectorises.
+                let mut child = 4 * (chunk * CHUNK) as u32 + 2;
+                for o in out {
+                    *o = child;
+                    child += 4;
                 }
             });
         Ok((offsets, vert_corners))
