@@ -28,6 +28,10 @@ use crate::parallel::{
     fill_csr, gather_hinted, prefix_offsets, with_capacity_hinted, zeroed_hinted, CHUNK,
 };
 
+/// Per vertex, CSR offsets of the edge halves it owns, and the halves as `(other end, corner)`
+/// ([`Level::halves_by_owner`]).
+type OwnedHalves = (Vec<u32>, Vec<(u32, u32)>);
+
 /// Marks a missing entry (the second face of a boundary edge).
 pub(crate) const NONE: u32 = u32::MAX;
 
@@ -535,7 +539,7 @@ impl Level {
     /// `(larger vertex, corner)` in increasing order: CSR offsets per vertex and the halves. A
     /// counting sort by owner keeps the corners of an owner in increasing order, so only the
     /// few halves of each vertex are sorted, by other end.
-    fn halves_by_owner(&self, quads: bool) -> Result<(Vec<u32>, Vec<(u32, u32)>)> {
+    fn halves_by_owner(&self, quads: bool) -> Result<OwnedHalves> {
         let ends = if quads {
             // Face by face, the corners' next ones known.
             let (faces, _) = self.corner_verts.as_chunks::<4>();
@@ -719,7 +723,10 @@ impl Level {
         }
         let verts = gather_hinted(num_edges, |e| {
             let c = corners[e][0] as usize;
-            [self.corner_verts[c], self.corner_verts[self.next_of(quads, c)]]
+            [
+                self.corner_verts[c],
+                self.corner_verts[self.next_of(quads, c)],
+            ]
         })?;
         let edges = Edges {
             corner_edges: memory::collect(corner_edges.into_iter().map(AtomicU32::into_inner))?,
@@ -753,7 +760,10 @@ impl Level {
         let corners = self.corners_of_vertex(v);
         let n = corners.len();
         let face = |c: usize| if quads { c >> 2 } else { self.face_of(c) };
-        if corners.windows(2).any(|w| face(w[0] as usize) == face(w[1] as usize)) {
+        if corners
+            .windows(2)
+            .any(|w| face(w[0] as usize) == face(w[1] as usize))
+        {
             return false;
         }
         let edges = self.edges();
@@ -779,9 +789,7 @@ impl Level {
             }
         }
         let mut c = start;
-        while let Some(back) =
-            across(edges.corner_edges[c], c).map(|d| self.next_of(quads, d))
-        {
+        while let Some(back) = across(edges.corner_edges[c], c).map(|d| self.next_of(quads, d)) {
             seen += 1;
             c = back;
             if seen > n {
@@ -923,9 +931,8 @@ impl Level {
             // The half of each corner's outgoing edge at the corner; the other half of the
             // previous corner's is the incoming edge's half at the corner (for a degenerate
             // edge too: the half leaving, then the half arriving).
-            let half: [u32; 4] = std::array::from_fn(|k| {
-                2 * e[k] + (edge_verts[e[k] as usize][0] != v[k]) as u32
-            });
+            let half: [u32; 4] =
+                std::array::from_fn(|k| 2 * e[k] + (edge_verts[e[k] as usize][0] != v[k]) as u32);
             let c = 2 * ne + 4 * f as u32;
             std::array::from_fn::<[u32; 4], 4, _>(|k| {
                 let p = (k + 3) & 3;
@@ -985,7 +992,10 @@ impl Level {
                     let face_point = nv + ne + f;
                     *iv = std::array::from_fn(|k| [nv + e[k], face_point]);
                     *ic = std::array::from_fn(|k| {
-                        [16 * f + 4 * k as u32 + 1, 16 * f + 4 * ((k as u32 + 1) & 3) + 2]
+                        [
+                            16 * f + 4 * k as u32 + 1,
+                            16 * f + 4 * ((k as u32 + 1) & 3) + 2,
+                        ]
                     });
                 }
             });
@@ -1248,7 +1258,11 @@ impl Level {
                     let [c0, c1] = edge_corners[e];
                     if c1 == NONE {
                         if let Ok(out) = <&mut [u32; 2]>::try_from(out) {
-                            *out = if increasing { sorted_pair(c0) } else { pair(c0) };
+                            *out = if increasing {
+                                sorted_pair(c0)
+                            } else {
+                                pair(c0)
+                            };
                         }
                     } else if let Ok(out) = <&mut [u32; 4]>::try_from(out) {
                         *out = if increasing {
