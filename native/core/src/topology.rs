@@ -28,6 +28,10 @@ use crate::parallel::{
     fill_csr, gather_hinted, prefix_offsets, with_capacity_hinted, zeroed_hinted, CHUNK,
 };
 
+/// Per vertex, CSR offsets of the edge halves it owns, and the halves as `(other end, corner)`
+/// ([`Level::halves_by_owner`]).
+type OwnedHalves = (Vec<u32>, Vec<(u32, u32)>);
+
 /// Marks a missing entry (the second face of a boundary edge).
 pub(crate) const NONE: u32 = u32::MAX;
 
@@ -292,6 +296,16 @@ impl Level {
         }
     }
 
+    /// [`Level::next`], with no lookup when `quads` (every face a quad, [`Level::all_quads`]).
+    #[inline(always)]
+    fn next_of(&self, quads: bool, corner: usize) -> usize {
+        if quads {
+            quad_next(corner)
+        } else {
+            self.next(corner)
+        }
+    }
+
     /// The previous corner around the face of `corner`.
     #[inline]
     pub fn prev(&self, corner: usize) -> usize {
@@ -511,11 +525,13 @@ impl Level {
             vert_corners,
             ..Level::default()
         };
-        let (edges, nm_edges) = level.find_edges()?;
+        // A cage of quads walks its faces with no lookups (asked once, as `all_quads` scans).
+        let quads = level.all_quads();
+        let (edges, nm_edges) = level.find_edges(quads)?;
         level.num_edges = edges.verts.len();
         level.edges = OnceLock::from(edges);
         level.nm_edges = nm_edges;
-        level.nm_vertices = level.find_non_manifold_vertices()?;
+        level.nm_vertices = level.find_non_manifold_vertices(quads)?;
         Ok(level)
     }
 
@@ -523,11 +539,24 @@ impl Level {
     /// `(larger vertex, corner)` in increasing order: CSR offsets per vertex and the halves. A
     /// counting sort by owner keeps the corners of an owner in increasing order, so only the
     /// few halves of each vertex are sorted, by other end.
-    fn halves_by_owner(&self) -> Result<(Vec<u32>, Vec<Half>)> {
-        let ends = gather_hinted(self.num_corners(), |c| {
-            let (a, b) = (self.corner_verts[c], self.corner_verts[self.next(c)]);
-            (a.min(b), a.max(b))
-        })?;
+    fn halves_by_owner(&self, quads: bool) -> Result<OwnedHalves> {
+        let ends = if quads {
+            // Face by face, the corners' next ones known.
+            let (faces, _) = self.corner_verts.as_chunks::<4>();
+            let ends = gather_hinted(faces.len(), |f| {
+                let v = faces[f];
+                std::array::from_fn::<_, 4, _>(|k| {
+                    let (a, b) = (v[k], v[(k + 1) & 3]);
+                    (a.min(b), a.max(b))
+                })
+            })?;
+            ends.into_flattened()
+        } else {
+            gather_hinted(self.num_corners(), |c| {
+                let (a, b) = (self.corner_verts[c], self.corner_verts[self.next(c)]);
+                (a.min(b), a.max(b))
+            })?
+        };
         let mut offsets = memory::zeroed::<u32>(self.num_vertices + 1)?;
         for &(a, _) in &ends {
             offsets[a as usize + 1] += 1;
@@ -603,15 +632,43 @@ impl Level {
         }
     }
 
+    /// The slots of the edge of a vertex pair's halves (`group`, as in [`Level::edges_of_pair`])
+    /// when it is an ordinary manifold edge, as most are (not degenerate; one face, or two
+    /// distinct faces running opposite ways), the second slot `NONE` on a boundary; `None`
+    /// when [`Level::edges_of_pair`] must sort the group out. `quads` as [`Level::all_quads`].
+    #[inline(always)]
+    fn ordinary_edge(&self, quads: bool, a: u32, group: &[(u32, u32)]) -> Option<[u32; 2]> {
+        match *group {
+            [(b, c0)] if b != a => Some([c0, NONE]),
+            [(b, c0), (_, c1)] if b != a => {
+                let face = |c: u32| {
+                    if quads {
+                        c as usize >> 2
+                    } else {
+                        self.corner_faces[c as usize] as usize
+                    }
+                };
+                let opposite_ways =
+                    self.corner_verts[c0 as usize] != self.corner_verts[c1 as usize];
+                (face(c0) != face(c1) && opposite_ways).then_some([c0, c1])
+            }
+            _ => None,
+        }
+    }
+
     /// The edge tables of a polygon level (see [`Level::from_polygons`]) and its non-manifold
     /// edges.
-    fn find_edges(&self) -> Result<(Edges, Vec<u32>)> {
-        let (owned, halves) = self.halves_by_owner()?;
+    fn find_edges(&self, quads: bool) -> Result<(Edges, Vec<u32>)> {
+        let (owned, halves) = self.halves_by_owner(quads)?;
         let halves_of = |a: usize| &halves[owned[a] as usize..owned[a + 1] as usize];
         let unusual = AtomicBool::new(false);
         let offsets = prefix_offsets(self.num_vertices, |a| {
             let mut count = 0;
             for group in halves_of(a).chunk_by(|x, y| x.0 == y.0) {
+                if self.ordinary_edge(quads, a as u32, group).is_some() {
+                    count += 1;
+                    continue;
+                }
                 self.edges_of_pair(a as u32, group, |slots, nm| {
                     if nm || slots.len() > 2 {
                         unusual.store(true, Ordering::Relaxed);
@@ -628,11 +685,21 @@ impl Level {
             gather_hinted(self.num_corners(), |_| AtomicU32::new(0))?;
         fill_csr(&offsets, &mut corners, |a, out| {
             let mut k = 0;
+            let e = |k: usize| offsets[a] + k as u32;
             for group in halves_of(a).chunk_by(|x, y| x.0 == y.0) {
+                if let Some([c0, c1]) = self.ordinary_edge(quads, a as u32, group) {
+                    out[k] = [c0, c1];
+                    corner_edges[c0 as usize].store(e(k), Ordering::Relaxed);
+                    if c1 != NONE {
+                        corner_edges[c1 as usize].store(e(k), Ordering::Relaxed);
+                    }
+                    k += 1;
+                    continue;
+                }
                 self.edges_of_pair(a as u32, group, |slots, _| {
                     out[k] = [slots[0], slots.get(1).copied().unwrap_or(NONE)];
                     for &c in slots {
-                        corner_edges[c as usize].store(offsets[a] + k as u32, Ordering::Relaxed);
+                        corner_edges[c as usize].store(e(k), Ordering::Relaxed);
                     }
                     k += 1;
                 });
@@ -656,7 +723,10 @@ impl Level {
         }
         let verts = gather_hinted(num_edges, |e| {
             let c = corners[e][0] as usize;
-            [self.corner_verts[c], self.corner_verts[self.next(c)]]
+            [
+                self.corner_verts[c],
+                self.corner_verts[self.next_of(quads, c)],
+            ]
         })?;
         let edges = Edges {
             corner_edges: memory::collect(corner_edges.into_iter().map(AtomicU32::into_inner))?,
@@ -670,7 +740,7 @@ impl Level {
     /// The vertices of a polygon level that are non-manifold: the ends of non-manifold edges,
     /// vertices a face uses twice, and vertices whose faces are not one fan (OpenSubdiv's
     /// `orderVertexFacesAndEdges` failing: a bowtie, open or closed).
-    fn find_non_manifold_vertices(&self) -> Result<Vec<u32>> {
+    fn find_non_manifold_vertices(&self, quads: bool) -> Result<Vec<u32>> {
         let mut on_nm_edge = memory::zeroed::<bool>(self.num_vertices)?;
         for &e in &self.nm_edges {
             for v in self.edge_verts()[e as usize] {
@@ -680,24 +750,35 @@ impl Level {
         Ok((0..self.num_vertices as u32)
             .into_par_iter()
             .with_min_len(CHUNK)
-            .filter(|&v| on_nm_edge[v as usize] || !self.is_one_fan(v as usize))
+            .filter(|&v| on_nm_edge[v as usize] || !self.is_one_fan(v as usize, quads))
             .collect::<Vec<u32>>())
     }
 
     /// True if the faces at `v` (whose edges are all manifold) form one fan, open or closed.
-    fn is_one_fan(&self, v: usize) -> bool {
+    /// `quads` when every face is a quad ([`Level::all_quads`]).
+    fn is_one_fan(&self, v: usize, quads: bool) -> bool {
         let corners = self.corners_of_vertex(v);
         let n = corners.len();
+        let face = |c: usize| if quads { c >> 2 } else { self.face_of(c) };
         if corners
             .windows(2)
-            .any(|w| self.face_of(w[0] as usize) == self.face_of(w[1] as usize))
+            .any(|w| face(w[0] as usize) == face(w[1] as usize))
         {
             return false;
         }
+        let edges = self.edges();
+        // The corner across edge `e` from `c` ([`Level::opposite`] with no search of the
+        // non-manifold edges: none is at `v`).
+        let across = |e: u32, c: usize| {
+            let [a, b] = edges.corners[e as usize];
+            let other = if a as usize == c { b } else { a };
+            (other != NONE).then_some(other as usize)
+        };
+        let prev = |c: usize| if quads { quad_prev(c) } else { self.prev(c) };
         let start = corners[0] as usize;
         let mut seen = 1;
         let mut c = start;
-        while let Some(next) = self.next_around_vertex(c) {
+        while let Some(next) = across(edges.corner_edges[prev(c)], prev(c)) {
             if next == start {
                 return seen == n;
             }
@@ -708,10 +789,7 @@ impl Level {
             }
         }
         let mut c = start;
-        while let Some(back) = self
-            .opposite(self.corner_edges()[c] as usize, c)
-            .map(|d| self.next(d))
-        {
+        while let Some(back) = across(edges.corner_edges[c], c).map(|d| self.next_of(quads, d)) {
             seen += 1;
             c = back;
             if seen > n {
@@ -850,13 +928,15 @@ impl Level {
         let (edge_quads, _) = corner_edges.as_chunks::<4>();
         let quad_edges = gather_hinted(quads.len(), |f| {
             let (v, e) = (quads[f], edge_quads[f]);
-            let half = |k: usize| 2 * e[k] + (edge_verts[e[k] as usize][0] != v[k]) as u32;
-            let arriving =
-                |k: usize, p: usize| 2 * e[p] + (edge_verts[e[p] as usize][1] == v[k]) as u32;
+            // The half of each corner's outgoing edge at the corner; the other half of the
+            // previous corner's is the incoming edge's half at the corner (for a degenerate
+            // edge too: the half leaving, then the half arriving).
+            let half: [u32; 4] =
+                std::array::from_fn(|k| 2 * e[k] + (edge_verts[e[k] as usize][0] != v[k]) as u32);
             let c = 2 * ne + 4 * f as u32;
             std::array::from_fn::<[u32; 4], 4, _>(|k| {
                 let p = (k + 3) & 3;
-                [half(k), c + k as u32, c + p as u32, arriving(k, p)]
+                [half[k], c + k as u32, c + p as u32, half[p] ^ 1]
             })
         })?;
         let total_edges = 2 * ne as usize + nc;
@@ -874,44 +954,49 @@ impl Level {
                 [end, start]
             }
         };
+        // Both halves of an edge as one row, in step with the edge's rows.
+        let (half_verts, _) = half_verts.as_chunks_mut::<2>();
+        let (half_corners, _) = half_corners.as_chunks_mut::<2>();
         half_verts
-            .par_chunks_mut(2 * CHUNK)
-            .zip(half_corners.par_chunks_mut(2 * CHUNK))
+            .par_chunks_mut(CHUNK)
+            .zip(half_corners.par_chunks_mut(CHUNK))
+            .zip(edge_verts.par_chunks(CHUNK))
+            .zip(edge_corners.par_chunks(CHUNK))
             .enumerate()
-            .for_each(|(chunk, (hv, hc))| {
+            .for_each(|(chunk, (((hv, hc), verts), corners))| {
                 let start = chunk * CHUNK;
-                let rows = edge_verts[start..].iter().zip(&edge_corners[start..]);
-                for (i, ((hv, hc), (&[a, b], &[c0, c1]))) in hv
-                    .chunks_exact_mut(2)
-                    .zip(hc.chunks_exact_mut(2))
-                    .zip(rows)
-                    .enumerate()
+                let rows = verts.iter().zip(corners);
+                for (i, ((hv, hc), (&[a, b], &[c0, c1]))) in
+                    hv.iter_mut().zip(hc).zip(rows).enumerate()
                 {
                     let mid = nv + (start + i) as u32;
                     let s0 = slots(a, c0);
                     let s1 = if c1 == NONE { [NONE; 2] } else { slots(a, c1) };
-                    hv[0] = [a, mid];
-                    hv[1] = [mid, b];
-                    hc[0] = [s0[0], s1[0]];
-                    hc[1] = [s0[1], s1[1]];
+                    *hv = [[a, mid], [mid, b]];
+                    *hc = [[s0[0], s1[0]], [s0[1], s1[1]]];
                 }
             });
-        // Interior edges: from the edge point of a corner's outgoing edge to the face point.
+        // Interior edges: from the edge point of a corner's outgoing edge to the face point,
+        // face by face (the next corner of the k-th is the `(k + 1) % 4`-th, no arithmetic).
+        let (inner_verts, _) = inner_verts.as_chunks_mut::<4>();
+        let (inner_corners, _) = inner_corners.as_chunks_mut::<4>();
         inner_verts
             .par_chunks_mut(CHUNK)
             .zip(inner_corners.par_chunks_mut(CHUNK))
+            .zip(edge_quads.par_chunks(CHUNK))
             .enumerate()
-            .for_each(|(chunk, (iv, ic))| {
+            .for_each(|(chunk, ((iv, ic), rows))| {
                 let start = chunk * CHUNK;
-                for (i, ((iv, ic), &e)) in iv
-                    .iter_mut()
-                    .zip(ic)
-                    .zip(&corner_edges[start..])
-                    .enumerate()
-                {
-                    let c = start + i;
-                    *iv = [nv + e, nv + ne + (c >> 2) as u32];
-                    *ic = [4 * c as u32 + 1, 4 * quad_next(c) as u32 + 2];
+                for (i, ((iv, ic), e)) in iv.iter_mut().zip(ic).zip(rows).enumerate() {
+                    let f = (start + i) as u32;
+                    let face_point = nv + ne + f;
+                    *iv = std::array::from_fn(|k| [nv + e[k], face_point]);
+                    *ic = std::array::from_fn(|k| {
+                        [
+                            16 * f + 4 * k as u32 + 1,
+                            16 * f + 4 * ((k as u32 + 1) & 3) + 2,
+                        ]
+                    });
                 }
             });
         Ok(Edges {
@@ -1099,25 +1184,56 @@ impl Level {
         let mut offsets = with_capacity_hinted::<u32>(nv + edge_corners.len() + nf + 1)?;
         offsets.extend_from_slice(parent_offsets);
         // Every corner is at one vertex and is one slot of one edge (two child corners each).
+        // A closed level's edge offsets step by four (a count of the boundary edges is one
+        // vectorised pass; the running sum is not).
+        let boundary = edge_corners.iter().filter(|&&[_, c1]| c1 == NONE).count();
         let mut at = nc as u32;
-        offsets.extend(edge_corners.iter().map(|&[_, c1]| {
-            at += if c1 == NONE { 2 } else { 4 };
-            at
-        }));
+        if boundary == 0 {
+            offsets.extend((1..=edge_corners.len() as u32).map(|e| at + 4 * e));
+            at += 4 * edge_corners.len() as u32;
+        } else {
+            offsets.extend(edge_corners.iter().map(|&[_, c1]| {
+                at += if c1 == NONE { 2 } else { 4 };
+                at
+            }));
+        }
         offsets.extend((1..=nf as u32).map(|f| at + 4 * f));
         let mut vert_corners = zeroed_hinted::<u32>(4 * nc)?;
         let (old, rest) = vert_corners.split_at_mut(nc);
         let (edge_points, face_points) = rest.split_at_mut(2 * nc);
-        fill_csr(&offsets[..=nv], old, |w, out| {
-            let from = parent_offsets[w] as usize;
-            for (o, &c) in out.iter_mut().zip(&parent_corners[from..]) {
-                *o = 4 * c;
-            }
-            if increasing && !out.is_sorted() {
-                sort_short(out);
-            }
-        });
+        // An old vertex's corners are its corners here, times four (the offsets are the same),
+        // so the section is one map; the lists out of order are then sorted vertex by vertex.
+        old.par_chunks_mut(CHUNK)
+            .zip(parent_corners.par_chunks(CHUNK))
+            .for_each(|(out, from)| {
+                for (o, &c) in out.iter_mut().zip(from) {
+                    *o = 4 * c;
+                }
+            });
+        if increasing {
+            sort_lists(&offsets[..=nv], old);
+        }
+        // The two child corners of slot c, and the same in increasing order: they are in c's
+        // face, `4 next(c) + 3` first when `next(c)` wraps round to the face's first corner.
         let pair = |c: u32| [4 * c + 1, 4 * quad_next(c as usize) as u32 + 3];
+        let sorted_pair = |c: u32| {
+            // `next(c)` wraps round to `c - 3` (child corner `4 c - 9`) from the fourth corner.
+            let wrap = u32::from(c & 3 == 3);
+            [4 * c + 1 - 10 * wrap, 4 * c + 7 - 6 * wrap]
+        };
+        // An edge's four child corners in increasing order: the two slots are in two faces
+        // (a face using an edge twice has two edges), so the earlier face's pair comes first.
+        let sorted_four = |c0: u32, c1: u32| {
+            if c0 >> 2 == c1 >> 2 {
+                let ([a, b], [c, d]) = (pair(c0), pair(c1));
+                let mut four = [a, b, c, d];
+                sort4(&mut four);
+                four
+            } else {
+                let ([a, b], [c, d]) = (sorted_pair(c0.min(c1)), sorted_pair(c0.max(c1)));
+                [a, b, c, d]
+            }
+        };
         if at as usize == nc + 4 * edge_corners.len() {
             // No boundary: four entries per edge, written in fixed rows.
             edge_points
@@ -1125,11 +1241,12 @@ impl Level {
                 .zip(edge_corners.par_chunks(CHUNK))
                 .for_each(|(out, rows)| {
                     for (out, &[c0, c1]) in out.chunks_exact_mut(4).zip(rows) {
-                        let ([a, b], [c, d]) = (pair(c0), pair(c1));
-                        let mut four = [a, b, c, d];
-                        if increasing {
-                            sort4(&mut four);
-                        }
+                        let four = if increasing {
+                            sorted_four(c0, c1)
+                        } else {
+                            let ([a, b], [c, d]) = (pair(c0), pair(c1));
+                            [a, b, c, d]
+                        };
                         out.copy_from_slice(&four);
                     }
                 });
@@ -1141,17 +1258,19 @@ impl Level {
                     let [c0, c1] = edge_corners[e];
                     if c1 == NONE {
                         if let Ok(out) = <&mut [u32; 2]>::try_from(out) {
-                            *out = pair(c0);
-                            if increasing && out[0] > out[1] {
-                                out.swap(0, 1);
-                            }
+                            *out = if increasing {
+                                sorted_pair(c0)
+                            } else {
+                                pair(c0)
+                            };
                         }
                     } else if let Ok(out) = <&mut [u32; 4]>::try_from(out) {
-                        let ([a, b], [c, d]) = (pair(c0), pair(c1));
-                        *out = [a, b, c, d];
-                        if increasing {
-                            sort4(out);
-                        }
+                        *out = if increasing {
+                            sorted_four(c0, c1)
+                        } else {
+                            let ([a, b], [c, d]) = (pair(c0), pair(c1));
+                            [a, b, c, d]
+                        };
                     }
                 },
             );
@@ -1161,12 +1280,45 @@ impl Level {
             .par_chunks_mut(CHUNK)
             .enumerate()
             .for_each(|(chunk, out)| {
-                for (i, o) in out.iter_mut().enumerate() {
-                    *o = 4 * (chunk * CHUNK + i) as u32 + 2;
+                // A counter of its own, in 32 bits, which vectorises.
+                let mut child = 4 * (chunk * CHUNK) as u32 + 2;
+                for o in out {
+                    *o = child;
+                    child += 4;
                 }
             });
         Ok((offsets, vert_corners))
     }
+}
+
+/// Sorts the lists of a CSR table that are out of order (each list short: [`sort_short`]), in
+/// the fixed chunks of [`fill_csr`], each list read through its two offsets once.
+fn sort_lists(offsets: &[u32], data: &mut [u32]) {
+    let items = offsets.len() - 1;
+    let mut pieces = Vec::with_capacity(items / CHUNK + 1);
+    let mut rest = data;
+    let mut start = 0;
+    while start < items {
+        let end = (start + CHUNK).min(items);
+        let (piece, tail) = rest.split_at_mut((offsets[end] - offsets[start]) as usize);
+        pieces.push((&offsets[start..=end], piece));
+        rest = tail;
+        start = end;
+    }
+    pieces.into_par_iter().for_each(|(offsets, piece)| {
+        let mut rest = piece;
+        for pair in offsets.windows(2) {
+            let (list, tail) = rest.split_at_mut((pair[1] - pair[0]) as usize);
+            rest = tail;
+            if let Ok(four) = <&mut [u32; 4]>::try_from(&mut *list) {
+                if !(four[0] <= four[1] && four[1] <= four[2] && four[2] <= four[3]) {
+                    sort4(four);
+                }
+            } else if !list.is_sorted() {
+                sort_short(list);
+            }
+        }
+    });
 }
 
 /// Sorts a short list by insertion (the lists out of order in a vertex -> corner table are an
@@ -1195,9 +1347,6 @@ fn sort4(v: &mut [u32; 4]) {
         (v[i], v[j]) = (lo, hi);
     }
 }
-
-/// An edge half as [`Level::halves_by_owner`] lists it: the edge's larger vertex and the corner.
-type Half = (u32, u32);
 
 /// Vertex -> corners by counting sort (corners in increasing order).
 fn vertex_corners(num_vertices: usize, corner_verts: &[u32]) -> Result<(Vec<u32>, Vec<u32>)> {
