@@ -151,6 +151,23 @@ pub(crate) fn fill_csr<T: Send>(
     data: &mut [T],
     fill: impl Fn(usize, &mut [T]) + Sync,
 ) {
+    csr_chunks(offsets, data)
+        .into_par_iter()
+        .for_each(|(start, end, piece)| {
+            let base = offsets[start] as usize;
+            for item in start..end {
+                let range = offsets[item] as usize - base..offsets[item + 1] as usize - base;
+                fill(item, &mut piece[range]);
+            }
+        });
+}
+
+/// The entries `data` of a CSR table with `offsets` in fixed chunks of [`CHUNK`] items (bounds
+/// that do not depend on the thread count): per chunk its first item, its end and its entries.
+pub(crate) fn csr_chunks<'a, T>(
+    offsets: &[u32],
+    data: &'a mut [T],
+) -> Vec<(usize, usize, &'a mut [T])> {
     let items = offsets.len() - 1;
     let mut pieces = Vec::with_capacity(items / CHUNK + 1);
     let mut rest = data;
@@ -162,13 +179,7 @@ pub(crate) fn fill_csr<T: Send>(
         rest = tail;
         start = end;
     }
-    pieces.into_par_iter().for_each(|(start, end, piece)| {
-        let base = offsets[start] as usize;
-        for item in start..end {
-            let range = offsets[item] as usize - base..offsets[item + 1] as usize - base;
-            fill(item, &mut piece[range]);
-        }
-    });
+    pieces
 }
 
 /// Fills `out`, rows of `row` values, with `fill(i, row_i)` in parallel chunks of rows (each

@@ -25,7 +25,7 @@ use crate::error::Result;
 use crate::memory;
 use crate::mesh::Cage;
 use crate::parallel::{
-    fill_csr, gather_hinted, prefix_offsets, with_capacity_hinted, zeroed_hinted, CHUNK,
+    csr_chunks, fill_csr, gather_hinted, prefix_offsets, with_capacity_hinted, zeroed_hinted, CHUNK,
 };
 
 /// Per vertex, CSR offsets of the edge halves it owns, and the halves as `(other end, corner)`
@@ -1294,31 +1294,22 @@ impl Level {
 /// Sorts the lists of a CSR table that are out of order (each list short: [`sort_short`]), in
 /// the fixed chunks of [`fill_csr`], each list read through its two offsets once.
 fn sort_lists(offsets: &[u32], data: &mut [u32]) {
-    let items = offsets.len() - 1;
-    let mut pieces = Vec::with_capacity(items / CHUNK + 1);
-    let mut rest = data;
-    let mut start = 0;
-    while start < items {
-        let end = (start + CHUNK).min(items);
-        let (piece, tail) = rest.split_at_mut((offsets[end] - offsets[start]) as usize);
-        pieces.push((&offsets[start..=end], piece));
-        rest = tail;
-        start = end;
-    }
-    pieces.into_par_iter().for_each(|(offsets, piece)| {
-        let mut rest = piece;
-        for pair in offsets.windows(2) {
-            let (list, tail) = rest.split_at_mut((pair[1] - pair[0]) as usize);
-            rest = tail;
-            if let Ok(four) = <&mut [u32; 4]>::try_from(&mut *list) {
-                if !(four[0] <= four[1] && four[1] <= four[2] && four[2] <= four[3]) {
-                    sort4(four);
+    csr_chunks(offsets, data)
+        .into_par_iter()
+        .for_each(|(start, end, piece)| {
+            let mut rest = piece;
+            for pair in offsets[start..=end].windows(2) {
+                let (list, tail) = rest.split_at_mut((pair[1] - pair[0]) as usize);
+                rest = tail;
+                if let Ok(four) = <&mut [u32; 4]>::try_from(&mut *list) {
+                    if !(four[0] <= four[1] && four[1] <= four[2] && four[2] <= four[3]) {
+                        sort4(four);
+                    }
+                } else if !list.is_sorted() {
+                    sort_short(list);
                 }
-            } else if !list.is_sorted() {
-                sort_short(list);
             }
-        }
-    });
+        });
 }
 
 /// Sorts a short list by insertion (the lists out of order in a vertex -> corner table are an
