@@ -135,7 +135,7 @@ use crate::parallel::{
 use crate::refinement::Refinement;
 use crate::scalar::{reciprocal, Scalar};
 use crate::scheme::{decrement, Scheme};
-use crate::step::{LevelData, Parts, Scratch, Step, Windows};
+use crate::step::{primal_input, LevelData, Parts, Scratch, Step, Windows};
 use crate::topology::{Edges, Level, NONE};
 
 /// Hasher of uniform ids (u64 keys): one multiply and a fold, plenty for ids that are spread
@@ -1173,8 +1173,9 @@ fn cage_part<T: Scalar>(ctx: &Context<T>) -> Part<T> {
 /// rules each step makes only the kept items and what they read ([`Windows::for_items`], the
 /// same values bit for bit). Cached limits on the callgrind driver (one thread, instructions):
 /// `limit-semisharp-4` 30.1M -> 19.4M, `-3` 13.4M -> 11.3M; `limit-ico-9` 294M -> 238M (level
-/// 2: 186M -> 130M), `limit-ico-4` 96.4M -> 89.9M (level 2: 44.9M -> 38.5M); first calls
-/// within 1 % (the windows are made again for the kept items).
+/// 2: 186M -> 130M), `limit-ico-4` 96.4M -> 89.9M (level 2: 44.9M -> 38.5M); first calls from
+/// 3.7 % cheaper (`limit-first-semisharp-4`) to 0.6 % dearer (`-3`: the windows are made again
+/// for the kept items).
 #[derive(Debug)]
 pub(crate) struct LocalLevels {
     scheme: Scheme,
@@ -1334,13 +1335,12 @@ impl LocalLevels {
             // Of each step's output only the items the next part keeps are read (and the
             // stencils read only the last part's): the step makes those alone.
             if let Scheme::Averaging { degree } = ctx.scheme {
-                let primal = t == 0 || odd;
                 step.windows = Windows::for_items(
                     step.windows.take(),
                     &part.level,
                     &step.fine,
                     degree,
-                    primal,
+                    primal_input(degree, t),
                     step.keep(odd),
                 )?;
             }

@@ -296,13 +296,34 @@ impl Level {
         }
     }
 
-    /// [`Level::next`], with no lookup when `quads` (every face a quad, [`Level::all_quads`]).
+    /// [`Level::next`], with no lookup when `quads` (every face a quad, [`Level::all_quads`]:
+    /// a cage of quads keeps its face tables, so [`Level::is_quads`] does not tell).
     #[inline(always)]
     fn next_of(&self, quads: bool, corner: usize) -> usize {
         if quads {
             quad_next(corner)
         } else {
             self.next(corner)
+        }
+    }
+
+    /// [`Level::prev`], with no lookup when `quads` (as [`Level::next_of`]).
+    #[inline(always)]
+    fn prev_of(&self, quads: bool, corner: usize) -> usize {
+        if quads {
+            quad_prev(corner)
+        } else {
+            self.prev(corner)
+        }
+    }
+
+    /// [`Level::face_of`], with no lookup when `quads` (as [`Level::next_of`]).
+    #[inline(always)]
+    fn face_of_in(&self, quads: bool, corner: usize) -> usize {
+        if quads {
+            corner >> 2
+        } else {
+            self.corner_faces[corner] as usize
         }
     }
 
@@ -557,6 +578,9 @@ impl Level {
                 (a.min(b), a.max(b))
             })?
         };
+        // The counting sort of [`vertex_corners`] by owner, writing each half with its other
+        // end as it goes (through `vertex_corners` and a gather of the pairs: +0.45M
+        // instructions, 2.5 %, of a fresh averaging 3 at level 2 on the callgrind driver).
         let mut offsets = memory::zeroed::<u32>(self.num_vertices + 1)?;
         for &(a, _) in &ends {
             offsets[a as usize + 1] += 1;
@@ -641,16 +665,10 @@ impl Level {
         match *group {
             [(b, c0)] if b != a => Some([c0, NONE]),
             [(b, c0), (_, c1)] if b != a => {
-                let face = |c: u32| {
-                    if quads {
-                        c as usize >> 2
-                    } else {
-                        self.corner_faces[c as usize] as usize
-                    }
-                };
-                let opposite_ways =
-                    self.corner_verts[c0 as usize] != self.corner_verts[c1 as usize];
-                (face(c0) != face(c1) && opposite_ways).then_some([c0, c1])
+                let (c0, c1) = (c0 as usize, c1 as usize);
+                let faces_differ = self.face_of_in(quads, c0) != self.face_of_in(quads, c1);
+                let opposite_ways = self.corner_verts[c0] != self.corner_verts[c1];
+                (faces_differ && opposite_ways).then_some([c0 as u32, c1 as u32])
             }
             _ => None,
         }
@@ -759,10 +777,9 @@ impl Level {
     fn is_one_fan(&self, v: usize, quads: bool) -> bool {
         let corners = self.corners_of_vertex(v);
         let n = corners.len();
-        let face = |c: usize| if quads { c >> 2 } else { self.face_of(c) };
         if corners
             .windows(2)
-            .any(|w| face(w[0] as usize) == face(w[1] as usize))
+            .any(|w| self.face_of_in(quads, w[0] as usize) == self.face_of_in(quads, w[1] as usize))
         {
             return false;
         }
@@ -774,11 +791,15 @@ impl Level {
             let other = if a as usize == c { b } else { a };
             (other != NONE).then_some(other as usize)
         };
-        let prev = |c: usize| if quads { quad_prev(c) } else { self.prev(c) };
+        // [`Level::next_around_vertex`] through `across`.
+        let next_around = |c: usize| {
+            let p = self.prev_of(quads, c);
+            across(edges.corner_edges[p], p)
+        };
         let start = corners[0] as usize;
         let mut seen = 1;
         let mut c = start;
-        while let Some(next) = across(edges.corner_edges[prev(c)], prev(c)) {
+        while let Some(next) = next_around(c) {
             if next == start {
                 return seen == n;
             }

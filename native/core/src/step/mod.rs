@@ -31,7 +31,7 @@ pub(crate) mod catmark;
 mod doo_sabin;
 mod regular;
 
-pub(crate) use regular::Windows;
+pub(crate) use regular::{primal_input, Windows};
 
 use std::any::Any;
 use std::borrow::Cow;

@@ -172,9 +172,14 @@ impl Share {
     }
 }
 
+/// Whether step `j` of a run from the cage has primal input (per vertex): the cage's points are
+/// primal, and the steps leave dual data for even degrees.
+pub(crate) fn primal_input(degree: u32, j: usize) -> bool {
+    j == 0 || degree % 2 == 1
+}
+
 impl Windows {
-    /// [`Windows::build`] for step `j` of a run from the cage: the cage's points are primal,
-    /// and the steps leave dual data for even degrees.
+    /// [`Windows::build`] for step `j` of a run from the cage ([`primal_input`]).
     pub(crate) fn of_step(
         coarse: &Level,
         fine: &Level,
@@ -182,8 +187,7 @@ impl Windows {
         degree: u32,
         j: usize,
     ) -> Result<Option<Windows>> {
-        let primal = j == 0 || degree % 2 == 1;
-        Windows::build(coarse, fine, curves, degree, primal)
+        Windows::build(coarse, fine, curves, degree, primal_input(degree, j))
     }
 
     /// The windows of a step of the averaging rules of `degree` from `coarse` to `fine` with
@@ -288,10 +292,8 @@ impl Windows {
             None => (memory::zeroed(nf)?, Vec::new(), 0),
         };
         let zone = Zone::of(coarse, fine, averages, &masks, Some(&faces))?;
-        let shares = match nets.is_empty() {
-            true => memory::zeroed(nf)?,
-            false => shares(&masks, &nets, g.side)?,
-        };
+        // No net is read for a face without kernel children (all of them when `nets` is empty).
+        let shares = shares(&masks, &nets, g.side)?;
         Ok(Some(Windows {
             degree,
             averages,
@@ -1344,16 +1346,21 @@ mod tests {
     use crate::step::LevelData;
     use crate::{Cage, Options, Rules};
 
-    /// [`cube_grid`]`(3)` refined three levels (degree 9): the steps that the kernel's tests
-    /// build their windows on.
-    fn refined_cube() -> Refinement {
-        let options = Options {
-            degree: 9,
+    /// Options of the averaging rules of `degree`, three levels: the refinements the tests
+    /// here take their steps from.
+    fn averaging(degree: u32) -> Options {
+        Options {
+            degree,
             levels: 3,
             rules: Rules::Averaging,
             ..Options::default()
-        };
-        Refinement::new(&cube_grid(3).0, &options).unwrap()
+        }
+    }
+
+    /// [`cube_grid`]`(3)` refined three levels (degree 9): the steps that the kernel's tests
+    /// build their windows on.
+    fn refined_cube() -> Refinement {
+        Refinement::new(&cube_grid(3).0, &averaging(9)).unwrap()
     }
 
     /// A cube whose faces are `k x k` grids (eight vertices of valence 3), with points pushed
@@ -1653,12 +1660,7 @@ mod tests {
         ];
         let mut kernel_faces = 0;
         for (cage, _) in &cages {
-            let options = Options {
-                degree: 4,
-                levels: 3,
-                rules: Rules::Averaging,
-                ..Options::default()
-            };
+            let options = averaging(4);
             let refinement = Refinement::new(cage, &options).unwrap();
             for j in 0..refinement.curve_networks().len() {
                 let step = refinement.step(j);
@@ -1738,12 +1740,7 @@ mod tests {
         let (mut restricted, mut with_kernel) = (0, 0);
         for (cage, _) in [cube_grid(3), open_grid(7, 6, 1.5), open_grid(6, 7, 10.0)] {
             for degree in 2..=9 {
-                let options = Options {
-                    degree,
-                    levels: 3,
-                    rules: Rules::Averaging,
-                    ..Options::default()
-                };
+                let options = averaging(degree);
                 let refinement = Refinement::new(&cage, &options).unwrap();
                 let networks = refinement.curve_networks();
                 for j in 1..networks.len() {
@@ -1936,12 +1933,7 @@ mod tests {
         let cages = [cube_grid(3), open_grid(7, 6, 10.0), open_grid(6, 7, 1.5)];
         for (cage, points) in &cages {
             for degree in 2..=9 {
-                let options = Options {
-                    degree,
-                    levels: 3,
-                    rules: Rules::Averaging,
-                    ..Options::default()
-                };
+                let options = averaging(degree);
                 let refinement = Refinement::new(cage, &options).unwrap();
                 let steps = refinement.curve_networks().len();
                 let kernel_steps = (0..steps)
