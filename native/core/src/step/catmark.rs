@@ -74,12 +74,16 @@ pub(crate) fn step_into<T: Scalar, const N: usize>(
 
 /// Largest buffer of fine faces' values (bytes) for which a quad level takes its smooth points
 /// from the fine faces (module documentation): the buffer is four times the coarse level's face
-/// count, and once it outgrows a core's cache the extra memory traffic costs more than the
-/// instructions it saves. Measured 2026-12-04 (quiet machine, cached classic 3 on the 3,840-quad
-/// sphere, f32 points): all steps by fine faces were 17 % faster at level 2 (largest buffer
-/// 0.7 MiB), even at level 3 on one thread and 7 % slower on two (2.9 MiB), 15 % slower at
-/// level 4 (11.8 MiB).
-const FINE_FACES_BYTES: usize = 1 << 20;
+/// count, kept by a cached plan, so the bound is also what the path may add to its memory.
+/// Measured 2026-12-04 (cached classic 3 on the 3,840-quad sphere, f32 points): at 16:00 all
+/// steps by fine faces were 17 % faster at level 2 (largest buffer 0.7 MiB), even at level 3 on
+/// one thread and 7 % slower on two (2.9 MiB), 15 % slower at level 4 (11.8 MiB), and the bound
+/// was 1 MiB; at 23:20, with tasks of 1,024 items ([`crate::parallel::CHUNK`]; interleaved
+/// wall times of the callgrind driver, medians of 5-9 rounds, load 1.2-1.4), the same change
+/// made cached level 3 19 % / 13 % faster on one / two threads and level 4 22 % / 27 % faster,
+/// a new plan's first evaluation 11 % slower at level 3 (the new buffer's first touch; 10 %
+/// fewer instructions) and 8 % faster at level 4.
+const FINE_FACES_BYTES: usize = 1 << 24;
 
 /// [`step_into`], the smooth points from the fine faces when `by_fine_faces` (a level of quads
 /// only), else by the masks over the coarse level (any level; the tests compare the two).
