@@ -296,14 +296,16 @@ impl Plan {
     /// degree 3 (OpenSubdiv's limit masks).
     pub fn limit_positions<T: Scalar>(&self, values: &[T], channels: usize) -> Result<Vec<T>> {
         check_values(values, channels, self.num_input_vertices())?;
-        let at_level = limit::positions(
-            &self.refinement,
-            &self.scratch,
-            &self.limit,
-            values,
-            channels,
-        )?;
-        self.output.vertex_values(at_level, channels)
+        in_pool(|| {
+            let at_level = limit::positions(
+                &self.refinement,
+                &self.scratch,
+                &self.limit,
+                values,
+                channels,
+            )?;
+            self.output.vertex_values(at_level, channels)
+        })
     }
 
     /// Limit positions (3 channels) and unit limit normals of the surface of `points` (3 per
@@ -313,17 +315,22 @@ impl Plan {
     /// vectors. Averaging rules only.
     pub fn limit_surface<T: Scalar>(&self, points: &[T]) -> Result<(Vec<T>, Vec<T>)> {
         check_values(points, 3, self.num_input_vertices())?;
-        let (positions, normals) =
-            limit::surface(&self.refinement, &self.scratch, &self.limit, points)?;
-        Ok((
-            self.output.vertex_values(positions, 3)?,
-            self.output.face_varying(normals, 3)?,
-        ))
+        // In the pool, as an evaluation: the limit runs many short parallel loops (its partial
+        // levels' passes), each of which, started from outside, is handed to the pool and
+        // waited for ([`in_pool`]).
+        in_pool(|| {
+            let (positions, normals) =
+                limit::surface(&self.refinement, &self.scratch, &self.limit, points)?;
+            Ok((
+                self.output.vertex_values(positions, 3)?,
+                self.output.face_varying(normals, 3)?,
+            ))
+        })
     }
 
     /// Levels the limit evaluation adds to this plan (built on first use, kept in the plan).
     pub fn limit_extra_levels(&self) -> Result<u32> {
-        limit::extra_levels(&self.refinement, &self.limit)
+        in_pool(|| limit::extra_levels(&self.refinement, &self.limit))
     }
 
     /// The refinement under the plan.
