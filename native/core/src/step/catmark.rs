@@ -78,11 +78,12 @@ pub(crate) fn step_into<T: Scalar, const N: usize>(
 /// Measured 2026-12-04 (cached classic 3 on the 3,840-quad sphere, f32 points): at 16:00 all
 /// steps by fine faces were 17 % faster at level 2 (largest buffer 0.7 MiB), even at level 3 on
 /// one thread and 7 % slower on two (2.9 MiB), 15 % slower at level 4 (11.8 MiB), and the bound
-/// was 1 MiB; at 23:20, with tasks of 1,024 items ([`crate::parallel::CHUNK`]; interleaved
-/// wall times of the callgrind driver, medians of 5-9 rounds, load 1.2-1.4), the same change
+/// was 1 MiB; at 23:20 (interleaved wall times of the callgrind driver, medians of 5-9 rounds,
+/// load 1.2-1.4, after tasks became 1,024 items: [`crate::parallel::CHUNK`]) the same change
 /// made cached level 3 19 % / 13 % faster on one / two threads and level 4 22 % / 27 % faster,
 /// a new plan's first evaluation 11 % slower at level 3 (the new buffer's first touch; 10 %
-/// fewer instructions) and 8 % faster at level 4.
+/// fewer instructions) and 8 % faster at level 4. The one-thread gain cannot come from the
+/// tasks; what changed since 16:00 (the machine or the code around) was not isolated.
 const FINE_FACES_BYTES: usize = 1 << 24;
 
 /// [`step_into`], the smooth points from the fine faces when `by_fine_faces` (a level of quads
