@@ -137,9 +137,13 @@ impl Tiles {
         let mut owned: Vec<u128> = Vec::new();
         let mut offsets: Vec<u32> = vec![0];
         let mut vertices: Vec<u32> = Vec::new();
+        // The walks of a block (1.5 KB each, 6 MB for a whole block) in a buffer allocated
+        // fallibly once: collected into a new vector, a block's walks were the allocation that
+        // aborted a deep limit under a tight address space.
+        let mut walks: Vec<Result<Walked>> = memory::with_capacity(count.min(BLOCK))?;
         for start in (0..count).step_by(BLOCK) {
             let end = (start + BLOCK).min(count);
-            let walks: Vec<Walked> = (start..end)
+            (start..end)
                 .into_par_iter()
                 .with_min_len(16)
                 .map_init(
@@ -149,9 +153,10 @@ impl Tiles {
                         Ok(geometry.walk(g << (2 * depth), stamps))
                     },
                 )
-                .collect::<Result<_>>()?;
+                .collect_into_vec(&mut walks);
             // Claims in tile order: the result does not depend on the thread count.
             for w in &walks {
+                let w = w.as_ref().map_err(|e| e.clone())?;
                 let mut mine = 0u128;
                 let mut bits = w.valid;
                 while bits != 0 {
