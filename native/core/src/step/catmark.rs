@@ -8,17 +8,16 @@
 //! numbers old vertices, then edge points, then face points), then the vertex and edge points
 //! read them from there: no copy, and no per-vertex branch on the section.
 //!
-//! On a small quad level (every level after the first, while [`FINE_FACES_BYTES`] holds its fine
-//! faces) the smooth points come from the averaging form of the same rules
+//! On a quad level whose fine faces fit [`FINE_FACES_BYTES`] (every level after the first, up to
+//! level 4 of the 3,840-quad sphere in f32) the smooth points come from the averaging form of the same rules
 //! ([`bilinear_children`]): the fine faces' bilinear values first, four per coarse face, then each
 //! face point, smooth edge point and smooth valence-4 vertex point as the mean of its four fine
 //! faces; the classic masks only at the other vertices and edges. The results equal the masks' in
 //! exact arithmetic (within 1e-12 of the data's scale in f64, tested; the summation order
 //! differs) with fewer instructions: cached classic 3 on the callgrind driver's 3,840-quad sphere, one thread, with
 //! every quad level by fine faces, 7.10M / 29.47M / 118.9M -> 5.71M / 23.60M / 95.1M at levels 2 /
-//! 3 / 4 (2026-12-04). But the buffer of fine faces is four times the coarse level's faces: in
-//! wall time the change paid only while that buffer stayed in cache (the constant's figures), so
-//! larger levels keep the masks.
+//! 3 / 4 (2026-12-04). But the buffer of fine faces is four times the coarse level's faces and a
+//! cached plan keeps it: larger levels keep the masks (the constant's figures).
 
 use std::borrow::Cow;
 use std::mem::MaybeUninit;
@@ -74,16 +73,14 @@ pub(crate) fn step_into<T: Scalar, const N: usize>(
 
 /// Largest buffer of fine faces' values (bytes) for which a quad level takes its smooth points
 /// from the fine faces (module documentation): the buffer is four times the coarse level's face
-/// count, kept by a cached plan, so the bound is also what the path may add to its memory.
-/// Measured 2026-12-04 (cached classic 3 on the 3,840-quad sphere, f32 points): at 16:00 all
-/// steps by fine faces were 17 % faster at level 2 (largest buffer 0.7 MiB), even at level 3 on
-/// one thread and 7 % slower on two (2.9 MiB), 15 % slower at level 4 (11.8 MiB), and the bound
-/// was 1 MiB; at 23:20 (interleaved wall times of the callgrind driver, medians of 5-9 rounds,
-/// load 1.2-1.4, after tasks became 1,024 items: [`crate::parallel::CHUNK`]) the same change
-/// made cached level 3 19 % / 13 % faster on one / two threads and level 4 22 % / 27 % faster,
-/// a new plan's first evaluation 11 % slower at level 3 (the new buffer's first touch; 10 %
-/// fewer instructions) and 8 % faster at level 4. The one-thread gain cannot come from the
-/// tasks; what changed since 16:00 (the machine or the code around) was not isolated.
+/// count and a cached plan keeps it, so the bound is also what the path may add to a plan's
+/// memory. Measured 2026-12-04 23:20 UTC (cached classic 3 on the 3,840-quad sphere, f32 points,
+/// interleaved wall times of the callgrind driver, medians of 5-9 rounds, load 1.2-1.4) against
+/// the bound of 1 MiB before: cached level 3 19 % / 13 % faster on one / two threads (2.9 MiB of
+/// fine faces), level 4 22 % / 27 % (11.8 MiB); a new plan's first evaluation 11 % slower at
+/// level 3 (the new buffer's first touch; 10 % fewer instructions), 8 % faster at level 4. The
+/// same comparison at 16:00 had found level 3 equal on one thread and level 4 15 % slower; what
+/// changed between the two was not isolated (README, History).
 const FINE_FACES_BYTES: usize = 1 << 24;
 
 /// [`step_into`], the smooth points from the fine faces when `by_fine_faces` (a level of quads
