@@ -240,4 +240,57 @@ mod tests {
             assert_eq!(plan.evaluate(&a32, 3).unwrap(), fresh32, "degree {degree}");
         }
     }
+
+    /// A run of steps allocates no buffer of the level's size beyond the four it provisions
+    /// (fallibly): a buffer dropped instead of given back made later steps allocate infallibly
+    /// (odd degrees dropped their last step's dual data at every windowed step: a limit of
+    /// degree 9 aborted under an address-space limit where it should have been typed).
+    #[test]
+    fn runs_allocate_only_what_they_provision() {
+        use super::run;
+        use crate::refinement::Refinement;
+        use crate::step::Scratch;
+        // A fan of triangles (the first step by the passes), and a grid of quads with a
+        // semi-sharp crease, a boundary and a hole (windowed steps, curves).
+        let fan = (0..7)
+            .flat_map(|i| [0, 1 + i, 1 + (i + 1) % 7])
+            .collect::<Vec<i64>>();
+        let fan = Cage::from_indices(8, &[3; 7], &fan).unwrap();
+        let side = 6i64;
+        let grid_faces = (0..side - 1)
+            .flat_map(|y| (0..side - 1).map(move |x| y * side + x))
+            .flat_map(|v| [v, v + 1, v + side + 1, v + side])
+            .collect::<Vec<i64>>();
+        let grid = Cage::from_indices(36, &[4; 25], &grid_faces)
+            .unwrap()
+            .with_creases(&[(12, 13, 2.5), (13, 14, 2.5), (14, 15, 2.5)])
+            .unwrap()
+            .with_holes(&[7])
+            .unwrap();
+        let points = |n: usize| -> Vec<[f64; 3]> {
+            (0..n)
+                .map(|v| [v as f64, (v * v % 7) as f64, (v as f64 * 0.7).sin()])
+                .collect()
+        };
+        let mut schemes: Vec<(u32, Rules)> = (1..=9).map(|d| (d, Rules::Averaging)).collect();
+        schemes.extend((1..=3).map(|d| (d, Rules::Classic)));
+        for (cage, n) in [(&fan, 8), (&grid, 36)] {
+            for &(degree, rules) in &schemes {
+                let options = Options {
+                    degree,
+                    levels: 4,
+                    rules,
+                    ..Options::default()
+                };
+                let refinement = Refinement::new(cage, &options).unwrap();
+                let cage_points = points(n);
+                let compact = refinement.compact(&cage_points);
+                let scratch = Scratch::default();
+                for want_dual in [false, true, false] {
+                    run(&refinement, &scratch, &compact, want_dual).unwrap();
+                }
+                assert_eq!(scratch.unprovisioned(), 0, "degree {degree} {rules:?}");
+            }
+        }
+    }
 }

@@ -37,6 +37,7 @@ use std::any::Any;
 use std::borrow::Cow;
 use std::fmt::Debug;
 use std::mem::MaybeUninit;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 
 use rayon::prelude::*;
@@ -166,7 +167,13 @@ enum CurveData<T: Scalar, const N: usize> {
 /// re-evaluation does not pay page faults for its intermediate data): a few vectors of any
 /// value type, behind a mutex that is held only to take or give one.
 #[derive(Default)]
-pub(crate) struct Scratch(Mutex<Vec<Box<dyn Any + Send>>>);
+pub(crate) struct Scratch {
+    kept: Mutex<Vec<Box<dyn Any + Send>>>,
+    /// Buffers [`Scratch::kept`] allocated because none fitted: after [`Scratch::provision`]
+    /// each is a buffer that a run dropped instead of giving back, and an infallible
+    /// allocation (an abort when the address space runs out there).
+    unprovisioned: AtomicUsize,
+}
 
 /// Buffers kept at most (the oldest go first): a windowed step holds four (its input, its
 /// output, and the two that its zone writes in part), which are kept at the length of the
@@ -199,7 +206,7 @@ impl Scratch {
     /// fewest items, as it was given, or a new empty one.
     fn kept<V: Send + 'static>(&self, capacity: usize, longest: bool) -> Vec<V> {
         let kept = {
-            let mut pool = self.0.lock().unwrap_or_else(|e| e.into_inner());
+            let mut pool = self.kept.lock().unwrap_or_else(|e| e.into_inner());
             let fitting = pool.iter().enumerate().filter_map(|(i, b)| {
                 let v = b.downcast_ref::<Vec<V>>()?;
                 (v.capacity() >= capacity).then_some((v.len(), i))
@@ -212,8 +219,19 @@ impl Scratch {
         };
         match kept.and_then(|b| b.downcast::<Vec<V>>().ok()) {
             Some(v) => *v,
-            None => hinted_or_abort(capacity),
+            None => {
+                if capacity > 0 {
+                    self.unprovisioned.fetch_add(1, Ordering::Relaxed);
+                }
+                hinted_or_abort(capacity)
+            }
         }
+    }
+
+    /// How many buffers were allocated outside [`Scratch::provision`] (see the field).
+    #[cfg(test)]
+    pub(crate) fn unprovisioned(&self) -> usize {
+        self.unprovisioned.load(Ordering::Relaxed)
     }
 
     /// Makes sure `count` (at most [`SCRATCH_BUFFERS`]) buffers of `V` with room for
@@ -221,7 +239,7 @@ impl Scratch {
     /// at most two new buffers, so after this none of its allocations of the level's size can
     /// fail.
     pub(crate) fn provision<V: Send + 'static>(&self, capacity: usize, count: usize) -> Result<()> {
-        let mut pool = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        let mut pool = self.kept.lock().unwrap_or_else(|e| e.into_inner());
         let fits = |b: &Box<dyn Any + Send>| {
             b.downcast_ref::<Vec<V>>()
                 .is_some_and(|v| v.capacity() >= capacity)
@@ -241,7 +259,7 @@ impl Scratch {
 
     /// Frees every kept buffer.
     pub(crate) fn clear(&self) {
-        self.0.lock().unwrap_or_else(|e| e.into_inner()).clear();
+        self.kept.lock().unwrap_or_else(|e| e.into_inner()).clear();
     }
 
     /// Keeps `v` for later evaluations.
@@ -249,7 +267,7 @@ impl Scratch {
         if v.capacity() == 0 {
             return;
         }
-        let mut pool = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        let mut pool = self.kept.lock().unwrap_or_else(|e| e.into_inner());
         if pool.len() >= SCRATCH_BUFFERS {
             pool.remove(0);
         }
@@ -447,7 +465,14 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         };
         let (n_faces, n_vertices) = (fine.num_faces(), fine.num_vertices);
         let spare = self.take_spare();
-        let mut faces = self.partial([spare, None], n_faces);
+        // Of primal input, the face buffer holds the last step's dual data, dead now: dropped
+        // here, it would leave the kept buffers one short, and a later step would allocate
+        // anew (infallibly) every time.
+        let dead = match std::mem::replace(&mut self.faces, Cow::Borrowed(&[])) {
+            Cow::Owned(f) if primal && f.capacity() > 0 => Some(f),
+            _ => None,
+        };
+        let mut faces = self.partial([spare, dead], n_faces);
         // A kernel of two averages is the fused first pass's: that pass's children are output.
         let first_is_last = zone.passes.is_empty();
         if !first_is_last {
