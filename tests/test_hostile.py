@@ -514,6 +514,27 @@ def test_api_request_above_the_address_space_limit_is_a_memory_budget_error() ->
     assert required > 0 and budget > 0
 
 
+def test_large_requests_keep_address_space_free_for_the_small_ones() -> None:
+    # Under an address-space limit the core refuses a large allocation (1 MiB or more) that
+    # would leave less than ADDRESS_SPACE_HEADROOM free: the small allocations nothing can make
+    # fallible (rayon's jobs, a vector's growth in a walk) would otherwise be the ones to fail,
+    # and abort. Here the limit leaves 40 MiB, under the headroom: a subdivision whose largest
+    # buffers are a few MiB (it needs about 25 MiB in all, so it would fit) is refused, typed;
+    # one of small buffers still runs.
+    work = """
+from bidegree._native import ADDRESS_SPACE_HEADROOM
+assert ADDRESS_SPACE_HEADROOM == 64 << 20, ADDRESS_SPACE_HEADROOM
+bidegree.subdivide(cube(), degree=3, levels=3)  # the thread pool and its arenas first
+size = int(open("/proc/self/status").read().split("VmSize:")[1].split()[0]) * 1024
+resource.setrlimit(resource.RLIMIT_AS, (size + (40 << 20), size + (40 << 20)))
+assert len(bidegree.subdivide(cube(), degree=3, levels=3).points) == 386
+report(lambda: bidegree.subdivide(cube(), degree=3, levels=7))
+"""
+    name, message, _, _ = child_report(work)
+    assert name == "MemoryBudgetError", (name, message)
+    assert message.startswith("out of memory: "), message
+
+
 @pytest.mark.skipif(bidegree._native.MACHINE_MEMORY is None, reason="machine memory unknown here")
 def test_budget_above_the_machine_memory_is_refused_before_any_work() -> None:
     machine = bidegree._native.MACHINE_MEMORY

@@ -122,7 +122,9 @@ pub(crate) fn zeroed_hinted<T: Default + Copy + Send + Sync>(n: usize) -> Result
 /// buffers from a [`crate::step::Scratch`] provisioned fallibly first (`evaluate::run` for the
 /// plans and the limits, `LevelData::with_scratch_for` for the adaptive partial levels and the
 /// analysis), and a step takes at most the four buffers provisioned (a windowed step), each
-/// with room for the largest level; the gathers then find room in the buffer they are given.
+/// with room for the largest level; the gathers then find room in the buffer they are given
+/// (`Scratch` counts the buffers it had to allocate, and a test of `evaluate` holds every
+/// scheme to none).
 pub(crate) fn hinted_or_abort<T>(n: usize) -> Vec<T> {
     let v = Vec::with_capacity(n);
     advise_huge_pages(v.as_ptr() as usize, v.capacity() * std::mem::size_of::<T>());

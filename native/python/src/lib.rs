@@ -20,7 +20,7 @@ mod obj;
 mod options;
 mod plan;
 
-use bidegree::memory::{default_memory_budget, machine_memory};
+use bidegree::memory::{default_memory_budget, machine_memory, ADDRESS_SPACE_HEADROOM};
 use bidegree::{INFINITELY_SHARP, MAX_DEGREE, MAX_LEVELS};
 use pyo3::prelude::*;
 
@@ -32,6 +32,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MAX_LEVELS", MAX_LEVELS)?;
     m.add("DEFAULT_MEMORY_BUDGET", default_memory_budget())?;
     m.add("MACHINE_MEMORY", machine_memory())?;
+    m.add("ADDRESS_SPACE_HEADROOM", ADDRESS_SPACE_HEADROOM)?;
     m.add("INFINITELY_SHARP", INFINITELY_SHARP)?;
     errors::register(m)?;
     cage::register(m)?;
