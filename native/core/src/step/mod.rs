@@ -168,7 +168,8 @@ enum CurveData<T: Scalar, const N: usize> {
 /// value type, behind a mutex that is held only to take or give one.
 #[derive(Default)]
 pub(crate) struct Scratch {
-    kept: Mutex<Vec<Box<dyn Any + Send>>>,
+    /// The kept buffers, oldest first.
+    pool: Mutex<Vec<Box<dyn Any + Send>>>,
     /// Buffers [`Scratch::kept`] allocated because none fitted: after [`Scratch::provision`]
     /// each is a buffer that a run dropped instead of giving back, and an infallible
     /// allocation (an abort when the address space runs out there).
@@ -206,7 +207,7 @@ impl Scratch {
     /// fewest items, as it was given, or a new empty one.
     fn kept<V: Send + 'static>(&self, capacity: usize, longest: bool) -> Vec<V> {
         let kept = {
-            let mut pool = self.kept.lock().unwrap_or_else(|e| e.into_inner());
+            let mut pool = self.pool.lock().unwrap_or_else(|e| e.into_inner());
             let fitting = pool.iter().enumerate().filter_map(|(i, b)| {
                 let v = b.downcast_ref::<Vec<V>>()?;
                 (v.capacity() >= capacity).then_some((v.len(), i))
@@ -239,7 +240,7 @@ impl Scratch {
     /// at most two new buffers, so after this none of its allocations of the level's size can
     /// fail.
     pub(crate) fn provision<V: Send + 'static>(&self, capacity: usize, count: usize) -> Result<()> {
-        let mut pool = self.kept.lock().unwrap_or_else(|e| e.into_inner());
+        let mut pool = self.pool.lock().unwrap_or_else(|e| e.into_inner());
         let fits = |b: &Box<dyn Any + Send>| {
             b.downcast_ref::<Vec<V>>()
                 .is_some_and(|v| v.capacity() >= capacity)
@@ -259,7 +260,7 @@ impl Scratch {
 
     /// Frees every kept buffer.
     pub(crate) fn clear(&self) {
-        self.kept.lock().unwrap_or_else(|e| e.into_inner()).clear();
+        self.pool.lock().unwrap_or_else(|e| e.into_inner()).clear();
     }
 
     /// Keeps `v` for later evaluations.
@@ -267,7 +268,7 @@ impl Scratch {
         if v.capacity() == 0 {
             return;
         }
-        let mut pool = self.kept.lock().unwrap_or_else(|e| e.into_inner());
+        let mut pool = self.pool.lock().unwrap_or_else(|e| e.into_inner());
         if pool.len() >= SCRATCH_BUFFERS {
             pool.remove(0);
         }
