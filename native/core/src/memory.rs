@@ -50,23 +50,26 @@ pub const ADDRESS_SPACE_HEADROOM: u64 = 64 << 20;
 /// `/proc/self/statm`, only when a limit is set); smaller ones leave the headroom to cover them.
 const CHECKED_BYTES: u64 = 1 << 20;
 
-/// Whether `bytes` more of address space leave [`ADDRESS_SPACE_HEADROOM`] free under the
-/// process's address-space limit (always when there is none, or below [`CHECKED_BYTES`]).
-fn leaves_headroom(bytes: u64) -> bool {
-    bytes < CHECKED_BYTES || headroom_left(bytes, address_space_limit(), address_space_used)
+/// `Ok` when `more` values of `T` leave [`ADDRESS_SPACE_HEADROOM`] free under the process's
+/// address-space limit (always when there is none, or below [`CHECKED_BYTES`]), else the error
+/// of a refused request for `asked` values.
+fn headroom<T>(more: usize, asked: usize) -> Result<()> {
+    let bytes = bytes_of::<T>(more);
+    match bytes < CHECKED_BYTES || headroom_left(bytes, address_space_limit(), address_space_used) {
+        true => Ok(()),
+        false => Err(refused::<T>(asked)),
+    }
 }
 
-/// [`leaves_headroom`] for a request of `bytes` under `limit`, `used` read only when there is
-/// one.
+/// Whether a request of `bytes` leaves the headroom under `limit`; `used` is read only when
+/// there is one, and a size it cannot tell lets the allocator decide.
 fn headroom_left(bytes: u64, limit: Option<u64>, used: impl FnOnce() -> Option<u64>) -> bool {
-    match (limit, limit.and_then(|_| used())) {
-        (Some(limit), Some(used)) => {
-            used.saturating_add(bytes)
-                .saturating_add(ADDRESS_SPACE_HEADROOM)
-                <= limit
-        }
-        _ => true,
-    }
+    let Some(limit) = limit else { return true };
+    used().is_none_or(|used| {
+        used.saturating_add(bytes)
+            .saturating_add(ADDRESS_SPACE_HEADROOM)
+            <= limit
+    })
 }
 
 /// `count` values of `T` in bytes (saturating).
@@ -76,9 +79,7 @@ fn bytes_of<T>(count: usize) -> u64 {
 
 /// An empty vector with room for `capacity` values, or [`Error::OutOfMemory`].
 pub fn with_capacity<T>(capacity: usize) -> Result<Vec<T>> {
-    if !leaves_headroom(bytes_of::<T>(capacity)) {
-        return Err(refused::<T>(capacity));
-    }
+    headroom::<T>(capacity, capacity)?;
     let mut v = Vec::new();
     v.try_reserve_exact(capacity)
         .map_err(|_| refused::<T>(capacity))?;
@@ -89,9 +90,7 @@ pub fn with_capacity<T>(capacity: usize) -> Result<Vec<T>> {
 /// [`Error::OutOfMemory`].
 pub fn reserve<T>(v: &mut Vec<T>, additional: usize) -> Result<()> {
     let total = v.len().saturating_add(additional);
-    if total > v.capacity() && !leaves_headroom(bytes_of::<T>(total - v.capacity())) {
-        return Err(refused::<T>(total));
-    }
+    headroom::<T>(total.saturating_sub(v.capacity()), total)?;
     v.try_reserve_exact(additional)
         .map_err(|_| refused::<T>(total))
 }
@@ -102,10 +101,9 @@ pub fn reserve<T>(v: &mut Vec<T>, additional: usize) -> Result<()> {
 /// tiles' lists did: a tenth of a first limit call's instructions in `malloc`).
 pub fn grow<T>(v: &mut Vec<T>, additional: usize) -> Result<()> {
     let total = v.len().saturating_add(additional);
-    // Growth at least doubles the capacity.
-    let more = total.max(2 * v.capacity()).saturating_sub(v.capacity());
-    if total > v.capacity() && !leaves_headroom(bytes_of::<T>(more)) {
-        return Err(refused::<T>(total));
+    if total > v.capacity() {
+        // Growth at least doubles the capacity.
+        headroom::<T>(total.max(2 * v.capacity()) - v.capacity(), total)?;
     }
     v.try_reserve(additional).map_err(|_| refused::<T>(total))
 }
@@ -121,9 +119,7 @@ pub fn filled<T: Clone>(len: usize, value: T) -> Result<Vec<T>> {
 /// `len` zero values (`vec![0; len]`, from `alloc_zeroed`), or [`Error::OutOfMemory`].
 pub fn zeroed<T: Zeroable>(len: usize) -> Result<Vec<T>> {
     let layout = Layout::array::<T>(len).map_err(|_| refused::<T>(len))?;
-    if !leaves_headroom(layout.size() as u64) {
-        return Err(refused::<T>(len));
-    }
+    headroom::<T>(len, len)?;
     if layout.size() == 0 {
         let mut v = Vec::new();
         // Zero-sized values or `len == 0`: no allocation; `resize` only sets the length.

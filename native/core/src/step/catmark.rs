@@ -9,15 +9,15 @@
 //! read them from there: no copy, and no per-vertex branch on the section.
 //!
 //! On a quad level whose fine faces fit [`FINE_FACES_BYTES`] (every level after the first, up to
-//! level 4 of the 3,840-quad sphere in f32) the smooth points come from the averaging form of the same rules
-//! ([`bilinear_children`]): the fine faces' bilinear values first, four per coarse face, then each
-//! face point, smooth edge point and smooth valence-4 vertex point as the mean of its four fine
-//! faces; the classic masks only at the other vertices and edges. The results equal the masks' in
-//! exact arithmetic (within 1e-12 of the data's scale in f64, tested; the summation order
-//! differs) with fewer instructions: cached classic 3 on the callgrind driver's 3,840-quad sphere, one thread, with
-//! every quad level by fine faces, 7.10M / 29.47M / 118.9M -> 5.71M / 23.60M / 95.1M at levels 2 /
-//! 3 / 4 (2026-12-04). But the buffer of fine faces is four times the coarse level's faces and a
-//! cached plan keeps it: larger levels keep the masks (the constant's figures).
+//! level 4 of the 3,840-quad sphere in f32) the smooth points come from the averaging form of the
+//! same rules ([`bilinear_children`]): the fine faces' bilinear values first, four per coarse face,
+//! then each face point, smooth edge point and smooth valence-4 vertex point as the mean of its
+//! four fine faces; the classic masks only at the other vertices and edges. The results equal the
+//! masks' in exact arithmetic (within 1e-12 of the data's scale in f64, tested; the summation order
+//! differs) with fewer instructions: cached classic 3 on the callgrind driver's 3,840-quad sphere,
+//! one thread, with every quad level by fine faces, 7.10M / 29.47M / 118.9M -> 5.71M / 23.60M /
+//! 95.1M at levels 2 / 3 / 4 (2026-12-04). But the buffer of fine faces is four times the coarse
+//! level's faces and a cached plan keeps it: larger levels keep the masks (the constant's figures).
 
 use std::borrow::Cow;
 use std::mem::MaybeUninit;

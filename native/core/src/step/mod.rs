@@ -466,13 +466,10 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         };
         let (n_faces, n_vertices) = (fine.num_faces(), fine.num_vertices);
         let spare = self.take_spare();
-        // Of primal input, the face buffer holds the last step's dual data, dead now: dropped
-        // here, it would leave the kept buffers one short, and a later step would allocate
-        // anew (infallibly) every time.
-        let dead = match std::mem::replace(&mut self.faces, Cow::Borrowed(&[])) {
-            Cow::Owned(f) if primal && f.capacity() > 0 => Some(f),
-            _ => None,
-        };
+        // Of primal input, the face buffer holds the last step's dual data, dead now (dual
+        // input was moved into `data`): dropped, it would leave the kept buffers one short,
+        // and a later step would allocate anew (infallibly) every time.
+        let dead = self.take_own_faces();
         let mut faces = self.partial([spare, dead], n_faces);
         // A kernel of two averages is the fused first pass's: that pass's children are output.
         let first_is_last = zone.passes.is_empty();
@@ -657,6 +654,14 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         }
     }
 
+    /// The faces' buffer when it is ours and has room (the caller overwrites it).
+    fn take_own_faces(&mut self) -> Option<Vec<Value<T, N>>> {
+        match std::mem::replace(&mut self.faces, Cow::Borrowed(&[])) {
+            Cow::Owned(f) if f.capacity() > 0 => Some(f),
+            _ => None,
+        }
+    }
+
     /// A buffer for new primal data: the old one when it is ours, else a fresh one.
     fn take_vertices(&mut self) -> Vec<Value<T, N>> {
         match std::mem::replace(&mut self.vertices, Cow::Borrowed(&[])) {
@@ -667,10 +672,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
 
     /// A buffer for new dual data: the face buffer when it has room, else a fresh one.
     fn take_faces(&mut self) -> Vec<Value<T, N>> {
-        match std::mem::replace(&mut self.faces, Cow::Borrowed(&[])) {
-            Cow::Owned(f) if f.capacity() > 0 => f,
-            _ => self.fresh(),
-        }
+        self.take_own_faces().unwrap_or_else(|| self.fresh())
     }
 
     /// Replication of the 1-D data: each curve half-edge takes the value of its parent.
