@@ -99,8 +99,20 @@ pub(crate) fn gather_grain<V: Send>(
 /// walked in step with the output (one bounds check per item, on `source`), about a third of
 /// the instructions of [`gather_hinted`] with a closure that reads both.
 pub(crate) fn gather_indexed<V: Copy + Send + Sync>(source: &[V], index: &[u32]) -> Result<Vec<V>> {
-    let mut v = with_capacity_hinted(index.len())?;
-    gather_zip(&mut v, index, |_, &i| source[i as usize]);
+    let n = index.len();
+    let mut v = with_capacity_hinted(n)?;
+    (v.spare_capacity_mut()[..n].par_chunks_mut(CHUNK))
+        .zip(index.par_chunks(CHUNK))
+        .for_each(|(items, index)| {
+            // The slice in registers: read through the closure's captures, its pointer and
+            // length were loaded again for every item (the writes might have changed them).
+            let source: &[V] = source;
+            for (item, &i) in items.iter_mut().zip(index) {
+                item.write(source[i as usize]);
+            }
+        });
+    // SAFETY: the loop initialised the first `n` items (a panic would have unwound past here).
+    unsafe { v.set_len(n) };
     Ok(v)
 }
 

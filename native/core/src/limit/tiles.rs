@@ -132,11 +132,20 @@ impl Tiles {
             primal,
             data_side,
         };
+        // Claims in two passes, each in tile order (the result does not depend on the thread
+        // count): first the outputs off a tile's far column and row, then the far ones that no
+        // tile took. A far output of one tile is most often a near one of the next, so most
+        // tiles own no far column and filter one column less ([`Tiles::write`]).
+        let far = far_outputs(side);
         let mut claimed = memory::filled(level.num_vertices, false)?;
         let mut ids: Vec<u32> = Vec::new();
         let mut owned: Vec<u128> = Vec::new();
+        // Per kept tile, its first slot of the first pass; one more.
         let mut offsets: Vec<u32> = vec![0];
         let mut vertices: Vec<u32> = Vec::new();
+        // The far outputs that the tiles' walks found valid: (kept tile, bit, vertex), in
+        // tile order then bit order.
+        let mut far_valid: Vec<(u32, u8, u32)> = Vec::new();
         // The walks of a block (1.5 KB each, 6 MB for a whole block) in a buffer allocated
         // fallibly once: collected into a new vector, a block's walks were the allocation that
         // aborted a deep limit under a tight address space.
@@ -154,32 +163,49 @@ impl Tiles {
                     },
                 )
                 .collect_into_vec(&mut walks);
-            // Claims in tile order: the result does not depend on the thread count.
             for w in &walks {
                 let w = w.as_ref().map_err(|e| e.clone())?;
-                let mut mine = 0u128;
-                let mut bits = w.valid;
+                let mine = claim(w.valid & !far, &w.outputs, &mut claimed, &mut vertices)?;
+                let far_here = w.valid & far;
+                if mine == 0 && far_here == 0 {
+                    continue;
+                }
+                let tile = owned.len() as u32;
+                let mut bits = far_here;
                 while bits != 0 {
-                    let b = bits.trailing_zeros() as usize;
+                    let b = bits.trailing_zeros();
                     bits &= bits - 1;
-                    let v = w.outputs[b] as usize;
-                    if !claimed[v] {
-                        claimed[v] = true;
-                        memory::grow(&mut vertices, 1)?;
-                        vertices.push(v as u32);
-                        mine |= 1 << b;
-                    }
+                    memory::grow(&mut far_valid, 1)?;
+                    far_valid.push((tile, b as u8, w.outputs[b as usize]));
                 }
-                if mine != 0 {
-                    memory::grow(&mut ids, data_side * data_side)?;
-                    ids.extend_from_slice(&w.ids[..data_side * data_side]);
-                    memory::grow(&mut owned, 1)?;
-                    owned.push(mine);
-                    memory::grow(&mut offsets, 1)?;
-                    offsets.push(vertices.len() as u32);
-                }
+                memory::grow(&mut ids, data_side * data_side)?;
+                ids.extend_from_slice(&w.ids[..data_side * data_side]);
+                memory::grow(&mut owned, 1)?;
+                owned.push(mine);
+                memory::grow(&mut offsets, 1)?;
+                offsets.push(vertices.len() as u32);
             }
         }
+        for &(tile, b, v) in &far_valid {
+            let taken = (claimed.get_mut(v as usize))
+                .ok_or_else(|| Error::Internal("limit tiles: an output past the level".into()))?;
+            if !*taken {
+                *taken = true;
+                owned[tile as usize] |= 1 << b;
+            }
+        }
+        let first = Slots {
+            ids,
+            owned,
+            offsets,
+            vertices,
+        };
+        let Slots {
+            ids,
+            owned,
+            offsets,
+            vertices,
+        } = merged_slots(data_side * data_side, far, first, &far_valid)?;
         if owned.is_empty() {
             return Ok(None);
         }
@@ -194,6 +220,15 @@ impl Tiles {
             offsets,
             vertices,
         }))
+    }
+
+    /// The tiles that own an output of their far column (filtered with one column more), and
+    /// all tiles.
+    #[cfg(test)]
+    pub(super) fn far_column_tiles(&self) -> (usize, usize) {
+        let far = far_column(self.side);
+        let wide = self.owned.iter().filter(|&&o| o & far != 0).count();
+        (wide, self.owned.len())
     }
 
     /// Per vertex of the level (`num_vertices` of them), whether a tile computes it: what the
@@ -234,37 +269,48 @@ impl Tiles {
             positions: Disjoint::new(positions),
             normals: normals.map(Disjoint::new),
         };
-        // Output columns are filtered `LANES` at a time: the tile's side rounded up to whole
-        // four-lane vectors (at most `MAX_SIDE`), so that the tiles of levels 1 and 2 (side 3
-        // and 5) do not filter the nine columns of the largest tile.
+        // Output columns are filtered `LANES` at a time: the columns a tile owns rounded up to
+        // whole four-lane vectors (at most `MAX_SIDE`), so that the tiles of levels 1 and 2
+        // (side 3 and 5) do not filter the nine columns of the largest tile, and a tile that
+        // owns no output of its far column (most of them: see the claims of [`Tiles::build`])
+        // filters one column less: 8 lanes, two vectors, at side 9 (not 9: two vectors and a
+        // scalar); 4 lanes, one vector, at side 5.
         match self.side {
-            0..=4 => self.write_lanes::<T, N, 4>(data, &out, wide),
-            5..=8 => self.write_lanes::<T, N, 8>(data, &out, wide),
-            _ => self.write_lanes::<T, N, MAX_SIDE>(data, &out, wide),
+            0..=4 => self.write_lanes::<T, N, 4, 4>(data, &out, wide),
+            5 => self.write_lanes::<T, N, 4, 8>(data, &out, wide),
+            6..=8 => self.write_lanes::<T, N, 8, 8>(data, &out, wide),
+            _ => self.write_lanes::<T, N, 8, MAX_SIDE>(data, &out, wide),
         }
     }
 
-    /// [`Tiles::write_on`] with `LANES` output columns filtered (at least the tile's side).
-    fn write_lanes<T: Scalar, const N: usize, const LANES: usize>(
+    /// [`Tiles::write_on`] with `NEAR` output columns filtered for a tile that owns no output
+    /// of its far column (at least the side less one), `FAR` for the others (at least the side).
+    fn write_lanes<T: Scalar, const N: usize, const NEAR: usize, const FAR: usize>(
         &self,
         data: &[[T; N]],
         out: &Out<T, N>,
         wide: bool,
     ) -> Result<()> {
         match self.width {
-            2 => self.write_with::<T, N, 2, LANES>(data, out, wide),
-            3 => self.write_with::<T, N, 3, LANES>(data, out, wide),
-            4 => self.write_with::<T, N, 4, LANES>(data, out, wide),
-            5 => self.write_with::<T, N, 5, LANES>(data, out, wide),
-            6 => self.write_with::<T, N, 6, LANES>(data, out, wide),
-            7 => self.write_with::<T, N, 7, LANES>(data, out, wide),
-            8 => self.write_with::<T, N, 8, LANES>(data, out, wide),
-            _ => self.write_with::<T, N, 9, LANES>(data, out, wide),
+            2 => self.write_with::<T, N, 2, NEAR, FAR>(data, out, wide),
+            3 => self.write_with::<T, N, 3, NEAR, FAR>(data, out, wide),
+            4 => self.write_with::<T, N, 4, NEAR, FAR>(data, out, wide),
+            5 => self.write_with::<T, N, 5, NEAR, FAR>(data, out, wide),
+            6 => self.write_with::<T, N, 6, NEAR, FAR>(data, out, wide),
+            7 => self.write_with::<T, N, 7, NEAR, FAR>(data, out, wide),
+            8 => self.write_with::<T, N, 8, NEAR, FAR>(data, out, wide),
+            _ => self.write_with::<T, N, 9, NEAR, FAR>(data, out, wide),
         }
     }
 
     /// [`Tiles::write_lanes`] with the masks' width `K` a constant.
-    fn write_with<T: Scalar, const N: usize, const K: usize, const LANES: usize>(
+    fn write_with<
+        T: Scalar,
+        const N: usize,
+        const K: usize,
+        const NEAR: usize,
+        const FAR: usize,
+    >(
         &self,
         data: &[[T; N]],
         out: &Out<T, N>,
@@ -272,8 +318,8 @@ impl Tiles {
     ) -> Result<()> {
         // The rows read items up to `LANES + K - 2` of a window row (past a small tile's
         // side: finite leftovers, in sums no vertex reads).
-        const { assert!(LANES <= MAX_SIDE && LANES + K - 1 <= MAX_DATA) };
-        if self.width != K || self.data_side > MAX_DATA || self.side > LANES {
+        const { assert!(NEAR <= FAR && FAR <= MAX_SIDE && FAR + K - 1 <= MAX_DATA) };
+        if self.width != K || self.data_side > MAX_DATA || self.side > FAR || self.side > NEAR + 1 {
             return Err(Error::Internal(
                 "limit tiles: a window past its bounds".into(),
             ));
@@ -285,32 +331,152 @@ impl Tiles {
             tiles: self,
             value: &value,
             slope: &slope,
+            far_column: far_column(self.side),
         };
         let wide = wide && wide_vectors();
         // A tile is a few thousand instructions: small tasks still amortise.
         const TASK: usize = 32;
         (0..tiles.div_ceil(TASK))
             .into_par_iter()
-            .try_for_each(|task| {
-                // Every tile overwrites what it reads of these (the columns past a small tile's side
-                // hold finite leftovers, filtered into sums no vertex reads).
-                let mut rows = Box::new(Rows::<N> {
-                    window: [[[0.0; MAX_DATA]; MAX_DATA]; N],
-                    by_value: [[[0.0; MAX_SIDE]; MAX_DATA]; N],
-                    by_slope: [[[0.0; MAX_SIDE]; MAX_DATA]; N],
-                });
-                let tiles = task * TASK..((task + 1) * TASK).min(tiles);
-                #[cfg(target_arch = "x86_64")]
-                if wide {
-                    // SAFETY: `wide_vectors` found AVX2 on this processor.
-                    return unsafe {
-                        kernel.tiles_avx2::<T, N, LANES>(tiles, data, &mut rows, out)
-                    };
-                }
-                let _ = wide;
-                kernel.tiles::<T, N, LANES>(tiles, data, &mut rows, out)
-            })
+            // One set of rows per split, not per task: zeroed per task, they were a twentieth
+            // of a cached limit at level 2. Every tile overwrites what it reads of them (the
+            // columns past a small tile's side hold finite leftovers of earlier tiles, filtered
+            // into sums no vertex reads).
+            .try_for_each_init(
+                || {
+                    Box::new(Rows::<N> {
+                        window: [[[0.0; MAX_DATA]; MAX_DATA]; N],
+                        by_value: [[[0.0; MAX_SIDE]; MAX_DATA]; N],
+                        by_slope: [[[0.0; MAX_SIDE]; MAX_DATA]; N],
+                    })
+                },
+                |rows, task| {
+                    let tiles = task * TASK..((task + 1) * TASK).min(tiles);
+                    #[cfg(target_arch = "x86_64")]
+                    if wide {
+                        // SAFETY: `wide_vectors` found AVX2 on this processor.
+                        return unsafe {
+                            kernel.tiles_avx2::<T, N, NEAR, FAR>(tiles, data, rows, out)
+                        };
+                    }
+                    let _ = wide;
+                    kernel.tiles::<T, N, NEAR, FAR>(tiles, data, rows, out)
+                },
+            )
     }
+}
+
+/// The bits of a tile's far column and far row (see [`Tiles::owned`]): the outputs it shares
+/// with the next tiles.
+fn far_outputs(side: usize) -> u128 {
+    (0..side).fold(0, |far, k| {
+        far | 1 << (side * k + side - 1) | 1 << (side * (side - 1) + k)
+    })
+}
+
+/// The bits of a tile's far column.
+fn far_column(side: usize) -> u128 {
+    (0..side).fold(0, |far, j| far | 1 << (side * j + side - 1))
+}
+
+/// Claims the outputs of `bits` (at the level vertices `outputs`) that no tile has yet, in bit
+/// order, each vertex's slot pushed onto `vertices`: the bits claimed.
+fn claim(
+    bits: u128,
+    outputs: &[u32],
+    claimed: &mut [bool],
+    vertices: &mut Vec<u32>,
+) -> Result<u128> {
+    let mut mine = 0u128;
+    let mut rest = bits;
+    while rest != 0 {
+        let b = rest.trailing_zeros() as usize;
+        rest &= rest - 1;
+        let v = outputs[b];
+        let Some(taken) = claimed.get_mut(v as usize) else {
+            return Err(Error::Internal(
+                "limit tiles: an output past the level".into(),
+            ));
+        };
+        if !*taken {
+            *taken = true;
+            memory::grow(vertices, 1)?;
+            vertices.push(v);
+            mine |= 1 << b;
+        }
+    }
+    Ok(mine)
+}
+
+/// Tiles with their windows and slots ([`Tiles::ids`], [`Tiles::owned`], [`Tiles::offsets`],
+/// [`Tiles::vertices`]).
+struct Slots {
+    ids: Vec<u32>,
+    owned: Vec<u128>,
+    offsets: Vec<u32>,
+    vertices: Vec<u32>,
+}
+
+/// The tiles that own an output after both claims, with their slots in bit order, from `first`:
+/// the tiles' windows (`window` ids each), what they own after both claims, and the first
+/// claim's slots; `far_valid` holds the far outputs (tile, bit, vertex) in tile and bit order,
+/// of which a tile owns those the second claim gave it.
+fn merged_slots(
+    window: usize,
+    far: u128,
+    first: Slots,
+    far_valid: &[(u32, u8, u32)],
+) -> Result<Slots> {
+    let Slots {
+        mut ids,
+        owned,
+        offsets,
+        vertices: near,
+    } = first;
+    let broken = || Error::Internal("limit tiles: a claimed output without its slot".into());
+    let mut kept_owned: Vec<u128> = memory::with_capacity(owned.len())?;
+    let mut kept_offsets: Vec<u32> = memory::with_capacity(owned.len() + 1)?;
+    kept_offsets.push(0);
+    let mut vertices: Vec<u32> = memory::with_capacity(near.len() + far_valid.len())?;
+    let mut far_slots = far_valid.iter();
+    for (tile, &mine) in owned.iter().enumerate() {
+        let first = offsets.get(tile..tile + 2).ok_or_else(broken)?;
+        let near_here = (near.get(first[0] as usize..first[1] as usize)).ok_or_else(broken)?;
+        // Most tiles have the first claim's slots alone, already in bit order.
+        let merged = mine & far != 0;
+        if !merged {
+            vertices.extend_from_slice(near_here);
+        }
+        let mut near_slots = near_here.iter();
+        let mut bits = if merged { mine } else { 0 };
+        while bits != 0 {
+            let b = bits.trailing_zeros();
+            bits &= bits - 1;
+            let v = if far >> b & 1 == 1 {
+                // Skip the far outputs that other tiles claimed.
+                far_slots
+                    .find(|&&(t, fb, _)| t as usize == tile && u32::from(fb) == b)
+                    .ok_or_else(broken)?
+                    .2
+            } else {
+                *near_slots.next().ok_or_else(broken)?
+            };
+            vertices.push(v);
+        }
+        if mine != 0 {
+            let kept = kept_owned.len();
+            ids.copy_within(tile * window..(tile + 1) * window, kept * window);
+            kept_owned.push(mine);
+            kept_offsets.push(vertices.len() as u32);
+        }
+    }
+    ids.truncate(kept_owned.len() * window);
+    Ok(Slots {
+        ids,
+        owned: kept_owned,
+        offsets: kept_offsets,
+        vertices,
+    })
 }
 
 /// Where the tiles write, per level vertex: the limit position and, when asked for, the unit
@@ -346,13 +512,15 @@ struct Kernel<'a, const K: usize> {
     tiles: &'a Tiles,
     value: &'a [f64; K],
     slope: &'a [f64; K],
+    /// The bits of the tiles' far column ([`far_column`]).
+    far_column: u128,
 }
 
 impl<const K: usize> Kernel<'_, K> {
     /// Writes the values of the vertices of the tiles `tiles` into `out`: every vertex of
     /// their slots, or an error.
     #[inline(always)]
-    fn tiles<T: Scalar, const N: usize, const LANES: usize>(
+    fn tiles<T: Scalar, const N: usize, const NEAR: usize, const FAR: usize>(
         &self,
         tiles: std::ops::Range<usize>,
         data: &[[T; N]],
@@ -361,7 +529,10 @@ impl<const K: usize> Kernel<'_, K> {
     ) -> Result<()> {
         // A loop, not a closure: a closure would not take `tiles_avx2`'s target features.
         for tile in tiles {
-            self.tile::<T, N, LANES>(tile, data, rows, out)?;
+            match self.tiles.owned[tile] & self.far_column {
+                0 => self.tile::<T, N, NEAR>(tile, data, rows, out)?,
+                _ => self.tile::<T, N, FAR>(tile, data, rows, out)?,
+            }
         }
         Ok(())
     }
@@ -372,14 +543,14 @@ impl<const K: usize> Kernel<'_, K> {
     /// The processor must have AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn tiles_avx2<T: Scalar, const N: usize, const LANES: usize>(
+    unsafe fn tiles_avx2<T: Scalar, const N: usize, const NEAR: usize, const FAR: usize>(
         &self,
         tiles: std::ops::Range<usize>,
         data: &[[T; N]],
         rows: &mut Rows<N>,
         out: &Out<T, N>,
     ) -> Result<()> {
-        self.tiles::<T, N, LANES>(tiles, data, rows, out)
+        self.tiles::<T, N, NEAR, FAR>(tiles, data, rows, out)
     }
 
     /// Writes the values of `tile`'s vertices into `out`: every vertex of its slots, or an
@@ -521,9 +692,15 @@ fn unit_normals<T: Scalar, const N: usize, const LANES: usize>(
     along_i: &[[f64; MAX_SIDE]; N],
     along_j: &[[f64; MAX_SIDE]; N],
 ) -> [[f64; MAX_SIDE]; 3] {
-    let zero = [0.0; MAX_SIDE];
+    // The lanes filtered only (at side 5 four of the nine).
     let channel = |t: &[[f64; MAX_SIDE]; N], c: usize| {
-        t.get(c).unwrap_or(&zero).map(|x| T::from_f64(x).to_f64())
+        let mut rounded = [0.0; MAX_SIDE];
+        if let Some(t) = t.get(c) {
+            for i in 0..LANES {
+                rounded[i] = T::from_f64(t[i]).to_f64();
+            }
+        }
+        rounded
     };
     let (ax, ay, az) = (
         channel(along_i, 0),
