@@ -17,10 +17,13 @@
 //! children are numbered by its corners), and the first of them has its corner 0 at the face's
 //! corner 0, along the face's first edge, so the tile's frame is the face's. Its window, `N`
 //! rings more on every side, is walked once per plan over the level's twin corners. A vertex is
-//! taken by the first tile (in face order) whose walk holds its whole neighbourhood as a grid of
-//! regular vertices (valence 4, interior, on no curve; all different): exactly the vertices
-//! whose stencils would be the valence-4 masks, less those that no tile holds so (near an
-//! irregular vertex, the walk from the tile's corner goes around it), which keep their stencils.
+//! taken by a tile whose walk holds its whole neighbourhood as a grid of regular vertices
+//! (valence 4, interior, on no curve; all different): exactly the vertices whose stencils would
+//! be the valence-4 masks, less those that no tile holds so (near an irregular vertex, the walk
+//! from the tile's corner goes around it), which keep their stencils. The tile is the first (in
+//! face order) that holds the vertex off its far column and far row, else the first that holds
+//! it at all: the far column is shared with the next tile, and a tile that owns none of it
+//! filters one column less.
 
 use std::mem::MaybeUninit;
 use std::sync::Mutex;
@@ -316,8 +319,8 @@ impl Tiles {
         out: &Out<T, N>,
         wide: bool,
     ) -> Result<()> {
-        // The rows read items up to `LANES + K - 2` of a window row (past a small tile's
-        // side: finite leftovers, in sums no vertex reads).
+        // The rows read items up to `FAR + K - 2` of a window row (past a small tile's side:
+        // finite leftovers, in sums no vertex reads).
         const { assert!(NEAR <= FAR && FAR <= MAX_SIDE && FAR + K - 1 <= MAX_DATA) };
         if self.width != K || self.data_side > MAX_DATA || self.side > FAR || self.side > NEAR + 1 {
             return Err(Error::Internal(
@@ -338,10 +341,10 @@ impl Tiles {
         const TASK: usize = 32;
         (0..tiles.div_ceil(TASK))
             .into_par_iter()
-            // One set of rows per split, not per task: zeroed per task, they were a twentieth
-            // of a cached limit at level 2. Every tile overwrites what it reads of them (the
-            // columns past a small tile's side hold finite leftovers of earlier tiles, filtered
-            // into sums no vertex reads).
+            // One set of rows per split, not per task: zeroed per task, they were about 5 % of
+            // a cached limit's instructions at level 2. Every tile overwrites what it reads of
+            // them (the columns past a small tile's side hold finite leftovers of earlier tiles,
+            // filtered into sums no vertex reads).
             .try_for_each_init(
                 || {
                     Box::new(Rows::<N> {
