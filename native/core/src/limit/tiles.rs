@@ -140,15 +140,14 @@ impl Tiles {
         // tile took. A far output of one tile is most often a near one of the next, so most
         // tiles own no far column and filter one column less ([`Tiles::write`]).
         let far = far_outputs(side);
+        let (window, outputs_per_tile) = (data_side * data_side, side * side);
         let mut claimed = memory::filled(level.num_vertices, false)?;
+        // Per tile that may own an output: its window's ids, its outputs' level vertices, what
+        // it owns, and its valid far outputs.
         let mut ids: Vec<u32> = Vec::new();
+        let mut outputs: Vec<u32> = Vec::new();
         let mut owned: Vec<u128> = Vec::new();
-        // Per kept tile, its first slot of the first pass; one more.
-        let mut offsets: Vec<u32> = vec![0];
-        let mut vertices: Vec<u32> = Vec::new();
-        // The far outputs that the tiles' walks found valid: (kept tile, bit, vertex), in
-        // tile order then bit order.
-        let mut far_valid: Vec<(u32, u8, u32)> = Vec::new();
+        let mut far_valid: Vec<u128> = Vec::new();
         // The walks of a block (1.5 KB each, 6 MB for a whole block) in a buffer allocated
         // fallibly once: collected into a new vector, a block's walks were the allocation that
         // aborted a deep limit under a tight address space.
@@ -168,47 +167,51 @@ impl Tiles {
                 .collect_into_vec(&mut walks);
             for w in &walks {
                 let w = w.as_ref().map_err(|e| e.clone())?;
-                let mine = claim(w.valid & !far, &w.outputs, &mut claimed, &mut vertices)?;
-                let far_here = w.valid & far;
-                if mine == 0 && far_here == 0 {
+                let mine = claim(w.valid & !far, &w.outputs, &mut claimed)?;
+                if mine == 0 && w.valid & far == 0 {
                     continue;
                 }
-                let tile = owned.len() as u32;
-                let mut bits = far_here;
-                while bits != 0 {
-                    let b = bits.trailing_zeros();
-                    bits &= bits - 1;
-                    memory::grow(&mut far_valid, 1)?;
-                    far_valid.push((tile, b as u8, w.outputs[b as usize]));
-                }
-                memory::grow(&mut ids, data_side * data_side)?;
-                ids.extend_from_slice(&w.ids[..data_side * data_side]);
+                memory::grow(&mut ids, window)?;
+                ids.extend_from_slice(&w.ids[..window]);
+                memory::grow(&mut outputs, outputs_per_tile)?;
+                outputs.extend_from_slice(&w.outputs[..outputs_per_tile]);
                 memory::grow(&mut owned, 1)?;
                 owned.push(mine);
-                memory::grow(&mut offsets, 1)?;
-                offsets.push(vertices.len() as u32);
+                memory::grow(&mut far_valid, 1)?;
+                far_valid.push(w.valid & far);
             }
         }
-        for &(tile, b, v) in &far_valid {
-            let taken = (claimed.get_mut(v as usize))
-                .ok_or_else(|| Error::Internal("limit tiles: an output past the level".into()))?;
-            if !*taken {
-                *taken = true;
-                owned[tile as usize] |= 1 << b;
-            }
+        for ((mine, &bits), outputs) in owned
+            .iter_mut()
+            .zip(&far_valid)
+            .zip(outputs.chunks_exact(outputs_per_tile))
+        {
+            *mine |= claim(bits, outputs, &mut claimed)?;
         }
-        let first = Slots {
-            ids,
-            owned,
-            offsets,
-            vertices,
-        };
-        let Slots {
-            ids,
-            owned,
-            offsets,
-            vertices,
-        } = merged_slots(data_side * data_side, far, first, &far_valid)?;
+        // The tiles that own an output, each with its vertices' slots in bit order.
+        let mut kept = 0;
+        let mut offsets: Vec<u32> = memory::with_capacity(owned.len() + 1)?;
+        offsets.push(0);
+        let mut vertices: Vec<u32> = Vec::new();
+        for tile in 0..owned.len() {
+            let mine = owned[tile];
+            if mine == 0 {
+                continue;
+            }
+            let mut bits = mine;
+            while bits != 0 {
+                let b = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                memory::grow(&mut vertices, 1)?;
+                vertices.push(outputs[tile * outputs_per_tile + b]);
+            }
+            offsets.push(vertices.len() as u32);
+            ids.copy_within(tile * window..(tile + 1) * window, kept * window);
+            owned[kept] = mine;
+            kept += 1;
+        }
+        ids.truncate(kept * window);
+        owned.truncate(kept);
         if owned.is_empty() {
             return Ok(None);
         }
@@ -372,8 +375,8 @@ impl Tiles {
 /// The bits of a tile's far column and far row (see [`Tiles::owned`]): the outputs it shares
 /// with the next tiles.
 fn far_outputs(side: usize) -> u128 {
-    (0..side).fold(0, |far, k| {
-        far | 1 << (side * k + side - 1) | 1 << (side * (side - 1) + k)
+    (0..side).fold(far_column(side), |far, i| {
+        far | 1 << (side * (side - 1) + i)
     })
 }
 
@@ -382,104 +385,25 @@ fn far_column(side: usize) -> u128 {
     (0..side).fold(0, |far, j| far | 1 << (side * j + side - 1))
 }
 
-/// Claims the outputs of `bits` (at the level vertices `outputs`) that no tile has yet, in bit
-/// order, each vertex's slot pushed onto `vertices`: the bits claimed.
-fn claim(
-    bits: u128,
-    outputs: &[u32],
-    claimed: &mut [bool],
-    vertices: &mut Vec<u32>,
-) -> Result<u128> {
+/// Claims the outputs of `bits` (at the level vertices `outputs`) that no tile has yet: the
+/// bits claimed.
+fn claim(bits: u128, outputs: &[u32], claimed: &mut [bool]) -> Result<u128> {
     let mut mine = 0u128;
     let mut rest = bits;
     while rest != 0 {
         let b = rest.trailing_zeros() as usize;
         rest &= rest - 1;
-        let v = outputs[b];
-        let Some(taken) = claimed.get_mut(v as usize) else {
+        let Some(taken) = claimed.get_mut(outputs[b] as usize) else {
             return Err(Error::Internal(
                 "limit tiles: an output past the level".into(),
             ));
         };
         if !*taken {
             *taken = true;
-            memory::grow(vertices, 1)?;
-            vertices.push(v);
             mine |= 1 << b;
         }
     }
     Ok(mine)
-}
-
-/// Tiles with their windows and slots ([`Tiles::ids`], [`Tiles::owned`], [`Tiles::offsets`],
-/// [`Tiles::vertices`]).
-struct Slots {
-    ids: Vec<u32>,
-    owned: Vec<u128>,
-    offsets: Vec<u32>,
-    vertices: Vec<u32>,
-}
-
-/// The tiles that own an output after both claims, with their slots in bit order, from `first`:
-/// the tiles' windows (`window` ids each), what they own after both claims, and the first
-/// claim's slots; `far_valid` holds the far outputs (tile, bit, vertex) in tile and bit order,
-/// of which a tile owns those the second claim gave it.
-fn merged_slots(
-    window: usize,
-    far: u128,
-    first: Slots,
-    far_valid: &[(u32, u8, u32)],
-) -> Result<Slots> {
-    let Slots {
-        mut ids,
-        owned,
-        offsets,
-        vertices: near,
-    } = first;
-    let broken = || Error::Internal("limit tiles: a claimed output without its slot".into());
-    let mut kept_owned: Vec<u128> = memory::with_capacity(owned.len())?;
-    let mut kept_offsets: Vec<u32> = memory::with_capacity(owned.len() + 1)?;
-    kept_offsets.push(0);
-    let mut vertices: Vec<u32> = memory::with_capacity(near.len() + far_valid.len())?;
-    let mut far_slots = far_valid.iter();
-    for (tile, &mine) in owned.iter().enumerate() {
-        let first = offsets.get(tile..tile + 2).ok_or_else(broken)?;
-        let near_here = (near.get(first[0] as usize..first[1] as usize)).ok_or_else(broken)?;
-        // Most tiles have the first claim's slots alone, already in bit order.
-        let merged = mine & far != 0;
-        if !merged {
-            vertices.extend_from_slice(near_here);
-        }
-        let mut near_slots = near_here.iter();
-        let mut bits = if merged { mine } else { 0 };
-        while bits != 0 {
-            let b = bits.trailing_zeros();
-            bits &= bits - 1;
-            let v = if far >> b & 1 == 1 {
-                // Skip the far outputs that other tiles claimed.
-                far_slots
-                    .find(|&&(t, fb, _)| t as usize == tile && u32::from(fb) == b)
-                    .ok_or_else(broken)?
-                    .2
-            } else {
-                *near_slots.next().ok_or_else(broken)?
-            };
-            vertices.push(v);
-        }
-        if mine != 0 {
-            let kept = kept_owned.len();
-            ids.copy_within(tile * window..(tile + 1) * window, kept * window);
-            kept_owned.push(mine);
-            kept_offsets.push(vertices.len() as u32);
-        }
-    }
-    ids.truncate(kept_owned.len() * window);
-    Ok(Slots {
-        ids,
-        owned: kept_owned,
-        offsets: kept_offsets,
-        vertices,
-    })
 }
 
 /// Where the tiles write, per level vertex: the limit position and, when asked for, the unit
