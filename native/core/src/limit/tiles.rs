@@ -192,7 +192,8 @@ impl Tiles {
         let mut kept = 0;
         let mut offsets: Vec<u32> = memory::with_capacity(owned.len() + 1)?;
         offsets.push(0);
-        let mut vertices: Vec<u32> = Vec::new();
+        let owned_outputs = owned.iter().map(|m| m.count_ones() as usize).sum();
+        let mut vertices: Vec<u32> = memory::with_capacity(owned_outputs)?;
         for tile in 0..owned.len() {
             let mine = owned[tile];
             if mine == 0 {
@@ -202,7 +203,6 @@ impl Tiles {
             while bits != 0 {
                 let b = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
-                memory::grow(&mut vertices, 1)?;
                 vertices.push(outputs[tile * outputs_per_tile + b]);
             }
             offsets.push(vertices.len() as u32);
