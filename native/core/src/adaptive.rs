@@ -1862,8 +1862,9 @@ fn restrict(fine: &Level, keep: &[bool]) -> Result<Sub> {
     // count in the processor's baseline their lookups cost more than the tables' page faults
     // save: measured, a first limit at degree 9, whose partial levels keep half, took 2.5 %
     // more instructions.)
-    let count = keep.iter().filter(|&&k| k).count();
-    let mut faces: Vec<u32> = memory::with_capacity(count)?;
+    // The faces are numbered as they are read (the same as marking them and numbering the
+    // marks, one scan of the level's faces less).
+    let mut faces: Vec<u32> = memory::with_capacity(keep.iter().filter(|&&k| k).count())?;
     let mut face_at = memory::filled(keep.len(), NONE)?;
     for (f, _) in keep.iter().enumerate().filter(|&(_, &k)| k) {
         face_at[f] = faces.len() as u32;
@@ -1883,12 +1884,6 @@ fn restrict(fine: &Level, keep: &[bool]) -> Result<Sub> {
     }
     let vertices = number_marked(&mut vert_map)?;
     let edges = number_marked(&mut edge_map)?;
-    // Per vertex kept, its corners kept.
-    let vert_count = gather_hinted(vertices.len(), |i| {
-        (corners_of(vertices[i] as usize).iter())
-            .filter(|&&c| kept_face(c))
-            .count() as u32
-    })?;
     let corner_map = |c: u32| -> u32 {
         match face_at[c as usize >> 2] {
             NONE => NONE,
@@ -1941,8 +1936,13 @@ fn restrict(fine: &Level, keep: &[bool]) -> Result<Sub> {
         };
         Ok((edge_verts, edge_corners, more))
     };
+    // Per vertex kept, its corners kept.
     let vertex_tables = || -> Result<_> {
-        let vert_corner_offsets = prefix_offsets(vertices.len(), |i| vert_count[i])?;
+        let vert_corner_offsets = prefix_offsets(vertices.len(), |i| {
+            (corners_of(vertices[i] as usize).iter())
+                .filter(|&&c| kept_face(c))
+                .count() as u32
+        })?;
         let mut vert_corners = zeroed_hinted::<u32>(4 * faces.len())?;
         fill_csr(&vert_corner_offsets, &mut vert_corners, |i, out| {
             let kept = (corners_of(vertices[i] as usize).iter())

@@ -445,14 +445,21 @@ impl Level {
 
     /// Per corner, the corner across its outgoing edge in the neighbouring face
     /// ([`Level::opposite`]), `NONE` at a boundary or a non-manifold edge: one load per step of
-    /// the neighbourhood walks (limit stencils, regular windows). Written edge by edge, the
-    /// two corners of each at once: a sequential scatter of 6M instructions for the 983k
-    /// corners of the 4k sphere's level 3, where a parallel gather of each corner's pair took
-    /// 28M.
+    /// the neighbourhood walks (limit stencils, regular windows).
     pub(crate) fn twin_corners(&self) -> Result<Vec<u32>> {
-        let mut twins = memory::filled(self.num_corners(), NONE)?;
+        self.twin_table(NONE, self.num_corners())
+    }
+
+    /// [`Level::twin_corners`] in a table of `len` entries (at least one per corner), `absent`
+    /// where a corner has no twin and past the corners (the regular windows' dead face). Written
+    /// edge by edge, the two corners of each at once: a sequential scatter of 6M instructions
+    /// for the 983k corners of the 4k sphere's level 3, where a parallel gather of each corner's
+    /// pair took 28M.
+    pub(crate) fn twin_table(&self, absent: u32, len: usize) -> Result<Vec<u32>> {
+        let mut twins = memory::filled(len.max(self.num_corners()), absent)?;
+        let non_manifold = !self.nm_edges.is_empty();
         for (e, &[a, b]) in self.edge_corners().iter().enumerate() {
-            if a != NONE && b != NONE && !self.is_non_manifold_edge(e) {
+            if b != NONE && a != NONE && !(non_manifold && self.is_non_manifold_edge(e)) {
                 twins[a as usize] = b;
                 twins[b as usize] = a;
             }

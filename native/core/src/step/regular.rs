@@ -828,7 +828,7 @@ struct Flags {
     /// (its face point, the edge points of its edges, its corners' old vertices: the 1-D
     /// scheme's blend is no tensor product).
     clean_face: Vec<bool>,
-    /// Per corner, the corner across its outgoing edge ([`Level::twin_corners`]), the dead
+    /// Per corner, the corner across its outgoing edge ([`Level::twin_table`]), the dead
     /// face's first corner on a boundary or non-manifold edge and for the dead face's corners.
     twin: Vec<u32>,
     /// The level's corner vertices, then vertex 0 for the dead face's corners.
@@ -841,27 +841,8 @@ impl Flags {
     fn of(coarse: &Level, curves: &CurveNetwork) -> Result<Flags> {
         let (nv, nf) = (coarse.num_vertices, coarse.num_faces());
         let dead = 4 * nf as u32;
-        let (corner_edges, edge_corners) = (coarse.corner_edges(), coarse.edge_corners());
-        let twin = if coarse.nm_edges.is_empty() {
-            // `Level::opposite` edge by edge: the two slots of an interior edge are each
-            // other's twins.
-            let mut twin = memory::filled(4 * nf + 4, dead)?;
-            for &[a, b] in edge_corners {
-                if b != NONE {
-                    twin[a as usize] = b;
-                    twin[b as usize] = a;
-                }
-            }
-            twin
-        } else {
-            gather_hinted(4 * nf + 4, |c| {
-                if c >= 4 * nf {
-                    return dead;
-                }
-                let e = corner_edges[c] as usize;
-                coarse.opposite(e, c).map_or(dead, |d| d as u32)
-            })?
-        };
+        let corner_edges = coarse.corner_edges();
+        let twin = coarse.twin_table(dead, 4 * nf + 4)?;
         let (offsets, vertex_corners) = coarse.vertex_corner_table();
         let non_manifold = coarse.is_non_manifold();
         let grid_vertex = gather_hinted(nv, |v| {
