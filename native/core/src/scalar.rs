@@ -2,7 +2,7 @@
 //! values of `N` channels that every pass uses. Ground floor: imports nothing of the crate.
 
 use std::fmt::Debug;
-use std::ops::{Add, Mul};
+use std::ops::{Add, Mul, Sub};
 
 /// Floating-point types that points and attributes can be given in: `f32` and `f64`.
 pub trait Scalar:
@@ -13,6 +13,7 @@ pub trait Scalar:
     + PartialOrd
     + Debug
     + Add<Output = Self>
+    + Sub<Output = Self>
     + Mul<Output = Self>
     + 'static
 {
@@ -72,6 +73,12 @@ pub(crate) fn zero<T: Scalar, const N: usize>() -> Value<T, N> {
 #[inline(always)]
 pub(crate) fn add<T: Scalar, const N: usize>(a: [T; N], b: [T; N]) -> [T; N] {
     std::array::from_fn(|k| a[k] + b[k])
+}
+
+/// `a - b`, channel by channel.
+#[inline(always)]
+pub(crate) fn sub<T: Scalar, const N: usize>(a: [T; N], b: [T; N]) -> [T; N] {
+    std::array::from_fn(|k| a[k] - b[k])
 }
 
 /// `s * a`, channel by channel.

@@ -35,7 +35,7 @@ use crate::analysis::neighbourhood_size;
 use crate::error::{Error, Result};
 use crate::memory;
 use crate::parallel::Disjoint;
-use crate::scalar::Scalar;
+use crate::scalar::{add, mad, sub, Scalar};
 use crate::scheme::{cardinal_bspline, cardinal_bspline_derivative};
 use crate::topology::{quad_next, quad_prev, Level, NONE};
 
@@ -49,6 +49,14 @@ const _: () = assert!(MAX_SIDE <= 32);
 
 /// Data items per side of the largest window (`N <= 4`, degree 9).
 const MAX_DATA: usize = MAX_SIDE + 2 * 4;
+
+/// Four-lane vectors per filtered row: the output columns of the largest tile, rounded up.
+const MAX_VECTORS: usize = MAX_SIDE.div_ceil(4);
+
+/// Items per row of a task's window: the items the vectors of the largest tile read (output
+/// column `4 MAX_VECTORS - 1` reads `K - 1 <= 8` more), past the data the leftovers of no sum
+/// a vertex reads.
+const WINDOW_ROW: usize = 4 * MAX_VECTORS + 8;
 
 /// Walked cells per side of the largest window (one ring more than the data, so that every
 /// vertex of the window has its four cells).
@@ -275,22 +283,22 @@ impl Tiles {
             positions: Disjoint::new(positions),
             normals: normals.map(Disjoint::new),
         };
-        // Output columns are filtered `LANES` at a time: the columns a tile owns rounded up to
-        // whole four-lane vectors (at most `MAX_SIDE`), so that the tiles of levels 1 and 2
-        // (side 3 and 5) do not filter the nine columns of the largest tile, and a tile that
-        // owns no output of its far column (most of them: see the claims of [`Tiles::build`])
-        // filters one column less: 8 lanes, two vectors, at side 9 (not 9: two vectors and a
-        // scalar); 4 lanes, one vector, at side 5.
+        // Output columns are filtered four at a time, in as many vectors as the columns a tile
+        // owns need, so that the tiles of levels 1 and 2 (side 3 and 5) do not filter the nine
+        // columns of the largest tile, and a tile that owns no output of its far column (most
+        // of them: see the claims of [`Tiles::build`]) filters one column less: two vectors, not
+        // three, at side 9; one, not two, at side 5.
         match self.side {
-            0..=4 => self.write_lanes::<T, N, 4, 4>(data, &out, wide),
-            5 => self.write_lanes::<T, N, 4, 8>(data, &out, wide),
-            6..=8 => self.write_lanes::<T, N, 8, 8>(data, &out, wide),
-            _ => self.write_lanes::<T, N, 8, MAX_SIDE>(data, &out, wide),
+            0..=4 => self.write_lanes::<T, N, 1, 1>(data, &out, wide),
+            5 => self.write_lanes::<T, N, 1, 2>(data, &out, wide),
+            6..=8 => self.write_lanes::<T, N, 2, 2>(data, &out, wide),
+            _ => self.write_lanes::<T, N, 2, MAX_VECTORS>(data, &out, wide),
         }
     }
 
-    /// [`Tiles::write_on`] with `NEAR` output columns filtered for a tile that owns no output
-    /// of its far column (at least the side less one), `FAR` for the others (at least the side).
+    /// [`Tiles::write_on`] with `NEAR` four-lane vectors of output columns for a tile that owns
+    /// no output of its far column (at least the side less one), `FAR` for the others (at least
+    /// the side).
     fn write_lanes<T: Scalar, const N: usize, const NEAR: usize, const FAR: usize>(
         &self,
         data: &[[T; N]],
@@ -322,10 +330,14 @@ impl Tiles {
         out: &Out<T, N>,
         wide: bool,
     ) -> Result<()> {
-        // The rows read items up to `FAR + K - 2` of a window row (past a small tile's side:
-        // finite leftovers, in sums no vertex reads).
-        const { assert!(NEAR <= FAR && FAR <= MAX_SIDE && FAR + K - 1 <= MAX_DATA) };
-        if self.width != K || self.data_side > MAX_DATA || self.side > FAR || self.side > NEAR + 1 {
+        // The rows read items up to `4 FAR + K - 2` of a window row (past the data: finite
+        // leftovers, in sums no vertex reads).
+        const { assert!(NEAR <= FAR && FAR <= MAX_VECTORS && 4 * FAR + K - 1 <= WINDOW_ROW) };
+        if self.width != K
+            || self.data_side > MAX_DATA
+            || self.side > 4 * FAR
+            || self.side > 4 * NEAR + 1
+        {
             return Err(Error::Internal(
                 "limit tiles: a window past its bounds".into(),
             ));
@@ -351,9 +363,9 @@ impl Tiles {
             .try_for_each_init(
                 || {
                     Box::new(Rows::<N> {
-                        window: [[[0.0; MAX_DATA]; MAX_DATA]; N],
-                        by_value: [[[0.0; MAX_SIDE]; MAX_DATA]; N],
-                        by_slope: [[[0.0; MAX_SIDE]; MAX_DATA]; N],
+                        window: [[[0.0; WINDOW_ROW]; MAX_DATA]; N],
+                        by_value: [[[[0.0; 4]; MAX_VECTORS]; MAX_DATA]; N],
+                        by_slope: [[[[0.0; 4]; MAX_VECTORS]; MAX_DATA]; N],
                     })
                 },
                 |rows, task| {
@@ -427,11 +439,21 @@ pub(super) fn wide_vectors() -> bool {
 }
 
 /// A task's working rows for [`Kernel::tile`], channel by channel: a tile's window of data and
-/// its rows filtered for the output columns (by the value mask and by the slope mask).
+/// its rows filtered for the output columns (by the value mask and by the slope mask), output
+/// column `i` in lane `i % 4` of vector `i / 4`.
 struct Rows<const N: usize> {
-    window: [[[f64; MAX_DATA]; MAX_DATA]; N],
-    by_value: [[[f64; MAX_SIDE]; MAX_DATA]; N],
-    by_slope: [[[f64; MAX_SIDE]; MAX_DATA]; N],
+    window: [[[f64; WINDOW_ROW]; MAX_DATA]; N],
+    by_value: [[[Lanes; MAX_VECTORS]; MAX_DATA]; N],
+    by_slope: [[[Lanes; MAX_VECTORS]; MAX_DATA]; N],
+}
+
+/// Four output columns: what one AVX2 register holds.
+type Lanes = [f64; 4];
+
+/// Items `at..at + 4` of a window row.
+#[inline(always)]
+fn four(row: &[f64; WINDOW_ROW], at: usize) -> Lanes {
+    std::array::from_fn(|l| row[at + l])
 }
 
 /// The separable masks of width `K` over the tiles.
@@ -484,7 +506,7 @@ impl<const K: usize> Kernel<'_, K> {
     /// error. Rows first, for all output columns at once (each a sum over `K` window columns), then
     /// per output row the three column sums; the vertices the tile owns are picked from them.
     #[inline(always)]
-    fn tile<T: Scalar, const N: usize, const LANES: usize>(
+    fn tile<T: Scalar, const N: usize, const V: usize>(
         &self,
         tile: usize,
         data: &[[T; N]],
@@ -509,35 +531,31 @@ impl<const K: usize> Kernel<'_, K> {
             }
         }
         // The value mask is symmetric and the slope mask antisymmetric (zero at an odd mask's
-        // centre): items `k` and `K - 1 - k` are summed and subtracted once for both.
+        // centre): items `k` and `K - 1 - k` are summed and subtracted once for both. The sums
+        // run per vector of four output columns, over the taps in registers (arrays of all the
+        // columns, each sum went through memory: LLVM built the vectors lane by lane).
         let (half, odd) = (K / 2, K % 2 == 1);
+        let both = normals.is_some();
         for c in 0..N {
             for y in 0..d {
                 let x = &rows.window[c][y];
-                let mut v = [0.0f64; MAX_SIDE];
-                let mut s = [0.0f64; MAX_SIDE];
-                for k in 0..half {
-                    let (a, b) = (k, K - 1 - k);
-                    // One loop for both masks when both are wanted: each item is read once.
-                    if normals.is_some() {
-                        for i in 0..LANES {
-                            let (p, q) = (x[i + a], x[i + b]);
-                            v[i] += self.value[k] * (p + q);
-                            s[i] += self.slope[k] * (p - q);
-                        }
-                    } else {
-                        for i in 0..LANES {
-                            v[i] += self.value[k] * (x[i + a] + x[i + b]);
+                for u in 0..V {
+                    let at = 4 * u;
+                    let (mut v, mut s) = ([0.0f64; 4], [0.0f64; 4]);
+                    for k in 0..half {
+                        let (p, q) = (four(x, at + k), four(x, at + K - 1 - k));
+                        v = mad(v, self.value[k], add(p, q));
+                        // Both masks when both are wanted: each item is read once.
+                        if both {
+                            s = mad(s, self.slope[k], sub(p, q));
                         }
                     }
-                }
-                if odd {
-                    for i in 0..LANES {
-                        v[i] += self.value[half] * x[i + half];
+                    if odd {
+                        v = mad(v, self.value[half], four(x, at + half));
                     }
+                    rows.by_value[c][y][u] = v;
+                    rows.by_slope[c][y][u] = s;
                 }
-                rows.by_value[c][y] = v;
-                rows.by_slope[c][y] = s;
             }
         }
         let owned = self.tiles.owned[tile];
@@ -551,35 +569,33 @@ impl<const K: usize> Kernel<'_, K> {
                 continue;
             }
             // The three column sums of output row j, all columns at once.
-            let mut position = [[0.0f64; MAX_SIDE]; N];
-            let mut along_i = [[0.0f64; MAX_SIDE]; N];
-            let mut along_j = [[0.0f64; MAX_SIDE]; N];
+            let mut position = [[[0.0f64; 4]; V]; N];
+            let mut along_i = [[[0.0f64; 4]; V]; N];
+            let mut along_j = [[[0.0f64; 4]; V]; N];
             for c in 0..N {
                 let (bv, bs) = (&rows.by_value[c], &rows.by_slope[c]);
-                for r in 0..half {
-                    let (a, b) = (j + r, j + K - 1 - r);
-                    if normals.is_some() {
-                        for i in 0..LANES {
-                            let (p, q) = (bv[a][i], bv[b][i]);
-                            position[c][i] += self.value[r] * (p + q);
-                            along_i[c][i] += self.value[r] * (bs[a][i] + bs[b][i]);
-                            along_j[c][i] += self.slope[r] * (p - q);
-                        }
-                    } else {
-                        for i in 0..LANES {
-                            position[c][i] += self.value[r] * (bv[a][i] + bv[b][i]);
+                for u in 0..V {
+                    let (mut p_sum, mut i_sum, mut j_sum) = ([0.0f64; 4], [0.0f64; 4], [0.0f64; 4]);
+                    for r in 0..half {
+                        let (a, b) = (j + r, j + K - 1 - r);
+                        let (p, q) = (bv[a][u], bv[b][u]);
+                        p_sum = mad(p_sum, self.value[r], add(p, q));
+                        if both {
+                            i_sum = mad(i_sum, self.value[r], add(bs[a][u], bs[b][u]));
+                            j_sum = mad(j_sum, self.slope[r], sub(p, q));
                         }
                     }
-                }
-                if odd {
-                    let m = j + half;
-                    for i in 0..LANES {
-                        position[c][i] += self.value[half] * bv[m][i];
-                        along_i[c][i] += self.value[half] * bs[m][i];
+                    if odd {
+                        let m = j + half;
+                        p_sum = mad(p_sum, self.value[half], bv[m][u]);
+                        i_sum = mad(i_sum, self.value[half], bs[m][u]);
                     }
+                    position[c][u] = p_sum;
+                    along_i[c][u] = i_sum;
+                    along_j[c][u] = j_sum;
                 }
             }
-            let normal = normals.map(|_| unit_normals::<T, N, LANES>(&along_i, &along_j));
+            let normal = normals.map(|_| unit_normals::<T, N, V>(&along_i, &along_j));
             let mut bits = mine;
             while bits != 0 {
                 let i = bits.trailing_zeros() as usize;
@@ -590,10 +606,15 @@ impl<const K: usize> Kernel<'_, K> {
                 // SAFETY: a vertex is in one slot of one tile at most (`Tiles::build`), and
                 // each tile is walked by one task.
                 unsafe {
-                    out.positions
-                        .write(v, std::array::from_fn(|c| T::from_f64(position[c][i])))?;
+                    out.positions.write(
+                        v,
+                        std::array::from_fn(|c| T::from_f64(position[c].as_flattened()[i])),
+                    )?;
                     if let (Some(to), Some(normal)) = (normals, &normal) {
-                        to.write(v, std::array::from_fn(|c| T::from_f64(normal[c][i])))?;
+                        to.write(
+                            v,
+                            std::array::from_fn(|c| T::from_f64(normal[c].as_flattened()[i])),
+                        )?;
                     }
                 }
                 n += 1;
@@ -615,19 +636,13 @@ impl<const K: usize> Kernel<'_, K> {
 /// vertex at a time, the cross product and normalisation were a tenth of a cached limit's
 /// instructions at degree 3).
 #[inline(always)]
-fn unit_normals<T: Scalar, const N: usize, const LANES: usize>(
-    along_i: &[[f64; MAX_SIDE]; N],
-    along_j: &[[f64; MAX_SIDE]; N],
-) -> [[f64; MAX_SIDE]; 3] {
-    // The lanes filtered only (at side 5 four of the nine).
-    let channel = |t: &[[f64; MAX_SIDE]; N], c: usize| {
-        let mut rounded = [0.0; MAX_SIDE];
-        if let Some(t) = t.get(c) {
-            for i in 0..LANES {
-                rounded[i] = T::from_f64(t[i]).to_f64();
-            }
-        }
-        rounded
+fn unit_normals<T: Scalar, const N: usize, const V: usize>(
+    along_i: &[[Lanes; V]; N],
+    along_j: &[[Lanes; V]; N],
+) -> [[Lanes; V]; 3] {
+    let channel = |t: &[[Lanes; V]; N], c: usize| match t.get(c) {
+        Some(t) => t.map(|lanes| lanes.map(|x| T::from_f64(x).to_f64())),
+        None => [[0.0; 4]; V],
     };
     let (ax, ay, az) = (
         channel(along_i, 0),
@@ -639,16 +654,24 @@ fn unit_normals<T: Scalar, const N: usize, const LANES: usize>(
         channel(along_j, 1),
         channel(along_j, 2),
     );
-    let mut out = [[0.0; MAX_SIDE]; 3];
-    for i in 0..LANES {
-        let x = ay[i] * bz[i] - by[i] * az[i];
-        let y = az[i] * bx[i] - bz[i] * ax[i];
-        let z = ax[i] * by[i] - bx[i] * ay[i];
-        let rcp = 1.0 / (x * x + y * y + z * z).sqrt();
-        let unit = rcp.is_finite() && rcp > 0.0;
-        out[0][i] = if unit { x * rcp } else { 0.0 };
-        out[1][i] = if unit { y * rcp } else { 0.0 };
-        out[2][i] = if unit { z * rcp } else { 0.0 };
+    let mut out = [[[0.0; 4]; V]; 3];
+    for u in 0..V {
+        let (ax, ay, az, bx, by, bz) = (ax[u], ay[u], az[u], bx[u], by[u], bz[u]);
+        let x: Lanes = std::array::from_fn(|l| ay[l] * bz[l] - by[l] * az[l]);
+        let y: Lanes = std::array::from_fn(|l| az[l] * bx[l] - bz[l] * ax[l]);
+        let z: Lanes = std::array::from_fn(|l| ax[l] * by[l] - bx[l] * ay[l]);
+        let rcp: Lanes =
+            std::array::from_fn(|l| 1.0 / (x[l] * x[l] + y[l] * y[l] + z[l] * z[l]).sqrt());
+        // `rcp.is_finite() && rcp > 0.0` on the bits (positive finite `f64`s are the bits
+        // `1..=f64::MAX.to_bits()`), as a mask of the product's bits (zero bits are `0.0`): as
+        // float comparisons, LLVM made them a class test of each lane, one by one.
+        let keep: [u64; 4] = std::array::from_fn(|l| {
+            let above_zero = rcp[l].to_bits().wrapping_sub(1);
+            (above_zero < f64::MAX.to_bits()) as u64 * u64::MAX
+        });
+        for (out, v) in out.iter_mut().zip([x, y, z]) {
+            out[u] = std::array::from_fn(|l| f64::from_bits((v[l] * rcp[l]).to_bits() & keep[l]));
+        }
     }
     out
 }
