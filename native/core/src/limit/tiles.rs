@@ -23,7 +23,7 @@
 //! from the tile's corner goes around it), which keep their stencils. The tile is the first (in
 //! face order) that holds the vertex off its far column and far row, else the first that holds
 //! it at all: the far column is shared with the next tile, and a tile that owns none of it
-//! filters one column less.
+//! filters fewer columns (one four-lane vector less at sides 5 and 9).
 
 use std::mem::MaybeUninit;
 use std::sync::Mutex;
@@ -54,8 +54,8 @@ const MAX_DATA: usize = MAX_SIDE + 2 * 4;
 const MAX_VECTORS: usize = MAX_SIDE.div_ceil(4);
 
 /// Items per row of a task's window: the items the vectors of the largest tile read (output
-/// column `4 MAX_VECTORS - 1` reads `K - 1 <= 8` more), past the data the leftovers of no sum
-/// a vertex reads.
+/// column `4 MAX_VECTORS - 1` reads `K - 1 <= 8` more). Past a window's data they are leftovers
+/// that no output's sum reads.
 const WINDOW_ROW: usize = 4 * MAX_VECTORS + 8;
 
 /// Walked cells per side of the largest window (one ring more than the data, so that every
@@ -146,7 +146,7 @@ impl Tiles {
         // Claims in two passes, each in tile order (the result does not depend on the thread
         // count): first the outputs off a tile's far column and row, then the far ones that no
         // tile took. A far output of one tile is most often a near one of the next, so most
-        // tiles own no far column and filter one column less ([`Tiles::write`]).
+        // tiles own no far column and filter fewer columns ([`Tiles::write`]).
         let far = far_outputs(side);
         let (window, outputs_per_tile) = (data_side * data_side, side * side);
         let mut claimed = memory::filled(level.num_vertices, false)?;
@@ -236,7 +236,7 @@ impl Tiles {
         }))
     }
 
-    /// The tiles that own an output of their far column (filtered with one column more), and
+    /// The tiles that own an output of their far column (filtered with more columns), and
     /// all tiles.
     #[cfg(test)]
     pub(super) fn far_column_tiles(&self) -> (usize, usize) {
@@ -588,6 +588,7 @@ impl<const K: usize> Kernel<'_, K> {
                     if odd {
                         let m = j + half;
                         p_sum = mad(p_sum, self.value[half], bv[m][u]);
+                        // Unread without normals; a test of `both` here cost more than the sum.
                         i_sum = mad(i_sum, self.value[half], bs[m][u]);
                     }
                     position[c][u] = p_sum;
