@@ -18,8 +18,8 @@
 //! not in such a clean neighbourhood (near another irregular vertex, a crease or a boundary) are
 //! handled by refining further, `m` levels, which doubles their distances `m` times while the old
 //! vertices keep their ids, until every one of them is clean. With the averaging rules, when
-//! those vertices are a small part of the level (their seeds at most 1 / [`LOCAL_SHARE`] of its
-//! faces), this is local: only partial levels around them are made (the adaptive module's
+//! the partial levels around those vertices have at most 1 / [`LOCAL_SHARE`] of the faces of the
+//! whole plan extended, this is local: only partial levels around them are made (the adaptive module's
 //! [`LocalLevels`], exact where their stencils reach), and every other vertex keeps the masks of
 //! the plan's own last level; the curve vertices, corners and valence-2 vertices then take the
 //! extension too (their normals come from fans at the extended level). Otherwise the whole plan
@@ -120,10 +120,13 @@ use tiles::Tiles;
 /// Extra levels tried at most beyond the first guess before giving up.
 const MAX_EXTRA_LEVELS: u32 = 8;
 
-/// The local extension is made when its seeds are at most this share (1 / LOCAL_SHARE) of the
-/// plan's last level (measured: a fan of valence 400, all of it near its centre, costs 8x per
-/// cached call on partial levels what the whole plan extended costs).
-const LOCAL_SHARE: usize = 8;
+/// The local extension is made when its partial levels have at most this share (1 /
+/// LOCAL_SHARE) of the faces of the whole plan extended, and its seeds at most this share of the
+/// plan's last level (else the partial levels are not even built). A partial face costs more
+/// than a face of the whole extension (measured with every face a seed, the valence-400 fan at
+/// degree 9: 1.3x per cached call, 2.7x in the first), so at half the faces the cached call is
+/// cheaper and the first call about as dear.
+const LOCAL_SHARE: usize = 2;
 
 /// The neighbourhood size `N` from which the local extension is made one level at a time
 /// ([`stepwise_local_stencils`]): with `N` of 2 (degrees 4 and 5) the vertices clean one level
@@ -1007,9 +1010,9 @@ fn build(refinement: &Refinement, local: Option<usize>, tiled: bool) -> Result<S
                     kept => {
                         first_stage = kept;
                         let seeds = local_seeds(last, degree, vertices, m)?;
-                        // Partial levels are made on every evaluation, at several times the
-                        // cost of a cached level per face: around most of the mesh, the whole
-                        // plan extended (its topology kept) is cheaper.
+                        // Partial levels are made on every evaluation, at more than the cost
+                        // of a cached level per face: around most of the mesh, the whole plan
+                        // extended (its topology kept) is cheaper.
                         if smooth == 0 && share * seeds.len() > last.num_faces() {
                             break;
                         }
@@ -1024,11 +1027,12 @@ fn build(refinement: &Refinement, local: Option<usize>, tiled: bool) -> Result<S
                 let Some(built) = built else {
                     continue;
                 };
-                // Past semi-sharp features the whole plan extended has 4^m times the plan's
-                // faces per level, the partial levels about 2^m times those near the features:
-                // their sizes decide.
+                // The whole plan extended has 4^m times the plan's faces per level; the
+                // partial levels grow about 2^m times along semi-sharp features, and a
+                // stepwise extension is made around fewer vertices each level: their sizes
+                // decide.
                 let whole_faces = (last.num_faces() as u64) * ((4u64 << (2 * m)) - 4) / 3;
-                if smooth > 0 && (share as u64) * local_faces(&built) > whole_faces {
+                if (share as u64) * local_faces(&built) > whole_faces {
                     break;
                 }
                 st.local = Some(built);
@@ -2573,21 +2577,37 @@ mod tests {
     }
 
     /// On a mesh whose unclean vertices are a small part (a large grid: its boundary and
-    /// corners), the plan's own stencils take the local extension; on a small one (the cube,
-    /// every vertex near an irregular one), the whole plan is extended.
+    /// corners), the plan's own stencils take the local extension, also at level 1 where its
+    /// seeds are a third of the level but its partial levels (around fewer vertices each level
+    /// from degree 6) have at most 1 / LOCAL_SHARE of the whole extension's faces; on a small
+    /// one (the cube, every vertex near an irregular one; a smaller grid at level 1, most of
+    /// its faces seeds), the whole plan is extended.
     #[test]
     fn the_local_extension_is_taken_where_it_is_a_small_part() {
-        let options = Options {
-            degree: 4,
-            levels: 3,
-            ..Options::default()
+        let taken = |cage: &Cage, degree: u32, levels: u32| {
+            let options = Options {
+                degree,
+                levels,
+                ..Options::default()
+            };
+            let r = Refinement::new(cage, &options).unwrap();
+            let st = stencils(&r, &LimitCache::default()).unwrap();
+            assert!(st.local.is_some() != st.extended.is_some());
+            let local = st.local.as_ref()?;
+            let last = r.last_level();
+            let seeds = local_seeds(last, degree, &st.local_vertices, st.extra_levels).unwrap();
+            let m = st.extra_levels;
+            let whole = (last.num_faces() as u64) * ((4u64 << (2 * m)) - 4) / 3;
+            assert!(LOCAL_SHARE as u64 * local_faces(local) <= whole);
+            Some(seeds.len() as f64 / last.num_faces() as f64)
         };
         let (large, _) = grid(24);
-        let r = Refinement::new(&large, &options).unwrap();
-        let st = stencils(&r, &LimitCache::default()).unwrap();
-        assert!(st.local.is_some() && st.extended.is_none());
-        let r = Refinement::new(&cube().0, &options).unwrap();
-        let st = stencils(&r, &LimitCache::default()).unwrap();
-        assert!(st.local.is_none() && st.extended.is_some());
+        assert!(taken(&large, 4, 3).is_some());
+        for degree in [4, 9] {
+            let share = taken(&large, degree, 1);
+            assert!(share.is_some_and(|s| s > 0.3), "degree {degree}: {share:?}");
+            assert_eq!(taken(&grid(12).0, degree, 1), None, "degree {degree}");
+        }
+        assert_eq!(taken(&cube().0, 4, 3), None);
     }
 }
