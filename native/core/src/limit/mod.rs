@@ -886,6 +886,11 @@ impl LimitCache {
     /// Frees the kept working arrays (the stencils stay).
     pub(crate) fn release_buffers(&self) {
         self.1.clear();
+        // The whole plan extended keeps its own.
+        let kept = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, scratch)) = kept.as_ref().and_then(|st| st.extended.as_ref()) {
+            scratch.clear();
+        }
     }
 }
 
@@ -2334,19 +2339,34 @@ mod tests {
 
     #[test]
     fn kept_buffers_change_no_value() {
-        // Each call reuses the arrays the one before left (tiles, normals, the level's data):
-        // a call between two on the same points changes nothing.
+        // Each call reuses the arrays the one before left (tiles, normals, the level's data,
+        // the whole plan extended's on the cube): a call between two on the same points
+        // changes nothing, nor does freeing them.
         let (sphere, points) = ico_quads(3);
-        let other: Vec<f64> = points.iter().map(|&x| 2.0 * x + 0.25).collect();
-        for degree in [2, 4, 9] {
-            let refinement = at_level_3(&sphere, degree);
+        let (cube, cube_points) = cube();
+        let cases = [
+            (&sphere, &points, 2),
+            (&sphere, &points, 4),
+            (&sphere, &points, 9),
+        ];
+        for (cage, points, degree) in cases.into_iter().chain([(&cube, &cube_points, 4)]) {
+            let refinement = at_level_3(cage, degree);
+            let other: Vec<f64> = points.iter().map(|&x| 2.0 * x + 0.25).collect();
             let (scratch, cache) = (Scratch::default(), LimitCache::default());
-            let first = surface(&refinement, &scratch, &cache, &points).unwrap();
+            let first = surface(&refinement, &scratch, &cache, points).unwrap();
+            let st = stencils(&refinement, &cache).unwrap();
+            let extended = st.extended.as_ref().map(|e| &e.1);
+            assert_eq!(extended.is_some(), cage.num_faces() == 6, "degree {degree}");
             let between = surface(&refinement, &scratch, &cache, &other).unwrap();
-            let again = surface(&refinement, &scratch, &cache, &points).unwrap();
+            let again = surface(&refinement, &scratch, &cache, points).unwrap();
             assert_eq!(first, again, "degree {degree}");
             assert_ne!(first, between, "degree {degree}");
-            let positions = positions(&refinement, &scratch, &cache, &points, 3).unwrap();
+            assert!(extended.is_none_or(|s| s.kept_buffers() > 0));
+            cache.release_buffers();
+            assert!(extended.is_none_or(|s| s.kept_buffers() == 0));
+            let released = surface(&refinement, &scratch, &cache, points).unwrap();
+            assert_eq!(first, released, "degree {degree}: buffers freed");
+            let positions = positions(&refinement, &scratch, &cache, points, 3).unwrap();
             assert_eq!(positions, first.0, "degree {degree}: positions alone");
         }
     }

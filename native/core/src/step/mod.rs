@@ -229,6 +229,12 @@ impl Scratch {
         }
     }
 
+    /// How many buffers are kept.
+    #[cfg(test)]
+    pub(crate) fn kept_buffers(&self) -> usize {
+        self.pool.lock().unwrap_or_else(|e| e.into_inner()).len()
+    }
+
     /// How many buffers were allocated outside [`Scratch::provision`] (see the field).
     #[cfg(test)]
     pub(crate) fn unprovisioned(&self) -> usize {
