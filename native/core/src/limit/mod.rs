@@ -18,12 +18,12 @@
 //! not in such a clean neighbourhood (near another irregular vertex, a crease or a boundary) are
 //! handled by refining further, `m` levels, which doubles their distances `m` times while the old
 //! vertices keep their ids, until every one of them is clean. With the averaging rules, when
-//! the partial levels around those vertices have at most 1 / [`LOCAL_SHARE`] of the faces of the
-//! whole plan extended, this is local: only partial levels around them are made (the adaptive module's
-//! [`LocalLevels`], exact where their stencils reach), and every other vertex keeps the masks of
-//! the plan's own last level; the curve vertices, corners and valence-2 vertices then take the
-//! extension too (their normals come from fans at the extended level). Otherwise the whole plan
-//! is extended.
+//! the partial levels around those vertices have at most 1 / [`LOCAL_SHARE`] of the faces of
+//! the whole plan extended, this is local: only partial levels around them are made (the
+//! adaptive module's [`LocalLevels`], exact where their stencils reach), and every other vertex
+//! keeps the masks of the plan's own last level; the curve vertices, corners and valence-2
+//! vertices then take the extension too (their normals come from fans at the extended level).
+//! Otherwise the whole plan is extended.
 //!
 //! Semi-sharp creases and corners (sharpness `s`) must have left the last step's network: the
 //! vertices they make are never clean (their rules change later), so the extension reaches
@@ -2598,10 +2598,10 @@ mod tests {
 
     /// On a mesh whose unclean vertices are a small part (a large grid: its boundary and
     /// corners), the plan's own stencils take the local extension, also at level 1 where its
-    /// seeds are a third of the level but its partial levels (around fewer vertices each level
-    /// from degree 6) have at most 1 / LOCAL_SHARE of the whole extension's faces; on a small
-    /// one (the cube, every vertex near an irregular one; a smaller grid at level 1, most of
-    /// its faces seeds), the whole plan is extended.
+    /// seeds are a third of the level but its partial levels have at most 1 / LOCAL_SHARE of
+    /// the whole extension's faces; on a small one (the cube, every vertex near an irregular
+    /// one; a 12x12 grid at level 1, nearly all of it near its boundary), the whole plan is
+    /// extended.
     #[test]
     fn the_local_extension_is_taken_where_it_is_a_small_part() {
         let taken = |cage: &Cage, degree: u32, levels: u32| {
