@@ -153,17 +153,19 @@ pub fn estimate(cage: &Cage, options: &Options) -> Result<Estimate> {
     let mut e = c / 2.0 + 1.0;
     let mut bytes = 0.0;
     let level_bytes = |v: f64, e: f64, c: f64| 4.0 * (v + 4.0 * c) + 16.0 * e;
-    // The averaging rules' regular windows (`step::regular`): per coarse face of a step after
-    // the first (a cage level has none), its net of 4 x 4 (degrees 4-5) or 6 x 6 (6-9) ids and
-    // a mask; degrees 1-3 have none.
+    // The averaging rules' regular windows (`step::regular`): per coarse face of a step from a
+    // level of quads (every level after the cage, and a cage of quads), its net of at most 3 x
+    // 3 (degrees 2-3), 4 x 4 (4-5) or 6 x 6 (6-9) ids, a mask and a share; degree 1 has none.
     let net = match options.degree {
+        2..=3 if options.rules == Rules::Averaging => 4.0 * 9.0 + 2.0,
         4..=5 if options.rules == Rules::Averaging => 4.0 * 16.0 + 2.0,
         6..=9 if options.rules == Rules::Averaging => 4.0 * 36.0 + 2.0,
         _ => 0.0,
     };
+    let quad_cage = cage.face_offsets().windows(2).all(|w| w[1] - w[0] == 4);
     bytes += level_bytes(v, e, c);
     for step in 0..options.levels {
-        if step > 0 {
+        if step > 0 || quad_cage {
             bytes += net * f;
         }
         (v, e, f, c) = (v + e + f, 2.0 * e + c, c, 4.0 * c);

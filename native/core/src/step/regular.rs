@@ -1705,6 +1705,39 @@ mod tests {
         );
     }
 
+    /// [`crate::estimate`] counts the windows' tables (nets, masks, shares) of every step that
+    /// has them, the first step from a cage of quads and the kernels of two averages included:
+    /// its figure for a degree exceeds that of degree 1 (the same levels, no windows) by at
+    /// least their bytes.
+    #[test]
+    fn the_estimate_counts_the_windows() {
+        let cage = cube_grid(5).0;
+        let mut counted = 0;
+        for (degree, levels) in (2..=9).flat_map(|d| [(d, 1), (d, 2)]) {
+            let options = Options {
+                levels,
+                ..averaging(degree)
+            };
+            let refinement = Refinement::new(&cage, &options).unwrap();
+            let tables: usize = (0..refinement.curve_networks().len())
+                .filter_map(|j| refinement.step(j).windows)
+                .map(|w| 4 * w.nets.len() + w.masks.len() + w.shares.len())
+                .sum();
+            let bilinear = Options {
+                degree: 1,
+                ..options
+            };
+            let more = crate::estimate(&cage, &options).unwrap().bytes
+                - crate::estimate(&cage, &bilinear).unwrap().bytes;
+            assert!(
+                more >= tables as u64,
+                "degree {degree}, {levels} levels: {more} bytes estimated for {tables}"
+            );
+            counted += usize::from(levels == 1 && tables > 0);
+        }
+        assert!(counted >= 4, "{counted} cage steps with windows");
+    }
+
     /// For every kernel, column 0 weighs the first `averages / 2 + 1` coordinates of the net
     /// and column 1 the last as many, none else: the taps `Windows::apply_with` keeps.
     #[test]
