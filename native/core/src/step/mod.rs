@@ -25,7 +25,8 @@
 //! working buffers come from a [`Scratch`] that a plan keeps between evaluations, so that a
 //! cached re-evaluation pays page faults only for the array it returns; the two that the
 //! windowed zone writes in part keep their length there, so a warm plan does not fill them
-//! again ([`LevelData::partial`]). A cage of quads takes the quad paths and the regular windows from its first step.
+//! again ([`LevelData::partial`]). A cage of quads takes the quad paths and the regular windows
+//! from its first step.
 
 pub(crate) mod catmark;
 mod doo_sabin;
