@@ -46,6 +46,12 @@ pub struct Cage {
     holes: Vec<u32>,
 }
 
+/// True when face offsets (length faces + 1, from 0) are those of quads only: face `f` at
+/// `4 f`. The one test of a cage ([`Cage::all_quads`]) and of a level stored with offsets.
+pub(crate) fn offsets_of_quads(face_offsets: &[u32]) -> bool {
+    (face_offsets.iter().enumerate()).all(|(f, &offset)| offset as usize == 4 * f)
+}
+
 fn check_index(what: impl Fn() -> String, index: i64, num_vertices: usize) -> Result<u32> {
     if index < 0 || index as u64 >= num_vertices as u64 {
         return Err(Error::IndexOutOfRange {
@@ -217,6 +223,11 @@ impl Cage {
     /// Offsets of each face's vertices in [`Cage::face_vertices`] (length faces + 1).
     pub fn face_offsets(&self) -> &[u32] {
         &self.face_offsets
+    }
+
+    /// True when every face is a quad (one pass over the offsets).
+    pub(crate) fn all_quads(&self) -> bool {
+        offsets_of_quads(&self.face_offsets)
     }
 
     /// Vertex indices of all faces, face after face.

@@ -162,10 +162,9 @@ pub fn estimate(cage: &Cage, options: &Options) -> Result<Estimate> {
         6..=9 if options.rules == Rules::Averaging => 4.0 * 36.0 + 2.0,
         _ => 0.0,
     };
-    let quad_cage = cage.face_offsets().windows(2).all(|w| w[1] - w[0] == 4);
     bytes += level_bytes(v, e, c);
     for step in 0..options.levels {
-        if step > 0 || quad_cage {
+        if step > 0 || cage.all_quads() {
             bytes += net * f;
         }
         (v, e, f, c) = (v + e + f, 2.0 * e + c, c, 4.0 * c);

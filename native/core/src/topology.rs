@@ -23,7 +23,7 @@ use rayon::prelude::*;
 
 use crate::error::Result;
 use crate::memory;
-use crate::mesh::Cage;
+use crate::mesh::{offsets_of_quads, Cage};
 use crate::parallel::{
     csr_chunks, fill_csr, gather_hinted, prefix_offsets, with_capacity_hinted, zeroed_hinted, CHUNK,
 };
@@ -112,8 +112,7 @@ impl Level {
     /// ([`Level::is_quads`]), or a cage of quads, which is stored with its face offsets as any
     /// cage (one pass over them: ask once per pass, not per face).
     pub(crate) fn all_quads(&self) -> bool {
-        self.is_quads()
-            || (self.face_offsets.iter().enumerate()).all(|(f, &offset)| offset as usize == 4 * f)
+        self.is_quads() || offsets_of_quads(&self.face_offsets)
     }
 
     /// True when every face is a quad ([`Level::all_quads`]) and no edge has more than two faces

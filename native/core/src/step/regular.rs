@@ -79,7 +79,7 @@
 //! level 3 -1 % to -5 %. The classification costs more than one evaluation of the step saves: a
 //! new plan and its evaluation at level 1 +11 % (degree 4) and +15 % (9), at level 2 +2 % and +3
 //! %, at level 3 under +1 %. The kernel's sums are not the passes' (f64 results of quad cages
-//! move by at most 1e-12 of a value, 6e-16 of the largest coordinate; normals 2.5e-14), the
+//! move by at most 1e-12 of a value, 6e-16 of the largest coordinate; normals 2.4e-14), the
 //! same on every path that steps from the cage (plans, limits, adaptive partial levels, the
 //! face-varying meshes), so adaptive vertices stay bitwise the uniform ones.
 //!
