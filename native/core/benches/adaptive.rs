@@ -12,6 +12,7 @@ use std::time::{Duration, Instant};
 
 use bidegree::{subdivide_adaptive, AdaptiveOptions, Options, Plan};
 
+mod allocator;
 #[path = "cages/flat.rs"]
 mod flat;
 use flat::flat_with_detail;

@@ -18,6 +18,7 @@ use std::time::Instant;
 
 use bidegree::{FaceVaryingMode, Options, Plan, Rules};
 
+mod allocator;
 mod cages;
 use cages::{ico_patch_uvs, ico_quad_sphere};
 

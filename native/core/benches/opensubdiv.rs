@@ -67,6 +67,7 @@ use std::time::Instant;
 
 use bidegree::{estimate, Options, Plan, Rules};
 
+mod allocator;
 mod cages;
 use cages::{creased_grid, ico_quad_sphere, polygon, triangle_fan};
 

@@ -9,6 +9,8 @@ use std::time::{Duration, Instant};
 
 use bidegree::{subdivide, Cage, Options, Plan};
 
+mod allocator;
+
 /// A cube whose faces are n x n grids, projected to a sphere: 8 vertices of valence 3.
 fn quad_sphere(n: usize) -> (Cage, Vec<f32>) {
     let mut index = std::collections::HashMap::new();

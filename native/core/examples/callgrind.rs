@@ -42,6 +42,8 @@ use std::hint::black_box;
 
 use bidegree::{subdivide_adaptive, AdaptiveOptions, Cage, FaceVaryingMode, Options, Plan, Rules};
 
+#[path = "../benches/allocator/mod.rs"]
+mod allocator;
 #[path = "../benches/cages/mod.rs"]
 mod cages;
 #[path = "../benches/cages/flat.rs"]
