@@ -25,11 +25,12 @@ use bidegree::{INFINITELY_SHARP, MAX_DEGREE, MAX_LEVELS};
 use pyo3::prelude::*;
 
 /// The extension's Rust allocations (the core's levels, working buffers and the arrays handed
-/// to numpy) go through mimalloc, not the C library's `malloc`: glibc gives the large arrays of
-/// a call back to the system when they are freed (a rayon worker's arena heap unmapped or
-/// trimmed), so that the next call on the same plan faults all of their pages in again (136 page
-/// faults a cached evaluation at level 3, 1,147 a cached degree-6 limit, on the 4k ico cage);
-/// mimalloc keeps freed pages for a second before purging them, longer than a frame.
+/// to numpy) go through mimalloc, not the C library's `malloc`: with glibc the next call on the
+/// same plan faulted the pages of the last one's large arrays in again (page faults a call, 4k
+/// ico cage at level 3: 136 a cached degree-4 evaluation, 1,147 a cached degree-6 limit; 0 or 1
+/// with mimalloc), which glibc had given back to the system when they were freed (under
+/// `strace`, in one case: a rayon worker's arena heap mapped and unmapped every call); mimalloc
+/// keeps freed pages for a second before purging them, longer than a frame.
 #[global_allocator]
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
