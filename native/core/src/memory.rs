@@ -6,13 +6,19 @@
 //! allocation past an address-space limit). The functions here ask with `try_reserve_exact`
 //! instead and turn a refusal into [`Error::OutOfMemory`] with the bytes asked for and the
 //! memory available, which the Python binding raises as `MemoryBudgetError`. They cost what
-//! the infallible forms cost: one allocation, and zeroed buffers come from `alloc_zeroed`
-//! (`calloc`: fresh pages are not written) as `vec![0; n]` does.
+//! the infallible forms cost: one allocation, and zeroed buffers come from `alloc_zeroed` as
+//! `vec![0; n]` does (fresh pages from the system are not written, but memory the allocator
+//! reuses is: with the Python extension's allocator, mimalloc, that is most of them, so a
+//! buffer that is written whole is better made uninitialised).
 //!
 //! Under an address-space limit (`ulimit -v`, `RLIMIT_AS`) the large requests here also keep
 //! [`ADDRESS_SPACE_HEADROOM`] of the address space free: the small allocations that nothing can
 //! make fallible (a vector's growth inside a walk, rayon's jobs, a worker thread's `malloc`
 //! arena, which maps 64 MiB at a time) would otherwise be the ones to find no room, and abort.
+//! The headroom was measured with glibc's `malloc`. The Python extension allocates through
+//! mimalloc, which reserves address space up to 1 GiB at a time and asks for less when refused;
+//! with it, the fuzzer's cases under such limits ended typed too (`scripts/fuzz.sh 6`,
+//! 2026-12-05: 3,908 cases, none aborted), but its behaviour near the limit was not analysed.
 //!
 //! The budget check of a request before any work ([`check_request`]) compares its estimate with
 //! the budget and with the machine's memory: a budget raised above the memory the machine has
@@ -109,7 +115,7 @@ pub fn grow<T>(v: &mut Vec<T>, additional: usize) -> Result<()> {
 }
 
 /// `len` copies of `value` (`vec![value; len]`), or [`Error::OutOfMemory`]. For zeros use
-/// [`zeroed`], which does not write the pages.
+/// [`zeroed`], which does not write fresh pages.
 pub fn filled<T: Clone>(len: usize, value: T) -> Result<Vec<T>> {
     let mut v = with_capacity(len)?;
     v.resize(len, value);
