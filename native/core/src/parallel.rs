@@ -353,7 +353,7 @@ pub(crate) fn scatter_uninit<V: Send, const G: usize>(
     // SAFETY: the tasks write disjoint groups (the names are distinct) and read nothing.
     unsafe impl<V: Send> Sync for Out<V> {}
     let target = Out(out.as_mut_ptr());
-    at.par_chunks(CHUNK).for_each(|names| {
+    at.par_chunks(SCATTER_CHUNK).for_each(|names| {
         let target = &target;
         for &name in names {
             let group = value(name as usize);
@@ -370,6 +370,11 @@ pub(crate) fn scatter_uninit<V: Send, const G: usize>(
     });
     Ok(())
 }
+
+/// Names per task of [`scatter_uninit`]: its lists (a step's zone around the irregular
+/// vertices and curves) are short next to a level, a few thousand names of tens to hundreds of
+/// instructions each, which chunks of [`CHUNK`] split into too few tasks for two threads.
+const SCATTER_CHUNK: usize = CHUNK / 4;
 
 /// A slice that parallel tasks write at distinct indices, each index by one task: the writes
 /// of a pass whose items are not in chunks of the output (the limit tiles' vertices). Only
