@@ -241,8 +241,8 @@ impl Windows {
             _ => classify::<5, false, 25>(&g, &flags, m, n),
         }
         // SAFETY: `classify` wrote every mask and every net: each face's walk writes each id of
-        // its net (the tests compare every net with the reference walk's), and a panic would
-        // have unwound past here.
+        // its net (checked at compile time, `Walk::writes_whole_net`; the tests compare every
+        // net with the reference walk's), and a panic would have unwound past here.
         unsafe {
             masks.set_len(nf);
             nets.set_len(nf * side * side);
@@ -1001,6 +1001,7 @@ fn classify<const C: usize, const PRIMAL: bool, const N: usize>(
     nets: &mut [MaybeUninit<u32>],
 ) {
     debug_assert_eq!(g.side * g.side, N);
+    const { assert!(Walk::<C, PRIMAL>::writes_whole_net(N)) };
     assert_eq!(nets.len(), N * masks.len(), "a net of N ids per face");
     nets.par_chunks_mut(N * CHUNK)
         .zip(masks.par_chunks_mut(CHUNK))
@@ -1119,6 +1120,45 @@ impl<const C: usize, const PRIMAL: bool> Walk<C, PRIMAL> {
     } else {
         (C - 1) * (C - 1)
     };
+
+    /// Whether the walk writes every id of a net of `N` ids: every cell is visited (the
+    /// face's own, then each step's), and a dual net is its cells, a primal one its grid
+    /// vertices, each named by a visited cell. [`classify`] writes the nets into uninitialised
+    /// memory on this.
+    const fn writes_whole_net(n: usize) -> bool {
+        let own = C * (C / 2) + C / 2;
+        let mut visited = [false; (MAX_SIDE - 1) * (MAX_SIDE - 1)];
+        visited[own] = true;
+        let mut s = 0;
+        while s + 1 < C * C {
+            visited[Self::STEPS[s].0 as usize] = true;
+            s += 1;
+        }
+        let mut written = [false; MAX_SIDE * MAX_SIDE];
+        let mut k = 0;
+        if PRIMAL {
+            while k < Self::READ {
+                let (at, cell, _, _) = Self::VERTICES[k];
+                if visited[cell as usize] {
+                    written[at as usize] = true;
+                }
+                k += 1;
+            }
+        } else {
+            while k < C * C {
+                written[k] = visited[k];
+                k += 1;
+            }
+        }
+        let ids = if PRIMAL { (C + 1) * (C + 1) } else { C * C };
+        let mut all = n == ids;
+        let mut k = 0;
+        while k < ids {
+            all &= written[k];
+            k += 1;
+        }
+        all
+    }
 }
 
 /// Places the cells of face `f`'s net as a walk across edges does (its own cell at `(0, 0)`
