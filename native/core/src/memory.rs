@@ -8,8 +8,8 @@
 //! memory available, which the Python binding raises as `MemoryBudgetError`. They cost what
 //! the infallible forms cost: one allocation, and zeroed buffers come from `alloc_zeroed` as
 //! `vec![0; n]` does (fresh pages from the system are not written, but memory the allocator
-//! reuses is: with the Python extension's allocator, mimalloc, that is most of them, so a
-//! buffer that is written whole is better made uninitialised).
+//! reuses is, as the Python extension's allocator, mimalloc, does with memory freed in the last
+//! second: a buffer that is written whole is better made uninitialised).
 //!
 //! Under an address-space limit (`ulimit -v`, `RLIMIT_AS`) the large requests here also keep
 //! [`ADDRESS_SPACE_HEADROOM`] of the address space free: the small allocations that nothing can
