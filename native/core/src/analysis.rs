@@ -369,10 +369,21 @@ fn step_values<const C: usize>(
     j: usize,
     values: &[[f64; C]],
 ) -> Result<Vec<[f64; C]>> {
+    steps_values(refinement, j, 1, values)
+}
+
+/// [`step_values`] for `steps` steps `M_j -> M_{j+steps}`: the data of level `j + steps`.
+pub(crate) fn steps_values<const C: usize>(
+    refinement: &Refinement,
+    j: usize,
+    steps: usize,
+    values: &[[f64; C]],
+) -> Result<Vec<[f64; C]>> {
     let (levels, networks) = (refinement.try_levels()?, refinement.curve_networks());
-    if !(1..networks.len()).contains(&j) {
+    if j == 0 || steps == 0 || j + steps > networks.len() {
         return Err(Error::Internal(format!(
-            "step_values needs 1 <= j < {} (the refinement's levels), not j = {j}",
+            "steps_values needs 1 <= j and 1 <= steps with j + steps <= {} (the refinement's \
+             steps), not j = {j}, steps = {steps}",
             networks.len()
         )));
     }
@@ -389,11 +400,14 @@ fn step_values<const C: usize>(
             .map(|ce| values[face_of_edge(ce.edge)])
             .collect()
     };
-    let step = refinement.step(j);
+    // The last step's fine level is the largest: the scratch is provisioned for it.
     let scratch = Scratch::default();
+    let last = refinement.step(j + steps - 1);
     let mut data =
-        LevelData::on_level(&cage, primal, values, curve).with_scratch_for(&scratch, &step)?;
-    data.step(&step)?;
+        LevelData::on_level(&cage, primal, values, curve).with_scratch_for(&scratch, &last)?;
+    for k in j..j + steps {
+        data.step(&refinement.step(k))?;
+    }
     Ok(data.into_parts().0)
 }
 

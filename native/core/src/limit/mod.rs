@@ -114,6 +114,7 @@ use crate::step::{Final, Parts, Scratch};
 use crate::topology::{quad_next, quad_prev, Level, NONE};
 use rayon::prelude::*;
 
+mod polar;
 mod tiles;
 use tiles::Tiles;
 
@@ -152,6 +153,9 @@ enum LimitMask {
     Local,
     /// An interior vertex of valence 4 that a limit tile computes (and writes in place).
     Tiled,
+    /// Near an isolated irregular vertex: a composed stencil ([`polar`]; index into
+    /// `Stencils::composed`).
+    Composed(u32),
 }
 
 /// Everything topological the limit needs, built once per plan (see the module documentation).
@@ -171,6 +175,8 @@ pub(crate) struct Stencils {
     local_vertices: Vec<u32>,
     /// Mask of each output vertex.
     masks_of: Vec<LimitMask>,
+    /// The stencils composed around isolated irregular vertices ([`LimitMask::Composed`]).
+    composed: polar::Composed,
     /// The tiles that compute most regular vertices at the plan's own last level (their
     /// [`LimitMask::Tiled`] stencils have no items).
     tiles: Option<Tiles>,
@@ -224,6 +230,10 @@ enum Unclean {
     /// level where every vertex is clean, as with the whole plan extended (the plan's level,
     /// and the local extension's levels before its last).
     LocalWithFans,
+    /// As `LocalWithFans`, but the vertices near isolated irregular vertices get composed
+    /// stencils instead ([`polar`]; targets that are the level's vertices, as at a plan's
+    /// last level), and only the others the local extension.
+    Polar,
     /// It gets a [`LimitMask::Local`] stencil, alone: the fans stay at this level (the first
     /// stage past semi-sharp features, so that a fan's level does not depend on features
     /// elsewhere on the mesh, and the second stage is made around the features only).
@@ -484,7 +494,18 @@ fn build_stencils(
             items.extend_from_slice(&chunk.items);
         }
     }
-    if !local.is_empty() && unclean == Unclean::LocalWithFans {
+    let mut composed = polar::Composed::default();
+    if !local.is_empty() && unclean == Unclean::Polar {
+        let on_curve = |v: usize| curve_of(v).is_some();
+        let is_local = |v: usize| masks_of[v] == LimitMask::Local;
+        let (vertices, stencils) = polar::stencils_around(last, degree, &on_curve, &is_local)?;
+        for (i, &v) in vertices.iter().enumerate() {
+            masks_of[v as usize] = LimitMask::Composed(i as u32);
+        }
+        local.retain(|&v| masks_of[v as usize] == LimitMask::Local);
+        composed = stencils;
+    }
+    if !local.is_empty() && matches!(unclean, Unclean::LocalWithFans | Unclean::Polar) {
         for (i, mask) in masks_of.iter_mut().enumerate() {
             if matches!(
                 mask,
@@ -642,6 +663,7 @@ fn build_stencils(
         local: None,
         local_vertices: local,
         masks_of,
+        composed,
         tiles,
         offsets,
         items,
@@ -955,7 +977,7 @@ fn build(refinement: &Refinement, local: Option<usize>, tiled: bool) -> Result<S
             index: &below,
         };
         let unclean = match share {
-            Some(_) => Unclean::LocalWithFans,
+            Some(_) => Unclean::Polar,
             None => Unclean::Refuse,
         };
         // Tiles over the faces of the highest quad level at most MAX_DEPTH levels above.
@@ -1681,6 +1703,11 @@ fn stencil_values<T: Scalar, const N: usize>(
             let normal = at(&a).cross(at(&b)).normalize_or_zero();
             (p.map(T::from_f64), normal.to_array().map(T::from_f64))
         }
+        LimitMask::Composed(i) if normals => {
+            let [p, a, b] = st.composed.joint(i as usize, data);
+            let normal = at(&a).cross(at(&b)).normalize_or_zero();
+            (p.map(T::from_f64), normal.to_array().map(T::from_f64))
+        }
         _ => (stencil_position(st, data, v), none),
     };
     // The other stencils, in chunks of the output; the tiles' vertices are written already.
@@ -1731,6 +1758,7 @@ fn stencil_position<T: Scalar, const N: usize>(st: &Stencils, data: &[[T; N]], v
         LimitMask::Valence2(m) => &st.masks[m as usize].position,
         LimitMask::Curve => &st.curve_mask,
         LimitMask::Corner => return data[items[0] as usize],
+        LimitMask::Composed(i) => return st.composed.position(i as usize, data),
         LimitMask::Local | LimitMask::Tiled => return zero(),
     };
     combine(data, items, weights)
@@ -2123,7 +2151,14 @@ mod tests {
         let (p, n) = surface(refinement, &Scratch::default(), &local, points).unwrap();
         let (q, m) = surface(refinement, &Scratch::default(), &whole, points).unwrap();
         let extra = |c: &LimitCache| extra_levels(refinement, c).unwrap();
-        assert_eq!(extra(&local), extra(&whole), "{case}");
+        // Composed stencils around isolated irregular vertices need no level where they take
+        // every vertex that is not clean.
+        let st = stencils(refinement, &local).unwrap();
+        if st.local.is_some() || st.extended.is_some() {
+            assert_eq!(extra(&local), extra(&whole), "{case}");
+        } else {
+            assert_eq!(extra(&local), 0, "{case}");
+        }
         assert_eq!((p.len(), n.len()), (q.len(), m.len()), "{case}");
         let stencils = |c: &LimitCache| stencils(refinement, c).unwrap();
         (stencils(&local), stencils(&whole), worst(&p, &q), [n, m])
@@ -2256,6 +2291,40 @@ mod tests {
         )
     }
 
+    /// Around isolated irregular vertices the composed stencils give the limits of the whole
+    /// plan extended (to rounding: other sums of the same terms), at every degree, and where
+    /// they take every vertex that is not clean, no level is added.
+    #[test]
+    fn composed_stencils_match_the_whole_plan_extended() {
+        let (sphere, sphere_points) = ico_quads(3);
+        let cases = [("sphere", sphere, sphere_points)];
+        let mut composed = 0;
+        for_each_refinement(&cases, 1..=2, |refinement, points, case| {
+            let whole = LimitCache::default();
+            *whole.0.lock().unwrap() = Some(Arc::new(build(refinement, None, true).unwrap()));
+            let (q, m) = surface(refinement, &Scratch::default(), &whole, points).unwrap();
+            let cache = LimitCache::default();
+            let (p, n) = surface(refinement, &Scratch::default(), &cache, points).unwrap();
+            let st = stencils(refinement, &cache).unwrap();
+            let count = (st.masks_of.iter())
+                .filter(|m| matches!(m, LimitMask::Composed(_)))
+                .count();
+            composed += usize::from(count > 0);
+            if count > 0 && st.local_vertices.is_empty() {
+                assert_eq!(st.extra_levels, 0, "{case}");
+            }
+            let (dp, dn) = (worst(&p, &q), worst(&n, &m));
+            assert!(
+                dp < 1e-12 && dn < 1e-11,
+                "{case}: positions {dp:e}, normals {dn:e}"
+            );
+        });
+        assert!(
+            composed >= 12,
+            "composed stencils made {composed} times of 16"
+        );
+    }
+
     /// The limit tiles give the stencils' limits (other sums of the same masks: equal to
     /// rounding) and take most vertices; on a mesh with boundaries, creases and irregular
     /// vertices, at every degree and tile depth.
@@ -2353,7 +2422,7 @@ mod tests {
             (&sphere, &points, 2, false),
             (&sphere, &points, 4, false),
             (&sphere, &points, 9, false),
-            (&cube, &cube_points, 4, true),
+            (&cube, &cube_points, 9, true),
         ];
         for (cage, points, degree, whole) in cases {
             let refinement = at_level_3(cage, degree);
@@ -2618,7 +2687,7 @@ mod tests {
             };
             let r = Refinement::new(cage, &options).unwrap();
             let st = stencils(&r, &LimitCache::default()).unwrap();
-            assert!(st.local.is_some() != st.extended.is_some());
+            assert!(!(st.local.is_some() && st.extended.is_some()));
             let local = st.local.as_ref()?;
             let last = r.last_level();
             let seeds = local_seeds(last, degree, &st.local_vertices, st.extra_levels).unwrap();
