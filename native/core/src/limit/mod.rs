@@ -53,6 +53,16 @@
 //! normal for both corners). Degree 1 is bilinear: positions are the
 //! refined points, normals those of each face's bilinear patch at its corner.
 //!
+//! Around an isolated irregular vertex (no other irregular vertex, curve or semi-sharp feature
+//! within the rings its neighbours' limits read) no level is made at all: the limit of each of
+//! its neighbours within `N` rings is a fixed function of the last level's data, the same around
+//! every such vertex of that valence, composed once per process ([`polar`]) and read off the
+//! table by the sector frames around the vertex. Only the vertices that are not clean for
+//! another reason take the local extension (`limit-ico-9` of the callgrind driver at level 2,
+//! one thread: cached 105.7M -> 54.3M instructions, the first call 866.8M -> 209.8M; level 3
+//! 206.0M -> 154.1M and 1,162.0M -> 498.3M; the tables, made once per process, 691M for
+//! degree 9 at valences 3 and 5).
+//!
 //! On a smooth mesh, from `N` = 3 (degree 6) the local extension is made one level at a time
 //! ([`stepwise_local_stencils`]): a vertex `d` rings from an irregular vertex or a curve is clean
 //! once `2^k d > N`, so most of them are clean one or two levels down, and each further level is
@@ -2292,13 +2302,28 @@ mod tests {
     }
 
     /// Around isolated irregular vertices the composed stencils give the limits of the whole
-    /// plan extended (to rounding: other sums of the same terms), at every degree, and where
-    /// they take every vertex that is not clean, no level is added.
+    /// plan extended (to rounding: other sums of the same terms), at every degree; where they
+    /// take every vertex that is not clean, no level is added. A crease at one irregular vertex
+    /// leaves the vertices near it to the local extension (infinitely sharp: positions and
+    /// normals as the whole plan extended's; semi-sharp: positions, the fans being the first
+    /// stage's, see `semi_sharp_local_extension_matches_the_whole_plan_extended`).
     #[test]
     fn composed_stencils_match_the_whole_plan_extended() {
-        let (sphere, sphere_points) = ico_quads(3);
-        let cases = [("sphere", sphere, sphere_points)];
-        let mut composed = 0;
+        let (sphere, points) = ico_quads(3);
+        // The first face's first edge: at an icosahedron corner (valence 5).
+        let edge = |s: f32| {
+            let v = sphere.face_vertices();
+            (sphere
+                .clone()
+                .with_creases(&[(v[0] as i64, v[1] as i64, s)]))
+            .unwrap()
+        };
+        let cases = [
+            ("sphere", sphere.clone(), points.clone()),
+            ("creased sphere", edge(f32::INFINITY), points.clone()),
+            ("semi-sharp sphere", edge(1.5), points.clone()),
+        ];
+        let (mut composed, mut mixed) = (0, 0);
         for_each_refinement(&cases, 1..=2, |refinement, points, case| {
             let whole = LimitCache::default();
             *whole.0.lock().unwrap() = Some(Arc::new(build(refinement, None, true).unwrap()));
@@ -2310,18 +2335,24 @@ mod tests {
                 .filter(|m| matches!(m, LimitMask::Composed(_)))
                 .count();
             composed += usize::from(count > 0);
+            mixed += usize::from(count > 0 && st.local.is_some());
             if count > 0 && st.local_vertices.is_empty() {
                 assert_eq!(st.extra_levels, 0, "{case}");
             }
             let (dp, dn) = (worst(&p, &q), worst(&n, &m));
+            let semi = case.starts_with("semi");
             assert!(
-                dp < 1e-12 && dn < 1e-11,
+                dp < 1e-12 && (semi || dn < 1e-11),
                 "{case}: positions {dp:e}, normals {dn:e}"
             );
         });
         assert!(
-            composed >= 12,
-            "composed stencils made {composed} times of 16"
+            composed >= 36,
+            "composed stencils made {composed} times of 48"
+        );
+        assert!(
+            mixed >= 24,
+            "composed and local stencils together {mixed} times of 32"
         );
     }
 

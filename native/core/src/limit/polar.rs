@@ -33,6 +33,13 @@ use rayon::prelude::*;
 
 use super::clean_levels;
 
+/// The highest valence given composed stencils: a table costs about its valence times that
+/// of valence 1 to make (a polar cage of that many sectors run through `clean_levels` steps),
+/// about 86M instructions per sector at degree 9 (valences 3 and 5 together 691M, one
+/// thread, callgrind driver); higher valences (rarer) take the local
+/// extension.
+const MAX_VALENCE: usize = 8;
+
 /// Impulses run through the steps at a time (the channels of one evaluation).
 const IMPULSES: usize = 16;
 
@@ -82,8 +89,10 @@ fn ring(label: Label, primal: bool) -> usize {
 /// more than needed (tests).
 fn compose(degree: u32, valence: usize, more: usize) -> Result<PolarStencils> {
     let internal = |what: &str| Error::Internal(format!("polar limit stencils: {what}"));
-    if !(3..=64).contains(&valence) || degree < 2 {
-        return Err(internal("a valence of 3 to 64 and a degree of 2 or more"));
+    if !(3..=MAX_VALENCE).contains(&valence) || degree < 2 {
+        return Err(internal(
+            "a valence of 3 to MAX_VALENCE and a degree of 2 or more",
+        ));
     }
     let primal = degree % 2 == 1;
     let n = neighbourhood_size(degree);
@@ -91,11 +100,13 @@ fn compose(degree: u32, valence: usize, more: usize) -> Result<PolarStencils> {
     let reach = degree.div_ceil(2) as usize;
     // A target lies within `n` rings of the centre; its mask at level `1 + m` reads `n` rings
     // there (within `n + 1` rings of level 1), and `m` steps back from there reach fewer than
-    // `reach` rings of level 1 more: the items lie within `rings` rings. The cage's boundary
-    // is at ring `2 R` of level 1 and its rules reach fewer than `2 reach` rings of level 1
-    // inwards over the steps from level 0: the masks' items stay clear of them.
+    // `reach` rings of level 1 more: the items lie within `rings` rings, which level 1 (`2 R`
+    // rings) must hold. The impulses start at level 1, so only the steps from there run: the
+    // cage's boundary (ring `2 R` of level 1) changes the values within `reach` fine rings of
+    // it per step, within `reach` rings of level 1 over the `m` steps, clear of the masks'
+    // items when `2 R - reach > n + 1`. (A test checks that a larger cage changes nothing.)
     let rings = n + 2 + reach;
-    let cage_rings = (n + 2).div_ceil(2) + reach + 1 + more;
+    let cage_rings = (rings + 1).div_ceil(2) + more;
     let cage = polar_cage(valence, cage_rings)?;
     let options = Options {
         degree,
@@ -273,7 +284,7 @@ impl Composed {
 
 /// The composed stencils of the vertices of `last` (a quad level, the plan's last) that
 /// `wanted` picks and that lie within `N` rings of an isolated irregular vertex (interior, of
-/// valence 3 or more, the grid of [`PolarStencils::check_rings`] rings around it regular):
+/// valence 3 to [`MAX_VALENCE`] but 4, the grid of [`PolarStencils::check_rings`] rings around it regular):
 /// those vertices in increasing order, and their stencils in the same order. `on_curve` tells
 /// the vertices on the step's curves.
 pub(super) fn stencils_around(
@@ -286,16 +297,28 @@ pub(super) fn stencils_around(
     let centres: Vec<usize> = (0..last.num_vertices)
         .filter(|&v| {
             let k = last.corners_of_vertex(v).len();
-            k >= 3 && k != 4 && !on_curve(v)
+            (3..=MAX_VALENCE).contains(&k) && k != 4 && !on_curve(v)
         })
         .collect();
+    // The tables first, one valence at a time (the centres' tasks would make one several
+    // times over).
+    let mut valences: Vec<usize> = (centres.iter())
+        .map(|&c| last.corners_of_vertex(c).len())
+        .collect();
+    valences.sort_unstable();
+    valences.dedup();
+    let tables = (valences.iter())
+        .map(|&k| cached(degree, k))
+        .collect::<Result<Vec<_>>>()?;
     // Per isolated centre: its table, the data item at each frame, and its targets that
     // `wanted` picks (vertex, target).
     type Found = Option<(Arc<PolarStencils>, Vec<u32>, Vec<(u32, u32)>)>;
     let found: Vec<Found> = (centres.par_iter())
         .map(|&c| -> Result<Found> {
             let corners = last.corners_of_vertex(c);
-            let template = cached(degree, corners.len())?;
+            let at = valences.binary_search(&corners.len());
+            let template =
+                tables[at.map_err(|_| Error::Internal("polar: a valence".into()))?].clone();
             let r = template.check_rings;
             let Some(frames) = sector_frames(last, corners[0] as usize, r) else {
                 return Ok(None);
