@@ -212,7 +212,8 @@ impl PyPlan {
         })
     }
 
-    /// Levels the limit evaluation adds to the plan (0 when every output vertex is clean).
+    /// Levels the limit evaluation adds to the plan (0 when every output vertex is clean or
+    /// near an isolated irregular vertex).
     #[getter]
     fn limit_extra_levels(&self, py: Python<'_>) -> PyResult<u32> {
         run(py, || self.inner.limit_extra_levels())

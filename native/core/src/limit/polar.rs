@@ -33,11 +33,10 @@ use rayon::prelude::*;
 
 use super::clean_levels;
 
-/// The highest valence given composed stencils: a table costs about its valence times that
-/// of valence 1 to make (a polar cage of that many sectors run through `clean_levels` steps),
-/// about 86M instructions per sector at degree 9 (valences 3 and 5 together 691M, one
-/// thread, callgrind driver); higher valences (rarer) take the local
-/// extension.
+/// The highest valence given composed stencils. A table's cost grows with the valence (a polar
+/// cage of that many sectors run through `clean_levels` steps): 691M instructions for degree 9
+/// at valences 3 and 5 together (one thread, callgrind driver), about 86M a sector. Higher
+/// valences (rarer) take the local extension.
 const MAX_VALENCE: usize = 8;
 
 /// Impulses run through the steps at a time (the channels of one evaluation).
@@ -90,9 +89,7 @@ fn ring(label: Label, primal: bool) -> usize {
 fn compose(degree: u32, valence: usize, more: usize) -> Result<PolarStencils> {
     let internal = |what: &str| Error::Internal(format!("polar limit stencils: {what}"));
     if !(3..=MAX_VALENCE).contains(&valence) || degree < 2 {
-        return Err(internal(
-            "a valence of 3 to MAX_VALENCE and a degree of 2 or more",
-        ));
+        return Err(internal("a valence of 3 to 8 and a degree of 2 or more"));
     }
     let primal = degree % 2 == 1;
     let n = neighbourhood_size(degree);

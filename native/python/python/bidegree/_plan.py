@@ -234,7 +234,8 @@ class Plan(_Output):
     @property
     def limit_extra_levels(self) -> int:
         """Levels the limit evaluation refines beyond :attr:`levels` so that every output
-        vertex has a clean neighbourhood (0 on regular meshes); built on first use."""
+        vertex has a clean neighbourhood (0 on regular meshes, and where every irregular vertex
+        is isolated: its neighbours' limits are then composed stencils); built on first use."""
         return int(self._native_plan.limit_extra_levels)
 
     @overload
