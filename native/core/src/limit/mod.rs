@@ -2354,6 +2354,35 @@ mod tests {
             mixed >= 24,
             "composed and local stencils together {mixed} times of 32"
         );
+        // The other valences' tables: a disc of one irregular vertex among ten rings of quads
+        // (its boundary far enough at level 1), any data (positions compared).
+        for valence in [6, 7, 8] {
+            let disc = crate::analysis::polar_cage(valence, 10).unwrap();
+            let data: Vec<f64> = (0..3 * disc.num_vertices())
+                .map(|i| (0.7 * i as f64).sin())
+                .collect();
+            let cases = [("disc", disc, data)];
+            for_each_refinement(&cases, 1..=1, |refinement, points, case| {
+                let case = format!("{case}, valence {valence}");
+                let whole = LimitCache::default();
+                let st = build(refinement, None, true).unwrap();
+                *whole.0.lock().unwrap() = Some(Arc::new(st));
+                let q = positions(refinement, &Scratch::default(), &whole, points, 3).unwrap();
+                // Local wherever it can be made: the boundary's vertices would take the
+                // whole plan extended at most degrees, and the composed stencils with it.
+                let cache = LimitCache::default();
+                let st = build(refinement, Some(0), true).unwrap();
+                *cache.0.lock().unwrap() = Some(Arc::new(st));
+                let p = positions(refinement, &Scratch::default(), &cache, points, 3).unwrap();
+                let st = stencils(refinement, &cache).unwrap();
+                let count = (st.masks_of.iter())
+                    .filter(|m| matches!(m, LimitMask::Composed(_)))
+                    .count();
+                let n = neighbourhood_size(refinement.options().degree);
+                assert_eq!(count, valence * n * (n + 1), "{case}");
+                assert!(worst(&p, &q) < 1e-12, "{case}: {:e}", worst(&p, &q));
+            });
+        }
     }
 
     /// The limit tiles give the stencils' limits (other sums of the same masks: equal to
