@@ -1708,7 +1708,11 @@ fn stencil_values<T: Scalar, const N: usize>(
             let items = &st.items[st.offsets[v] as usize..st.offsets[v + 1] as usize];
             let [p, a, b] = match &st.folded[m as usize] {
                 Some(fold) => fold.joint(data, items),
-                None => combine_joint(data, items, &st.joint[m as usize]),
+                None => combine_joint(
+                    data,
+                    items.iter().map(|&i| i as usize),
+                    &st.joint[m as usize],
+                ),
             };
             let normal = at(&a).cross(at(&b)).normalize_or_zero();
             (p.map(T::from_f64), normal.to_array().map(T::from_f64))
@@ -2053,12 +2057,12 @@ impl Folded {
 /// accumulated in f64 in the order of [`combine`] (per channel, the three sums side by side).
 fn combine_joint<T: Scalar, const N: usize>(
     data: &[[T; N]],
-    items: &[u32],
+    items: impl IntoIterator<Item = usize>,
     weights: &[[f64; 4]],
 ) -> [[f64; N]; 3] {
     let mut acc = [[0.0f64; 4]; N];
-    for (&i, w) in items.iter().zip(weights) {
-        let x = data[i as usize].map(T::to_f64);
+    for (i, w) in items.into_iter().zip(weights) {
+        let x = data[i].map(T::to_f64);
         for (acc, &x) in acc.iter_mut().zip(&x) {
             for (a, &w) in acc.iter_mut().zip(w) {
                 *a += w * x;
@@ -2722,7 +2726,7 @@ mod tests {
                 })
                 .collect();
             let items: Vec<u32> = (0..joint.len() as u32).rev().collect();
-            let plain = combine_joint(&data, &items, &joint);
+            let plain = combine_joint(&data, items.iter().map(|&i| i as usize), &joint);
             let folded = fold.joint(&data, &items);
             assert_eq!(folded[0], fold.position(&data, &items));
             for (x, y) in plain.iter().flatten().zip(folded.iter().flatten()) {

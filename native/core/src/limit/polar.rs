@@ -31,7 +31,7 @@ use crate::scalar::Scalar;
 use crate::topology::Level;
 use rayon::prelude::*;
 
-use super::clean_levels;
+use super::{clean_levels, combine_joint};
 
 /// The highest valence given composed stencils. A table's cost grows with the valence (a polar
 /// cage of that many sectors run through `clean_levels` steps): 691M instructions for degree 9
@@ -254,16 +254,7 @@ impl Composed {
         data: &[[T; N]],
     ) -> [[f64; N]; 3] {
         let (at, weights) = self.stencil(i);
-        let mut acc = [[0.0f64; 4]; N];
-        for (i, w) in at.zip(weights) {
-            let x = data[i].map(T::to_f64);
-            for (acc, &x) in acc.iter_mut().zip(&x) {
-                for (a, &w) in acc.iter_mut().zip(w) {
-                    *a += w * x;
-                }
-            }
-        }
-        std::array::from_fn(|j| std::array::from_fn(|k| acc[k][j]))
+        combine_joint(data, at, weights)
     }
 
     /// The limit position of stencil `i` from `data`.
