@@ -104,7 +104,7 @@ use glam::DVec3;
 
 use crate::adaptive::LocalLevels;
 use crate::analysis::{
-    cached_vertex_masks, frame_items, neighbourhood_size, sector_frames, VertexMasks,
+    cached_vertex_masks, frame_items, neighbourhood_size, sector_frames, Labelled, VertexMasks,
 };
 use crate::curves::CurveNetwork;
 use crate::curves::LevelSharpness;
@@ -347,17 +347,7 @@ fn build_stencils(
         let first = last.corners_of_vertex(v)[0] as usize;
         let frames = sector_frames(last, first, n)?;
         let ring = frame_items(last, &frames, n, n, false);
-        let mut ids: Vec<usize> = Vec::with_capacity(ring.len());
-        for &(label, w) in &ring {
-            if label != (0, 0, 0) && (last.corners_of_vertex(w).len() != 4 || curve_of(w).is_some())
-            {
-                return None;
-            }
-            ids.push(w);
-        }
-        ids.sort_unstable();
-        ids.dedup();
-        if ids.len() != ring.len() {
+        if !polar_grid(last, &ring, &|w| curve_of(w).is_some()) {
             return None;
         }
         let items = if primal {
@@ -687,6 +677,21 @@ fn build_stencils(
         fan_vertex,
         fan_items,
     }))
+}
+
+/// Whether the vertices of `ring` (a neighbourhood of [`frame_items`]) other than its centre
+/// are regular (valence 4, not `on_curve`) and all different: a polar grid around the centre.
+fn polar_grid(last: &Level, ring: &[Labelled], on_curve: &dyn Fn(usize) -> bool) -> bool {
+    let mut ids: Vec<usize> = Vec::with_capacity(ring.len());
+    for &(label, w) in ring {
+        if label != (0, 0, 0) && (last.corners_of_vertex(w).len() != 4 || on_curve(w)) {
+            return false;
+        }
+        ids.push(w);
+    }
+    ids.sort_unstable();
+    ids.dedup();
+    ids.len() == ring.len()
 }
 
 /// The stencils of a chunk of targets: per target its mask (`None`: not clean) and the end of

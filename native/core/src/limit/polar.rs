@@ -31,7 +31,7 @@ use crate::scalar::Scalar;
 use crate::topology::Level;
 use rayon::prelude::*;
 
-use super::{clean_levels, combine_joint};
+use super::{clean_levels, combine_joint, polar_grid};
 
 /// The highest valence given composed stencils. A table's cost grows with the valence (a polar
 /// cage of that many sectors run through `clean_levels` steps): 691M instructions for degree 9
@@ -272,7 +272,8 @@ impl Composed {
 
 /// The composed stencils of the vertices of `last` (a quad level, the plan's last) that
 /// `wanted` picks and that lie within `N` rings of an isolated irregular vertex (interior, of
-/// valence 3 to [`MAX_VALENCE`] but 4, the grid of [`PolarStencils::check_rings`] rings around it regular):
+/// valence 3 to [`MAX_VALENCE`] but 4, the grid of [`PolarStencils::check_rings`] rings
+/// around it regular):
 /// those vertices in increasing order, and their stencils in the same order. `on_curve` tells
 /// the vertices on the step's curves.
 pub(super) fn stencils_around(
@@ -311,18 +312,7 @@ pub(super) fn stencils_around(
             let Some(frames) = sector_frames(last, corners[0] as usize, r) else {
                 return Ok(None);
             };
-            let grid = frame_items(last, &frames, r, r, false);
-            let mut ids: Vec<usize> = Vec::with_capacity(grid.len());
-            for &(label, w) in &grid {
-                let regular = last.corners_of_vertex(w).len() == 4 && !on_curve(w);
-                if label != (0, 0, 0) && !regular {
-                    return Ok(None);
-                }
-                ids.push(w);
-            }
-            ids.sort_unstable();
-            ids.dedup();
-            if ids.len() != grid.len() {
+            if !polar_grid(last, &frame_items(last, &frames, r, r, false), on_curve) {
                 return Ok(None);
             }
             let items = (frames.iter())
