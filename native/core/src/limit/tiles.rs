@@ -81,6 +81,8 @@ pub(super) struct Tiles {
     /// Per tile, its window's data ids row after row (`data_side^2`; 0 where no output of the
     /// tile reads one).
     ids: Vec<u32>,
+    /// One more than the largest of `ids`.
+    ids_end: usize,
     /// Per tile, its output vertices (bit `side * j + i` for the vertex at column `i`, row `j`).
     owned: Vec<u128>,
     /// Per tile, its first slot (the slots of its vertices follow in bit order); one more.
@@ -223,12 +225,14 @@ impl Tiles {
         if owned.is_empty() {
             return Ok(None);
         }
+        let ids_end = ids.iter().max().map_or(0, |&id| id as usize + 1);
         Ok(Some(Tiles {
             side,
             data_side,
             width,
             value,
             slope,
+            ids_end,
             ids,
             owned,
             offsets,
@@ -350,6 +354,7 @@ impl Tiles {
             value: &value,
             slope: &slope,
             far_column: far_column(self.side),
+            items: self.ids_end <= data.len(),
         };
         let wide = wide && wide_vectors();
         // A tile is a few thousand instructions: small tasks still amortise.
@@ -378,7 +383,7 @@ impl Tiles {
                         };
                     }
                     let _ = wide;
-                    kernel.tiles::<T, N, NEAR, FAR>(tiles, data, rows, out)
+                    kernel.tiles::<T, N, NEAR, FAR, false>(tiles, data, rows, out)
                 },
             )
     }
@@ -463,13 +468,16 @@ struct Kernel<'a, const K: usize> {
     slope: &'a [f64; K],
     /// The bits of the tiles' far column ([`far_column`]).
     far_column: u128,
+    /// Whether every id of every window is an item of the data (checked once per call: the
+    /// gather then reads them unchecked).
+    items: bool,
 }
 
 impl<const K: usize> Kernel<'_, K> {
     /// Writes the values of the vertices of the tiles `tiles` into `out`: every vertex of
     /// their slots, or an error.
     #[inline(always)]
-    fn tiles<T: Scalar, const N: usize, const NEAR: usize, const FAR: usize>(
+    fn tiles<T: Scalar, const N: usize, const NEAR: usize, const FAR: usize, const WIDE: bool>(
         &self,
         tiles: std::ops::Range<usize>,
         data: &[[T; N]],
@@ -479,8 +487,8 @@ impl<const K: usize> Kernel<'_, K> {
         // A loop, not a closure: a closure would not take `tiles_avx2`'s target features.
         for tile in tiles {
             match self.tiles.owned[tile] & self.far_column {
-                0 => self.tile::<T, N, NEAR>(tile, data, rows, out)?,
-                _ => self.tile::<T, N, FAR>(tile, data, rows, out)?,
+                0 => self.tile::<T, N, NEAR, WIDE>(tile, data, rows, out)?,
+                _ => self.tile::<T, N, FAR, WIDE>(tile, data, rows, out)?,
             }
         }
         Ok(())
@@ -499,14 +507,14 @@ impl<const K: usize> Kernel<'_, K> {
         rows: &mut Rows<N>,
         out: &Out<T, N>,
     ) -> Result<()> {
-        self.tiles::<T, N, NEAR, FAR>(tiles, data, rows, out)
+        self.tiles::<T, N, NEAR, FAR, true>(tiles, data, rows, out)
     }
 
     /// Writes the values of `tile`'s vertices into `out`: every vertex of its slots, or an
     /// error. Rows first, for all output columns at once (each a sum over `K` window columns), then
     /// per output row the three column sums; the vertices the tile owns are picked from them.
     #[inline(always)]
-    fn tile<T: Scalar, const N: usize, const V: usize>(
+    fn tile<T: Scalar, const N: usize, const V: usize, const WIDE: bool>(
         &self,
         tile: usize,
         data: &[[T; N]],
@@ -520,13 +528,21 @@ impl<const K: usize> Kernel<'_, K> {
             .and_then(|o| self.tiles.vertices.get(o[0] as usize..o[1] as usize))
             .ok_or_else(|| Error::Internal("limit tiles: a tile past its slots".into()))?;
         let ids = &self.tiles.ids[tile * d * d..(tile + 1) * d * d];
-        for (y, ids) in ids.chunks_exact(d).enumerate() {
-            for (x, &id) in ids.iter().enumerate() {
-                let item = data.get(id as usize).ok_or_else(|| {
-                    Error::Internal("limit tiles: a window item past the data".into())
-                })?;
-                for (window, &value) in rows.window.iter_mut().zip(item) {
-                    window[y][x] = value.to_f64();
+        // SAFETY (the gather): `WIDE` is set by `tiles_avx2` alone, on a processor with AVX2,
+        // and `self.items` checked that every id of every window is an item of `data`.
+        #[cfg(target_arch = "x86_64")]
+        let gathered = WIDE && self.items && unsafe { gather_avx2(ids, d, data, &mut rows.window) };
+        #[cfg(not(target_arch = "x86_64"))]
+        let gathered = false;
+        if !gathered {
+            for (y, ids) in ids.chunks_exact(d).enumerate() {
+                for (x, &id) in ids.iter().enumerate() {
+                    let item = data.get(id as usize).ok_or_else(|| {
+                        Error::Internal("limit tiles: a window item past the data".into())
+                    })?;
+                    for (window, &value) in rows.window.iter_mut().zip(item) {
+                        window[y][x] = value.to_f64();
+                    }
                 }
             }
         }
@@ -628,6 +644,73 @@ impl<const K: usize> Kernel<'_, K> {
             )),
         }
     }
+}
+
+/// The window of a tile (`ids`, `d` rows of `d` items) read from `data` into `window` as the
+/// portable loop of [`Kernel::tile`] does, four items at a time: each item's three channels
+/// loaded and widened in one vector, four of them turned into three rows of four (one per
+/// channel). The portable loop took 19 instructions an item (a fifth of a cached limit's
+/// tiles at degree 9, level 3: 289 items a tile for 64 outputs). False, with nothing read,
+/// unless `data` holds three channels of `f32` or `f64`; then the portable loop reads the
+/// window.
+///
+/// # Safety
+/// The processor must have AVX2, and every id must be an item of `data`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn gather_avx2<T: Scalar, const N: usize>(
+    ids: &[u32],
+    d: usize,
+    data: &[[T; N]],
+    window: &mut [[[f64; WINDOW_ROW]; MAX_DATA]; N],
+) -> bool {
+    use std::any::TypeId;
+    use std::arch::x86_64::*;
+    let single = TypeId::of::<T>() == TypeId::of::<f32>();
+    let double = TypeId::of::<T>() == TypeId::of::<f64>();
+    let [xs, ys, zs] = &mut window[..] else {
+        return false;
+    };
+    if !(single || double) || d == 0 || d > MAX_DATA || ids.len() != d * d {
+        return false;
+    }
+    // The items of a row four at a time: `d` rounded up stays within a window row.
+    const { assert!(MAX_DATA.next_multiple_of(4) <= WINDOW_ROW) };
+    let base = data.as_ptr();
+    // SAFETY: every id is an item of `data` (the caller's promise), so its three channels are
+    // there; the masked loads read no fourth.
+    let item = |id: u32| unsafe {
+        let at = base.add(id as usize) as *const T;
+        match single {
+            true => _mm256_cvtps_pd(_mm_maskload_ps(
+                at as *const f32,
+                _mm_setr_epi32(-1, -1, -1, 0),
+            )),
+            false => _mm256_maskload_pd(at as *const f64, _mm256_setr_epi64x(-1, -1, -1, 0)),
+        }
+    };
+    for (y, row) in ids.chunks_exact(d).enumerate() {
+        let (xs, ys, zs) = (&mut xs[y], &mut ys[y], &mut zs[y]);
+        for x in (0..d).step_by(4) {
+            // Past the row: its first item again (leftovers that no output's sum reads).
+            let four: [u32; 4] = match row.get(x..x + 4) {
+                Some(&[a, b, c, e]) => [a, b, c, e],
+                _ => std::array::from_fn(|l| row.get(x + l).copied().unwrap_or(row[0])),
+            };
+            let [a, b, c, e] = four.map(item);
+            let (ab_even, ab_odd) = (_mm256_unpacklo_pd(a, b), _mm256_unpackhi_pd(a, b));
+            let (ce_even, ce_odd) = (_mm256_unpacklo_pd(c, e), _mm256_unpackhi_pd(c, e));
+            let to = |row: &mut [f64; WINDOW_ROW], v: __m256d| {
+                let four: &mut [f64; 4] = (&mut row[x..x + 4]).try_into().unwrap();
+                // SAFETY: four `f64`s, written unaligned.
+                unsafe { _mm256_storeu_pd(four.as_mut_ptr(), v) }
+            };
+            to(xs, _mm256_permute2f128_pd(ab_even, ce_even, 0x20));
+            to(ys, _mm256_permute2f128_pd(ab_odd, ce_odd, 0x20));
+            to(zs, _mm256_permute2f128_pd(ab_even, ce_even, 0x31));
+        }
+    }
+    true
 }
 
 /// The unit normals of a row of output columns from its two tangents' sums (channels 0..3,
