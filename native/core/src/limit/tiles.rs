@@ -685,9 +685,10 @@ impl<const K: usize> Kernel<'_, K> {
             }
             // Not in a closure: one that LLVM did not inline ran outside `tiles_avx2`'s target
             // features, in two-lane vectors.
-            let normal = match normals {
-                Some(_) => Some(unit_normals::<T, N, V>(&along_i, &along_j)),
-                None => None,
+            let normal = if normals.is_some() {
+                Some(unit_normals::<T, N, V>(&along_i, &along_j))
+            } else {
+                None
             };
             let mut bits = mine;
             while bits != 0 {
