@@ -2596,6 +2596,32 @@ mod tests {
     }
 
     #[test]
+    fn a_window_past_the_data_is_an_error_on_both_paths() {
+        // The four-lane gather reads its items unchecked once the ids are checked against the
+        // data: with data too short for the level, both kernels must refuse, not read past it.
+        let (sphere, points) = ico_quads(3);
+        let refinement = at_level_3(&sphere, 5);
+        let cache = LimitCache::default();
+        let st = stencils(&refinement, &cache).unwrap();
+        let tiles = st.tiles.as_ref().expect("tiles on the sphere at degree 5");
+        let n = refinement.last_level().num_vertices;
+        let single: Vec<[f32; 3]> = (points.as_chunks::<3>().0.iter())
+            .map(|p| p.map(|x| x as f32))
+            .cycle()
+            .take(n / 2)
+            .collect();
+        for wide in [false, tiles::wide_vectors()] {
+            let mut p = vec![MaybeUninit::new([0.0f32; 3]); n];
+            let mut q = vec![MaybeUninit::new([0.0f32; 3]); n];
+            let result = tiles.write_on(&single, &mut p, Some(&mut q[..]), wide);
+            assert!(
+                matches!(result, Err(Error::Internal(_))),
+                "wide {wide}: {result:?}"
+            );
+        }
+    }
+
+    #[test]
     fn local_extension_matches_the_whole_plan_extended() {
         let (grid, grid_points) = grid(5);
         let crease = grid
