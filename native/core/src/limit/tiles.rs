@@ -354,7 +354,7 @@ impl Tiles {
             value: &value,
             slope: &slope,
             far_column: far_column(self.side),
-            items: self.ids_end <= data.len(),
+            ids_in_data: self.ids_end <= data.len(),
         };
         let wide = wide && wide_vectors();
         // A tile is a few thousand instructions: small tasks still amortise.
@@ -470,7 +470,7 @@ struct Kernel<'a, const K: usize> {
     far_column: u128,
     /// Whether every id of every window is an item of the data (checked once per call: the
     /// gather then reads them unchecked).
-    items: bool,
+    ids_in_data: bool,
 }
 
 impl<const K: usize> Kernel<'_, K> {
@@ -510,10 +510,88 @@ impl<const K: usize> Kernel<'_, K> {
         self.tiles::<T, N, NEAR, FAR, true>(tiles, data, rows, out)
     }
 
-    /// The rows of [`Kernel::tile`]'s window filtered for its output columns, as its portable
-    /// loop does (the same products and sums in the same order), in explicit AVX2 vectors: the
-    /// portable loop's reversed four-item reads were built by LLVM with blends, inserts and
-    /// permutes (a cached limit at degree 9, level 3: the kernel less its gather 60.3M
+    /// The window of a tile (`ids`, `d` rows of `d` items) read from `data` into `rows`, in
+    /// [`gather_avx2`] when `WIDE` and it applies, else item by item.
+    #[inline(always)]
+    fn gather<T: Scalar, const N: usize, const WIDE: bool>(
+        &self,
+        ids: &[u32],
+        d: usize,
+        data: &[[T; N]],
+        rows: &mut Rows<N>,
+    ) -> Result<()> {
+        // SAFETY: `WIDE` is set by `tiles_avx2` alone, on a processor with AVX2, and
+        // `self.ids_in_data` checked that every id of every window is an item of `data`.
+        #[cfg(target_arch = "x86_64")]
+        if WIDE && self.ids_in_data && unsafe { gather_avx2(ids, d, data, &mut rows.window) } {
+            return Ok(());
+        }
+        for (y, ids) in ids.chunks_exact(d).enumerate() {
+            for (x, &id) in ids.iter().enumerate() {
+                let item = data.get(id as usize).ok_or_else(|| {
+                    Error::Internal("limit tiles: a window item past the data".into())
+                })?;
+                for (window, &value) in rows.window.iter_mut().zip(item) {
+                    window[y][x] = value.to_f64();
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The `d` window rows in `rows` filtered for the output columns by the value mask and,
+    /// when `both`, the slope mask: in [`Kernel::rows_avx2`] when `WIDE`, else in `[f64; 4]`
+    /// arrays. The value mask is symmetric and the slope mask antisymmetric (zero at an odd
+    /// mask's centre): items `k` and `K - 1 - k` are summed and subtracted once for both. The
+    /// sums run per vector of four output columns, over the taps in registers (arrays of all
+    /// the columns, each sum went through memory: LLVM built the vectors lane by lane).
+    #[inline(always)]
+    fn filter_rows<const N: usize, const V: usize, const WIDE: bool>(
+        &self,
+        d: usize,
+        rows: &mut Rows<N>,
+        both: bool,
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if WIDE {
+            // SAFETY: `WIDE` is set by `tiles_avx2` alone, on a processor with AVX2.
+            unsafe {
+                match both {
+                    true => self.rows_avx2::<N, V, true>(d, rows),
+                    false => self.rows_avx2::<N, V, false>(d, rows),
+                }
+            }
+            return;
+        }
+        let (half, odd) = (K / 2, K % 2 == 1);
+        for c in 0..N {
+            for y in 0..d {
+                let x = &rows.window[c][y];
+                for u in 0..V {
+                    let at = 4 * u;
+                    let (mut v, mut s) = ([0.0f64; 4], [0.0f64; 4]);
+                    for k in 0..half {
+                        let (p, q) = (four(x, at + k), four(x, at + K - 1 - k));
+                        v = mad(v, self.value[k], add(p, q));
+                        // Both masks when both are wanted: each item is read once.
+                        if both {
+                            s = mad(s, self.slope[k], sub(p, q));
+                        }
+                    }
+                    if odd {
+                        v = mad(v, self.value[half], four(x, at + half));
+                    }
+                    rows.by_value[c][y][u] = v;
+                    rows.by_slope[c][y][u] = s;
+                }
+            }
+        }
+    }
+
+    /// The rows of [`Kernel::tile`]'s window filtered for its output columns, as the portable
+    /// loop of [`Kernel::filter_rows`] does (the same products and sums in the same order), in
+    /// explicit AVX2 vectors: the portable loop's reversed four-item reads were built by LLVM
+    /// with blends, inserts and permutes (a cached limit at degree 9, level 3: the kernel less its gather 60.3M
     /// instructions, 44.9M with these rows).
     ///
     /// # Safety
@@ -585,67 +663,10 @@ impl<const K: usize> Kernel<'_, K> {
             .and_then(|o| self.tiles.vertices.get(o[0] as usize..o[1] as usize))
             .ok_or_else(|| Error::Internal("limit tiles: a tile past its slots".into()))?;
         let ids = &self.tiles.ids[tile * d * d..(tile + 1) * d * d];
-        // SAFETY (the gather): `WIDE` is set by `tiles_avx2` alone, on a processor with AVX2,
-        // and `self.items` checked that every id of every window is an item of `data`.
-        #[cfg(target_arch = "x86_64")]
-        let gathered = WIDE && self.items && unsafe { gather_avx2(ids, d, data, &mut rows.window) };
-        #[cfg(not(target_arch = "x86_64"))]
-        let gathered = false;
-        if !gathered {
-            for (y, ids) in ids.chunks_exact(d).enumerate() {
-                for (x, &id) in ids.iter().enumerate() {
-                    let item = data.get(id as usize).ok_or_else(|| {
-                        Error::Internal("limit tiles: a window item past the data".into())
-                    })?;
-                    for (window, &value) in rows.window.iter_mut().zip(item) {
-                        window[y][x] = value.to_f64();
-                    }
-                }
-            }
-        }
-        // The value mask is symmetric and the slope mask antisymmetric (zero at an odd mask's
-        // centre): items `k` and `K - 1 - k` are summed and subtracted once for both. The sums
-        // run per vector of four output columns, over the taps in registers (arrays of all the
-        // columns, each sum went through memory: LLVM built the vectors lane by lane).
         let (half, odd) = (K / 2, K % 2 == 1);
         let both = normals.is_some();
-        #[cfg(target_arch = "x86_64")]
-        let filtered = WIDE && {
-            // SAFETY: `WIDE` is set by `tiles_avx2` alone, on a processor with AVX2.
-            unsafe {
-                match both {
-                    true => self.rows_avx2::<N, V, true>(d, rows),
-                    false => self.rows_avx2::<N, V, false>(d, rows),
-                }
-            }
-            true
-        };
-        #[cfg(not(target_arch = "x86_64"))]
-        let filtered = false;
-        if !filtered {
-            for c in 0..N {
-                for y in 0..d {
-                    let x = &rows.window[c][y];
-                    for u in 0..V {
-                        let at = 4 * u;
-                        let (mut v, mut s) = ([0.0f64; 4], [0.0f64; 4]);
-                        for k in 0..half {
-                            let (p, q) = (four(x, at + k), four(x, at + K - 1 - k));
-                            v = mad(v, self.value[k], add(p, q));
-                            // Both masks when both are wanted: each item is read once.
-                            if both {
-                                s = mad(s, self.slope[k], sub(p, q));
-                            }
-                        }
-                        if odd {
-                            v = mad(v, self.value[half], four(x, at + half));
-                        }
-                        rows.by_value[c][y][u] = v;
-                        rows.by_slope[c][y][u] = s;
-                    }
-                }
-            }
-        }
+        self.gather::<T, N, WIDE>(ids, d, data, rows)?;
+        self.filter_rows::<N, V, WIDE>(d, rows, both);
         let owned = self.tiles.owned[tile];
         let row_bits = (1u128 << side) - 1;
         let mut n = 0;
@@ -725,7 +746,7 @@ impl<const K: usize> Kernel<'_, K> {
 }
 
 /// The window of a tile (`ids`, `d` rows of `d` items) read from `data` into `window` as the
-/// portable loop of [`Kernel::tile`] does, four items at a time: each item's three channels
+/// portable loop of [`Kernel::gather`] does, four items at a time: each item's three channels
 /// loaded and widened in one vector, four of them turned into three rows of four (one per
 /// channel). The portable loop took 19 instructions an item (a fifth of a cached limit's
 /// tiles at degree 9, level 3: 289 items a tile for 64 outputs). False, with nothing read,
