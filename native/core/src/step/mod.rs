@@ -31,6 +31,7 @@
 pub(crate) mod catmark;
 mod doo_sabin;
 mod regular;
+mod wide;
 
 pub(crate) use regular::{primal_input, Windows};
 
@@ -880,6 +881,13 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         out.clear();
         if out.capacity() < n {
             *out = hinted_or_abort(n);
+        }
+        let (olds, rest) = out.spare_capacity_mut()[..n].split_at_mut(nv);
+        let (edges, faces) = rest.split_at_mut(ne);
+        if wide::gather_primal(&t, f, wide::PrimalSections { olds, edges, faces }) {
+            // SAFETY: the vectors initialised the first `n` items.
+            unsafe { out.set_len(n) };
+            return;
         }
         let (olds, rest) = out.spare_capacity_mut()[..n].split_at_mut(nv);
         let (edges, faces) = rest.split_at_mut(ne);
