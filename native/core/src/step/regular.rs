@@ -1380,7 +1380,7 @@ impl Bits {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::Windows;
     use crate::refinement::Refinement;
     use crate::step::LevelData;
@@ -1405,7 +1405,7 @@ mod tests {
 
     /// A cube whose faces are `k x k` grids (eight vertices of valence 3), with points pushed
     /// off the cube by a fixed pseudo-random amount.
-    fn cube_grid(k: usize) -> (Cage, Vec<[f64; 3]>) {
+    pub(in crate::step) fn cube_grid(k: usize) -> (Cage, Vec<[f64; 3]>) {
         let mut index = std::collections::HashMap::new();
         let mut points: Vec<[f64; 3]> = Vec::new();
         let mut indices = Vec::new();
@@ -1454,7 +1454,7 @@ mod tests {
 
     /// An open `m x n` grid of quads with a crease across it and a pentagon and triangles in a
     /// corner: boundaries, a crease, corners and non-quad faces at level 0.
-    fn open_grid(m: usize, n: usize, sharpness: f32) -> (Cage, Vec<[f64; 3]>) {
+    pub(in crate::step) fn open_grid(m: usize, n: usize, sharpness: f32) -> (Cage, Vec<[f64; 3]>) {
         let at = |i: usize, j: usize| (j * (m + 1) + i) as u32;
         let mut sizes: Vec<i64> = Vec::new();
         let mut indices = Vec::new();

@@ -239,15 +239,26 @@ mod avx2 {
         start: usize,
         out: &mut [MaybeUninit<[W; N]>],
     ) {
-        for (i, item) in out.iter_mut().enumerate() {
-            let corners = t.corners_of_vertex(start + i);
-            // SAFETY: AVX2 is enabled here; `&f[c]` (bounds checked) and `item` are `N` values.
+        // The chunk's offsets and corners checked once (not per read, as indexing would; the
+        // portable loop panics there too): offsets in order within the table, corners in `f`.
+        let offsets = &t.vertex_offsets[start..=start + out.len()];
+        let first = offsets[0] as usize;
+        let corners = &t.vertex_corners[first..offsets[out.len()] as usize];
+        let len = f.len() as u64;
+        let fit = (corners.iter()).fold(true, |fit, &c| fit & (u64::from(c) < len))
+            & (offsets.windows(2)).fold(true, |fit, w| fit & (w[0] <= w[1]));
+        assert!(fit, "a vertex corner past the level's faces");
+        let (faces, corners) = (f.as_ptr(), corners.as_ptr());
+        for (item, ends) in out.iter_mut().zip(offsets.windows(2)) {
+            let (from, to) = (ends[0] as usize - first, ends[1] as usize - first);
+            // SAFETY: AVX2 is enabled here; `from..to` is within the chunk's corners and each
+            // corner within `f` (checked above); `item` is `N` values.
             unsafe {
                 let mut sum = W::zero();
-                for &c in corners {
-                    sum = W::plus(sum, W::load(&f[c as usize]));
+                for k in from..to {
+                    sum = W::plus(sum, W::load(faces.add(*corners.add(k) as usize)));
                 }
-                W::store(item.as_mut_ptr(), W::scale(sum, reciprocal(corners.len())));
+                W::store(item.as_mut_ptr(), W::scale(sum, reciprocal(to - from)));
             }
         }
     }
@@ -260,10 +271,24 @@ mod avx2 {
         corners: &[[u32; 2]],
         out: &mut [MaybeUninit<[W; N]>],
     ) {
+        // The corners checked once for the chunk (not per read, as indexing would): the
+        // portable loop panics there too.
+        let quads_len = quads.len() as u64;
+        let inside = |c: u32| u64::from(c >> 2) < quads_len;
+        let fit = (corners.iter()).fold(true, |fit, &[c, d]| {
+            fit & inside(c) & (d == NONE || inside(d))
+        });
+        assert!(fit, "an edge corner past the level's faces");
+        let faces = quads.as_ptr().cast::<[W; N]>();
         let pair = |c: u32| {
-            let (q, k) = (&quads[(c >> 2) as usize], (c & 3) as usize);
-            // SAFETY: AVX2 is enabled here; each is `N` values of the quad.
-            unsafe { W::plus(W::load(&q[k]), W::load(&q[(k + 1) & 3])) }
+            // The corner's fine face and its successor's, in the same coarse quad.
+            let next = (c & !3) | (c.wrapping_add(1) & 3);
+            // SAFETY: AVX2 is enabled here; both are fine faces of quad `c >> 2`, which the
+            // check above found in `quads`.
+            unsafe {
+                let (a, b) = (faces.add(c as usize), faces.add(next as usize));
+                W::plus(W::load(a), W::load(b))
+            }
         };
         let (half, quarter) = (W::from_f64(0.5), W::from_f64(0.25));
         for (item, &corners) in out.iter_mut().zip(corners) {
@@ -291,6 +316,154 @@ mod avx2 {
                 let sum = q.iter().fold(W::zero(), |s, x| W::plus(s, W::load(x)));
                 W::store(item.as_mut_ptr(), W::scale(sum, quarter));
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::mem::MaybeUninit;
+
+    use super::{gather_primal, PrimalSections};
+    use crate::refinement::Refinement;
+    use crate::scalar::{Scalar, Value};
+    use crate::step::regular::tests::{cube_grid, open_grid};
+    use crate::step::{quad_edge_mean, quad_mean, vertex_corner_mean, Tables};
+    use crate::{Cage, Options, Rules};
+
+    /// Fine-face data of `n` values: pseudo-random, of mixed signs and magnitudes, with a
+    /// negative zero in every 17th channel (a sum must start from `+0.0` as the portable one does).
+    fn data<T: Scalar, const N: usize>(n: usize, seed: u64) -> Vec<Value<T, N>> {
+        let mut s = seed;
+        (0..n)
+            .map(|i| {
+                std::array::from_fn(|c| {
+                    s = s
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    let x = (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+                    if (N * i + c).is_multiple_of(17) {
+                        T::from_f64(-0.0)
+                    } else {
+                        T::from_f64(x * 10f64.powi((i % 7) as i32 - 3))
+                    }
+                })
+            })
+            .collect()
+    }
+
+    /// Every quad level of `cage` refined: the vectors' three sections against the portable
+    /// means, bit for bit.
+    fn same_as_portable<T: Scalar, const N: usize>(cage: &Cage) {
+        let options = Options {
+            degree: 3,
+            levels: 3,
+            rules: Rules::Averaging,
+            ..Options::default()
+        };
+        let refinement = Refinement::new(cage, &options).unwrap();
+        let mut tested = 0;
+        for (j, coarse) in refinement.levels()[..3].iter().enumerate() {
+            let t = Tables::of(coarse);
+            if !t.quads {
+                continue;
+            }
+            let f = data::<T, N>(4 * coarse.num_faces(), j as u64 + 1);
+            let (quads, _) = f.as_chunks::<4>();
+            let (nv, ne, nf) = (
+                coarse.num_vertices,
+                t.edge_corners.len(),
+                coarse.num_faces(),
+            );
+            let mut out = vec![MaybeUninit::<Value<T, N>>::uninit(); nv + ne + nf];
+            let (olds, rest) = out.split_at_mut(nv);
+            let (edges, faces) = rest.split_at_mut(ne);
+            let done = gather_primal(&t, &f, PrimalSections { olds, edges, faces });
+            #[cfg(target_arch = "x86_64")]
+            assert_eq!(done, std::arch::is_x86_feature_detected!("avx2"));
+            if !done {
+                return;
+            }
+            // SAFETY: `gather_primal` returned true: it wrote every item.
+            let out: Vec<Value<T, N>> = out.iter().map(|x| unsafe { x.assume_init() }).collect();
+            let bits = |x: Value<T, N>| x.map(|c| c.to_f64().to_bits());
+            for (w, &value) in out.iter().enumerate() {
+                let portable = if w < nv {
+                    vertex_corner_mean(&t, &f, w)
+                } else if w < nv + ne {
+                    quad_edge_mean(quads, t.edge_corners[w - nv])
+                } else {
+                    quad_mean(&quads[w - nv - ne], T::from_f64(0.25))
+                };
+                assert_eq!(
+                    bits(value),
+                    bits(portable),
+                    "level {j}, item {w} of {}",
+                    out.len()
+                );
+            }
+            tested += 1;
+        }
+        assert!(tested >= 2, "{tested} quad levels");
+    }
+
+    /// A table pointing past the fine faces panics on the vectors' path, as indexing does on
+    /// the portable one (their reads are unchecked once the chunk's table is checked).
+    #[test]
+    fn a_corner_past_the_faces_panics() {
+        let (cage, _) = cube_grid(2);
+        let options = Options {
+            degree: 3,
+            levels: 2,
+            rules: Rules::Averaging,
+            ..Options::default()
+        };
+        let refinement = Refinement::new(&cage, &options).unwrap();
+        let coarse = &refinement.levels()[1];
+        let t = Tables::of(coarse);
+        let f = data::<f32, 3>(4 * coarse.num_faces(), 1);
+        let past = 4 * coarse.num_faces() as u32;
+        let (mut edge_corners, mut vertex_corners) =
+            (t.edge_corners.to_vec(), t.vertex_corners.to_vec());
+        edge_corners[5][1] = past;
+        vertex_corners[7] = past + 3;
+        let run = |t: Tables| {
+            let n = coarse.num_vertices + t.edge_corners.len() + coarse.num_faces();
+            let mut out = vec![MaybeUninit::<Value<f32, 3>>::uninit(); n];
+            let (olds, rest) = out.split_at_mut(coarse.num_vertices);
+            let (edges, faces) = rest.split_at_mut(t.edge_corners.len());
+            let sections = PrimalSections { olds, edges, faces };
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                gather_primal(&t, &f, sections)
+            }))
+        };
+        assert!(matches!(run(t), Ok(true) | Ok(false)));
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            assert!(run(Tables {
+                edge_corners: &edge_corners,
+                ..t
+            })
+            .is_err());
+            assert!(run(Tables {
+                vertex_corners: &vertex_corners,
+                ..t
+            })
+            .is_err());
+        }
+    }
+
+    #[test]
+    fn vectors_give_the_portable_means() {
+        // Boundaries (edges of one face), valences 2 to 5, triangles at level 0; valence 3.
+        for (cage, _) in [open_grid(7, 6, 1.5), cube_grid(2)] {
+            same_as_portable::<f32, 1>(&cage);
+            same_as_portable::<f32, 2>(&cage);
+            same_as_portable::<f32, 3>(&cage);
+            same_as_portable::<f32, 4>(&cage);
+            same_as_portable::<f64, 2>(&cage);
+            same_as_portable::<f64, 3>(&cage);
+            same_as_portable::<f64, 4>(&cage);
         }
     }
 }
