@@ -21,7 +21,10 @@
 //! the old vertices' points; bitwise the separate passes); the other passes gather through the
 //! coarse level's tables, looked up once per pass ([`Tables`]) and, on quad levels, walked in
 //! step with their output (`parallel::fill_zip`: a quarter fewer instructions than rayon's
-//! per-item collect for cached averaging 4). The
+//! per-item collect for cached averaging 4).
+//! The dual -> primal average that ends every odd-degree step runs, on a quad level, in vectors
+//! where the processor has AVX2 ([`wide`]: a value of up to four channels in one register, the
+//! same sums; cached averaging 3 at level 3 23.5M -> 17.8M instructions, 9 48.9M -> 43.2M). The
 //! working buffers come from a [`Scratch`] that a plan keeps between evaluations, so that a
 //! cached re-evaluation pays page faults only for the array it returns; the two that the
 //! windowed zone writes in part keep their length there, so a warm plan does not fill them
