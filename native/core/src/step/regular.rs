@@ -87,7 +87,11 @@
 //! thread): of `f32` nets, each row's two column sums are one 8-lane vector, each item read
 //! once by a masked load ([`filter_row_avx2`]; LLVM had paired the items with broadcasts,
 //! shuffles and blends, 64 instructions a row of six at degree 9, now 47). Cached degree 9
-//! 43.2M -> 39.5M, 4 23.5M -> 22.4M, 3 17.8M -> 17.1M; the same bits.
+//! 43.2M -> 39.5M, 4 23.5M -> 22.4M, 3 17.8M -> 17.1M; the same bits. Then both columns'
+//! weights as one 8-lane load per tap, and a child row's column sums in explicit vectors too
+//! ([`column_sums_avx2`]: with the paired weights alone LLVM rebuilt the column stage with
+//! blends, degree 3 17.1M -> 17.9M): degree 9 39.5M -> 35.5M, 4 22.4M -> 21.3M, 5-8 -3 % to
+//! -6 %, 3 17.1M as before.
 //!
 //! Windows can also be made for some of a step's items ([`Windows::for_items`]): the limit's
 //! partial levels read a quarter of each step's children, and the kernel and the passes then
@@ -509,6 +513,8 @@ impl Windows {
         // The filtered rows of the chunk's last faces (`rows[j][p]`: row j of the net
         // filtered for the child column p), by place in the chunk modulo their number.
         let mut kept = [[[[T::default(); L]; 2]; S]; SHARE_BACK + 1];
+        // Per tap, both columns' weights side by side: one 8-lane load for `filter_row_avx2`.
+        let paired: [[T; 8]; K] = std::array::from_fn(|t| std::array::from_fn(|l| w[l / 4][t][0]));
         for (i, children) in children.as_chunks_mut::<4>().0.iter_mut().enumerate() {
             let f = chunk * CHUNK + i;
             let mask = self.masks[f];
@@ -538,7 +544,9 @@ impl Windows {
                 if WIDE {
                     // SAFETY: `WIDE` is set in AVX2 code alone; every id of a net is below
                     // `reach`, and `apply` checked that `x` holds `reach` values.
-                    if let Some(filtered) = unsafe { filter_row_avx2::<T, N, L, S, K>(ids, x, w) } {
+                    if let Some(filtered) =
+                        unsafe { filter_row_avx2::<T, N, L, S, K>(ids, x, &paired) }
+                    {
                         *rows = filtered;
                         continue;
                     }
@@ -563,9 +571,17 @@ impl Windows {
                     continue;
                 }
                 let mut sums = [zero::<T, L>(); 2];
-                for t in 0..K {
-                    for (px, sum) in sums.iter_mut().enumerate() {
-                        *sum = add(*sum, mul(w[py][t], rows[py * o + t][px]));
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: `WIDE` is set in AVX2 code alone.
+                let wide = WIDE
+                    && unsafe { column_sums_avx2::<T, L, S, K>(rows, &w[py], py * o, &mut sums) };
+                #[cfg(not(target_arch = "x86_64"))]
+                let wide = false;
+                if !wide {
+                    for t in 0..K {
+                        for (px, sum) in sums.iter_mut().enumerate() {
+                            *sum = add(*sum, mul(w[py][t], rows[py * o + t][px]));
+                        }
                     }
                 }
                 for (px, k) in written {
@@ -608,7 +624,8 @@ impl Windows {
 /// that of column 1 (item `o + t`), each item read once by a masked load of its channels. The
 /// padding lanes hold zeros, not the portable loop's copies: no child keeps them ([`put`]).
 /// LLVM built each pair from the portable loop with broadcasts, shuffles, permutes and blends
-/// (64 instructions a row of six items at degree 9, most of the kernel's).
+/// (64 instructions a row of six items at degree 9, most of the kernel's). `paired[t]` is tap
+/// `t`'s weight of column 0 four times, then column 1's.
 ///
 /// # Safety
 /// AVX2 must be enabled, and every id must be an item of `x`.
@@ -623,7 +640,7 @@ unsafe fn filter_row_avx2<
 >(
     ids: &[u32],
     x: &[Value<T, N>],
-    w: &[[[T; L]; K]; 2],
+    paired: &[[T; 8]; K],
 ) -> Option<[[T; L]; 2]> {
     use std::arch::x86_64::*;
     if std::any::TypeId::of::<T>() != std::any::TypeId::of::<f32>() || L != 4 || N > 4 {
@@ -633,17 +650,15 @@ unsafe fn filter_row_avx2<
     let on = |c: usize| if c < N { -1 } else { 0 };
     let base = x.as_ptr().cast::<f32>();
     // SAFETY: AVX2 is enabled (the caller's promise), and every id is an item of `x`, whose
-    // `N` channels are `f32` (`T` is `f32`): the masked load reads those alone. `w` holds
-    // `2 K` vectors of four `f32`.
+    // `N` channels are `f32` (`T` is `f32`): the masked load reads those alone; `paired[t]`
+    // is eight `f32`.
     unsafe {
         let mask = _mm_setr_epi32(on(0), on(1), on(2), on(3));
         let items: [__m128; S] =
             std::array::from_fn(|t| _mm_maskload_ps(base.add(N * ids[t] as usize), mask));
-        let w = w.as_ptr().cast::<f32>();
         let mut sum = _mm256_setzero_ps();
         for t in 0..K {
-            let weights =
-                _mm256_set_m128(_mm_loadu_ps(w.add(4 * (K + t))), _mm_loadu_ps(w.add(4 * t)));
+            let weights = _mm256_loadu_ps(paired[t].as_ptr().cast::<f32>());
             let pair = _mm256_set_m128(items[o + t], items[t]);
             sum = _mm256_add_ps(sum, _mm256_mul_ps(weights, pair));
         }
@@ -651,6 +666,41 @@ unsafe fn filter_row_avx2<
         _mm256_storeu_ps(out.as_mut_ptr().cast::<f32>(), sum);
         Some(out)
     }
+}
+
+/// The column sums of one child row (filtered rows `from..from + K` of `rows`, weights `w`)
+/// for both child columns at once, as the portable loop of [`Windows::chunk`] does (the same
+/// products and sums in the same order, lane by lane), for `f32` values in four lanes: one
+/// 8-lane vector (column 0 in lanes 0-3, column 1 in lanes 4-7). False, `sums` untouched, for
+/// other values.
+///
+/// # Safety
+/// AVX2 must be enabled.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn column_sums_avx2<T: Scalar, const L: usize, const S: usize, const K: usize>(
+    rows: &[[[T; L]; 2]; S],
+    w: &[[T; L]; K],
+    from: usize,
+    sums: &mut [[T; L]; 2],
+) -> bool {
+    use std::arch::x86_64::*;
+    if std::any::TypeId::of::<T>() != std::any::TypeId::of::<f32>() || L != 4 {
+        return false;
+    }
+    let rows = &rows[from..from + K];
+    // SAFETY: AVX2 is enabled (the caller's promise); `T` is `f32` and `L` 4, so each row is
+    // eight `f32` and each weight four.
+    unsafe {
+        let mut sum = _mm256_setzero_ps();
+        for (row, w) in rows.iter().zip(w) {
+            let weight = _mm256_set1_ps(*w.as_ptr().cast::<f32>());
+            let row = _mm256_loadu_ps(row.as_ptr().cast::<f32>());
+            sum = _mm256_add_ps(sum, _mm256_mul_ps(weight, row));
+        }
+        _mm256_storeu_ps(sums.as_mut_ptr().cast::<f32>(), sum);
+    }
+    true
 }
 
 /// Whether the processor has AVX2, for [`Windows::chunk_avx2`].
