@@ -514,6 +514,7 @@ impl Windows {
         // filtered for the child column p), by place in the chunk modulo their number.
         let mut kept = [[[[T::default(); L]; 2]; S]; SHARE_BACK + 1];
         // Per tap, both columns' weights side by side: one 8-lane load for `filter_row_avx2`.
+        #[cfg(target_arch = "x86_64")]
         let paired: [[T; 8]; K] = std::array::from_fn(|t| std::array::from_fn(|l| w[l / 4][t][0]));
         for (i, children) in children.as_chunks_mut::<4>().0.iter_mut().enumerate() {
             let f = chunk * CHUNK + i;
@@ -570,20 +571,22 @@ impl Windows {
                 if mask & (1 << written[0].1 | 1 << written[1].1) == 0 {
                     continue;
                 }
-                let mut sums = [zero::<T, L>(); 2];
                 #[cfg(target_arch = "x86_64")]
                 // SAFETY: `WIDE` is set in AVX2 code alone.
                 let wide = WIDE
-                    && unsafe { column_sums_avx2::<T, L, S, K>(rows, &w[py], py * o, &mut sums) };
+                    .then(|| unsafe { column_sums_avx2::<T, L, S, K>(rows, &w[py], py * o) })
+                    .flatten();
                 #[cfg(not(target_arch = "x86_64"))]
-                let wide = false;
-                if !wide {
+                let wide = None;
+                let sums = wide.unwrap_or_else(|| {
+                    let mut sums = [zero::<T, L>(); 2];
                     for t in 0..K {
                         for (px, sum) in sums.iter_mut().enumerate() {
                             *sum = add(*sum, mul(w[py][t], rows[py * o + t][px]));
                         }
                     }
-                }
+                    sums
+                });
                 for (px, k) in written {
                     if mask & (1 << k) != 0 {
                         put(children, k, sums[px]);
@@ -671,8 +674,8 @@ unsafe fn filter_row_avx2<
 /// The column sums of one child row (filtered rows `from..from + K` of `rows`, weights `w`)
 /// for both child columns at once, as the portable loop of [`Windows::chunk`] does (the same
 /// products and sums in the same order, lane by lane), for `f32` values in four lanes: one
-/// 8-lane vector (column 0 in lanes 0-3, column 1 in lanes 4-7). False, `sums` untouched, for
-/// other values.
+/// 8-lane vector (column 0 in lanes 0-3, column 1 in lanes 4-7); `None` for other values, as
+/// [`filter_row_avx2`].
 ///
 /// # Safety
 /// AVX2 must be enabled.
@@ -682,11 +685,10 @@ unsafe fn column_sums_avx2<T: Scalar, const L: usize, const S: usize, const K: u
     rows: &[[[T; L]; 2]; S],
     w: &[[T; L]; K],
     from: usize,
-    sums: &mut [[T; L]; 2],
-) -> bool {
+) -> Option<[[T; L]; 2]> {
     use std::arch::x86_64::*;
     if std::any::TypeId::of::<T>() != std::any::TypeId::of::<f32>() || L != 4 {
-        return false;
+        return None;
     }
     let rows = &rows[from..from + K];
     // SAFETY: AVX2 is enabled (the caller's promise); `T` is `f32` and `L` 4, so each row is
@@ -698,9 +700,10 @@ unsafe fn column_sums_avx2<T: Scalar, const L: usize, const S: usize, const K: u
             let row = _mm256_loadu_ps(row.as_ptr().cast::<f32>());
             sum = _mm256_add_ps(sum, _mm256_mul_ps(weight, row));
         }
+        let mut sums = [[T::default(); L]; 2];
         _mm256_storeu_ps(sums.as_mut_ptr().cast::<f32>(), sum);
+        Some(sums)
     }
-    true
 }
 
 /// Whether the processor has AVX2, for [`Windows::chunk_avx2`].
