@@ -175,19 +175,22 @@ impl Tiles {
                     },
                 )
                 .collect_into_vec(&mut walks);
+            // Room for every tile of the block at once (per tile, the checks of `grow` were 2 %
+            // of a first limit call at degree 3, level 2).
+            let kept = walks.len();
+            memory::grow(&mut ids, kept * window)?;
+            memory::grow(&mut outputs, kept * outputs_per_tile)?;
+            memory::grow(&mut owned, kept)?;
+            memory::grow(&mut far_valid, kept)?;
             for w in &walks {
                 let w = w.as_ref().map_err(|e| e.clone())?;
                 let mine = claim(w.valid & !far, &w.outputs, &mut claimed)?;
                 if mine == 0 && w.valid & far == 0 {
                     continue;
                 }
-                memory::grow(&mut ids, window)?;
                 ids.extend_from_slice(&w.ids[..window]);
-                memory::grow(&mut outputs, outputs_per_tile)?;
                 outputs.extend_from_slice(&w.outputs[..outputs_per_tile]);
-                memory::grow(&mut owned, 1)?;
                 owned.push(mine);
-                memory::grow(&mut far_valid, 1)?;
                 far_valid.push(w.valid & far);
             }
         }
