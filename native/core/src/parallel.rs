@@ -107,8 +107,16 @@ pub(crate) fn gather_indexed<V: Copy + Send + Sync>(source: &[V], index: &[u32])
             // The slice in registers: read through the closure's captures, its pointer and
             // length were loaded again for every item (the writes might have changed them).
             let source: &[V] = source;
+            // The chunk's indices checked at once by their maximum (which vectorises; an index
+            // past the source panics, as indexing would), then read unchecked.
+            let largest = index.iter().copied().max().unwrap_or(0);
+            assert!(
+                index.is_empty() || (largest as usize) < source.len(),
+                "a gather index past the source"
+            );
             for (item, &i) in items.iter_mut().zip(index) {
-                item.write(source[i as usize]);
+                // SAFETY: every index of the chunk is within `source` (checked above).
+                item.write(unsafe { *source.get_unchecked(i as usize) });
             }
         });
     // SAFETY: the loop initialised the first `n` items (a panic would have unwound past here).
@@ -435,5 +443,36 @@ pub(crate) fn in_pool<R: Send>(work: impl FnOnce() -> R + Send) -> R {
         work()
     } else {
         rayon::scope(|_| work())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{gather_indexed, CHUNK};
+
+    /// Every index of several chunks is read (each chunk's indices are checked once, then read
+    /// unchecked).
+    #[test]
+    fn gather_indexed_reads_every_index() {
+        let source: Vec<[f32; 3]> = (0..100)
+            .map(|i| [i as f32, 2.0 * i as f32, -(i as f32)])
+            .collect();
+        let index: Vec<u32> = (0..3 * CHUNK as u32 + 7).map(|k| (k * 37) % 100).collect();
+        let out = gather_indexed(&source, &index).unwrap();
+        assert_eq!(out.len(), index.len());
+        assert!(out
+            .iter()
+            .zip(&index)
+            .all(|(o, &i)| *o == source[i as usize]));
+    }
+
+    /// An index past the source panics, as indexing would, wherever it is in its chunk.
+    #[test]
+    #[should_panic(expected = "a gather index past the source")]
+    fn a_gather_index_past_the_source_panics() {
+        let source = [[1.0f32; 3]; 10];
+        let mut index = vec![0u32; CHUNK + 5];
+        index[CHUNK + 3] = 10;
+        let _ = gather_indexed(&source, &index);
     }
 }
