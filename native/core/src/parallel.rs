@@ -407,19 +407,21 @@ impl<'a, V> Disjoint<'a, V> {
         }
     }
 
-    /// `out[i] = v`; an index out of range is an [`Error::Internal`] (a bug of the caller's
-    /// lists), nothing written.
+    /// The number of items.
+    pub(crate) fn len(&self) -> usize {
+        self.len
+    }
+
+    /// `out[i] = v`, for a caller that has checked its indices against [`Disjoint::len`] (once,
+    /// not per write: the limit tiles check their vertices when they start).
     ///
     /// # Safety
-    /// No other call, on any thread, writes index `i` while the writer lives.
+    /// `i` is less than [`Disjoint::len`], and no other call, on any thread, writes index `i`
+    /// while the writer lives.
     #[inline(always)]
-    pub(crate) unsafe fn write(&self, i: usize, v: V) -> Result<()> {
-        if i >= self.len {
-            return Err(Error::Internal("a disjoint write out of range".into()));
-        }
+    pub(crate) unsafe fn write(&self, i: usize, v: V) {
         // SAFETY: in range, and this call alone writes item `i` (the caller's contract).
         unsafe { self.out.add(i).write(MaybeUninit::new(v)) };
-        Ok(())
     }
 }
 

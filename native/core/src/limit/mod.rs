@@ -2622,6 +2622,41 @@ mod tests {
     }
 
     #[test]
+    fn an_output_too_short_is_an_error_on_both_paths() {
+        // The tiles write their vertices unchecked once they are checked against both outputs:
+        // with either output too short for the level, both kernels must refuse, not write
+        // past it.
+        let (sphere, points) = ico_quads(3);
+        let refinement = at_level_3(&sphere, 5);
+        let cache = LimitCache::default();
+        let st = stencils(&refinement, &cache).unwrap();
+        let tiles = st.tiles.as_ref().expect("tiles on the sphere at degree 5");
+        let n = refinement.last_level().num_vertices;
+        let data: Vec<[f32; 3]> = (points.as_chunks::<3>().0.iter())
+            .map(|p| p.map(|x| x as f32))
+            .cycle()
+            .take(n)
+            .collect();
+        for wide in [false, tiles::wide_vectors()] {
+            for (positions, normals) in [(n / 2, n), (n, n / 2)] {
+                let mut p = vec![MaybeUninit::new([0.0f32; 3]); positions];
+                let mut q = vec![MaybeUninit::new([0.0f32; 3]); normals];
+                let result = tiles.write_on(&data, &mut p, Some(&mut q[..]), wide);
+                assert!(
+                    matches!(result, Err(Error::Internal(_))),
+                    "wide {wide}, outputs {positions} / {normals}: {result:?}"
+                );
+            }
+            let mut p = vec![MaybeUninit::new([0.0f32; 3]); n / 2];
+            let result = tiles.write_on(&data, &mut p, None, wide);
+            assert!(
+                matches!(result, Err(Error::Internal(_))),
+                "wide {wide}: {result:?}"
+            );
+        }
+    }
+
+    #[test]
     fn local_extension_matches_the_whole_plan_extended() {
         let (grid, grid_points) = grid(5);
         let crease = grid
