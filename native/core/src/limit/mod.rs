@@ -2596,63 +2596,43 @@ mod tests {
     }
 
     #[test]
-    fn a_window_past_the_data_is_an_error_on_both_paths() {
+    fn a_window_or_a_vertex_past_its_array_is_an_error_on_both_paths() {
         // The four-lane gather reads its items unchecked once the ids are checked against the
-        // data: with data too short for the level, both kernels must refuse, not read past it.
+        // data, and the tiles write their vertices unchecked once they are checked against
+        // both outputs: with data or an output too short for the level, both kernels must
+        // refuse, not read or write past it.
         let (sphere, points) = ico_quads(3);
         let refinement = at_level_3(&sphere, 5);
         let cache = LimitCache::default();
         let st = stencils(&refinement, &cache).unwrap();
         let tiles = st.tiles.as_ref().expect("tiles on the sphere at degree 5");
         let n = refinement.last_level().num_vertices;
-        let single: Vec<[f32; 3]> = (points.as_chunks::<3>().0.iter())
-            .map(|p| p.map(|x| x as f32))
-            .cycle()
-            .take(n / 2)
-            .collect();
+        let data = |len: usize| -> Vec<[f32; 3]> {
+            (points.as_chunks::<3>().0.iter())
+                .map(|p| p.map(|x| x as f32))
+                .cycle()
+                .take(len)
+                .collect()
+        };
+        let (short, whole) = (data(n / 2), data(n));
+        // (data, positions, normals; `None`: no normals asked for)
+        let cases = [
+            (&short, n, Some(n)),
+            (&whole, n / 2, Some(n)),
+            (&whole, n, Some(n / 2)),
+            (&whole, n / 2, None),
+        ];
         for wide in [false, tiles::wide_vectors()] {
-            let mut p = vec![MaybeUninit::new([0.0f32; 3]); n];
-            let mut q = vec![MaybeUninit::new([0.0f32; 3]); n];
-            let result = tiles.write_on(&single, &mut p, Some(&mut q[..]), wide);
-            assert!(
-                matches!(result, Err(Error::Internal(_))),
-                "wide {wide}: {result:?}"
-            );
-        }
-    }
-
-    #[test]
-    fn an_output_too_short_is_an_error_on_both_paths() {
-        // The tiles write their vertices unchecked once they are checked against both outputs:
-        // with either output too short for the level, both kernels must refuse, not write
-        // past it.
-        let (sphere, points) = ico_quads(3);
-        let refinement = at_level_3(&sphere, 5);
-        let cache = LimitCache::default();
-        let st = stencils(&refinement, &cache).unwrap();
-        let tiles = st.tiles.as_ref().expect("tiles on the sphere at degree 5");
-        let n = refinement.last_level().num_vertices;
-        let data: Vec<[f32; 3]> = (points.as_chunks::<3>().0.iter())
-            .map(|p| p.map(|x| x as f32))
-            .cycle()
-            .take(n)
-            .collect();
-        for wide in [false, tiles::wide_vectors()] {
-            for (positions, normals) in [(n / 2, n), (n, n / 2)] {
+            for (x, positions, normals) in cases {
                 let mut p = vec![MaybeUninit::new([0.0f32; 3]); positions];
-                let mut q = vec![MaybeUninit::new([0.0f32; 3]); normals];
-                let result = tiles.write_on(&data, &mut p, Some(&mut q[..]), wide);
+                let mut q = normals.map(|m| vec![MaybeUninit::new([0.0f32; 3]); m]);
+                let result = tiles.write_on(x, &mut p, q.as_deref_mut(), wide);
                 assert!(
                     matches!(result, Err(Error::Internal(_))),
-                    "wide {wide}, outputs {positions} / {normals}: {result:?}"
+                    "wide {wide}, data {}, outputs {positions} / {normals:?}: {result:?}",
+                    x.len()
                 );
             }
-            let mut p = vec![MaybeUninit::new([0.0f32; 3]); n / 2];
-            let result = tiles.write_on(&data, &mut p, None, wide);
-            assert!(
-                matches!(result, Err(Error::Internal(_))),
-                "wide {wide}: {result:?}"
-            );
         }
     }
 
