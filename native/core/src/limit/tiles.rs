@@ -179,11 +179,11 @@ impl Tiles {
                 .collect_into_vec(&mut walks);
             // Room for every tile of the block at once (per tile, the checks of `grow` were 2 %
             // of a first limit call at degree 3, level 2).
-            let kept = walks.len();
-            memory::grow(&mut ids, kept * window)?;
-            memory::grow(&mut outputs, kept * outputs_per_tile)?;
-            memory::grow(&mut owned, kept)?;
-            memory::grow(&mut far_valid, kept)?;
+            let walked = walks.len();
+            memory::grow(&mut ids, walked * window)?;
+            memory::grow(&mut outputs, walked * outputs_per_tile)?;
+            memory::grow(&mut owned, walked)?;
+            memory::grow(&mut far_valid, walked)?;
             for w in &walks {
                 let w = w.as_ref().map_err(|e| e.clone())?;
                 let mine = claim(w.valid & !far, &w.outputs, &mut claimed)?;
