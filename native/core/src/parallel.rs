@@ -423,6 +423,17 @@ impl<'a, V> Disjoint<'a, V> {
         // SAFETY: in range, and this call alone writes item `i` (the caller's contract).
         unsafe { self.out.add(i).write(MaybeUninit::new(v)) };
     }
+
+    /// The address of item `i`, for a caller that writes it in place (a masked vector store).
+    ///
+    /// # Safety
+    /// As [`Disjoint::write`]: `i` is less than [`Disjoint::len`], and only this caller writes
+    /// item `i`, through the address alone, while the writer lives.
+    #[inline(always)]
+    pub(crate) unsafe fn slot(&self, i: usize) -> *mut V {
+        // SAFETY: in range (the caller's contract); `MaybeUninit<V>` has the layout of `V`.
+        unsafe { self.out.add(i).cast() }
+    }
 }
 
 /// [`scatter_uninit`] into initialised items (which stay initialised: only values are written).

@@ -11,7 +11,8 @@
 //! ([`doo_sabin`]), classic Catmull-Clark is one pass of OpenSubdiv's masks ([`catmark`]).
 //! On a quad level (from 2 averages on), the fine faces whose support is a grid come from the
 //! tensor B-spline of the whole step ([`regular`]: the regular windows), and the passes run only
-//! over the zone around the others.
+//! over the zone around the others; at degree 3 the fine vertices of a grid come straight from
+//! the coarse ones, with no children in between ([`fused`]).
 //! Every pass is a parallel gather in a fixed order, so the output is bitwise the same whatever
 //! the number of threads, and the same on a partial level as on the full one wherever the
 //! inputs of a value are present.
@@ -33,6 +34,7 @@
 
 pub(crate) mod catmark;
 mod doo_sabin;
+mod fused;
 mod regular;
 mod wide;
 
@@ -492,23 +494,53 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         // longer kept buffers go to the partly written ones.
         let old = self.take_own_vertices();
         let mut vertices = self.partial([old, None], n_vertices);
-        // The kernel's output: every child written once, by the kernel or by the last pass.
-        let mut out = self.fresh();
-        out.clear();
-        if out.capacity() < n_faces {
-            out = hinted_or_abort(n_faces);
-        }
-        if windows.partial() {
-            // Windows for some items leave the other children unwritten.
-            out.spare_capacity_mut()[..n_faces].fill(MaybeUninit::new(zero()));
-        }
+        let fused = windows.fused();
+        // The kernel's output: every child written once, by the kernel or by the last pass;
+        // with fused points, only the children the other fine vertices read, into a kept
+        // buffer (the zone's, which has no passes then).
+        let mut out = match fused {
+            Some(_) => {
+                debug_assert!(first_is_last, "fused points end a step of two averages");
+                initialised(&mut faces, n_faces);
+                let out = std::mem::take(&mut faces);
+                faces = self.fresh();
+                out
+            }
+            None => {
+                let mut out = self.fresh();
+                out.clear();
+                if out.capacity() < n_faces {
+                    out = hinted_or_abort(n_faces);
+                }
+                if windows.partial() {
+                    // Windows for some items leave the other children unwritten.
+                    out.spare_capacity_mut()[..n_faces].fill(MaybeUninit::new(zero()));
+                }
+                out
+            }
+        };
+        let children_out = match fused {
+            Some(_) => as_uninit(&mut out[..n_faces]),
+            None => &mut out.spare_capacity_mut()[..n_faces],
+        };
         debug_assert_eq!(windows.primal(), primal);
-        windows.apply(x, &mut out.spare_capacity_mut()[..n_faces])?;
+        windows.apply(x, children_out)?;
         if first_is_last {
             // Every child of these faces, after the kernel: its writes spill into the next
             // child ([`regular`]'s `put`), which the pass then writes.
-            let out = &mut out.spare_capacity_mut()[..n_faces];
-            scatter_uninit(out, &zone.first, |f| children.of(f))?;
+            scatter_uninit(children_out, &zone.first, |f| children.of(f))?;
+        }
+        if let Some(fused) = fused {
+            // Of points made for every item, each fine vertex is written once, by the fused
+            // sums or by the last average below; of some, a kept buffer holds the others.
+            match fused.whole() {
+                true => vertices.clear(),
+                false => initialised(&mut vertices, n_vertices),
+            }
+            if vertices.capacity() < n_vertices {
+                vertices = hinted_or_abort(n_vertices);
+            }
+            fused.apply(x, coarse, slots(&mut vertices, n_vertices))?;
         }
         self.curve = CurveData::Dual(curve_to_dual(curves, &curve));
         // The coarse data's buffer is free now.
@@ -542,14 +574,32 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
                 self.curve = CurveData::Dual(curve_to_dual(curves, curve));
             }
         }
-        // SAFETY: the kernel wrote its children and the last pass every other one (the zone's
-        // last list is the complement of the kernel's children; a panic would have unwound
-        // past here).
-        unsafe { out.set_len(n_faces) };
+        if fused.is_none() {
+            // SAFETY: the kernel wrote its children and the last pass every other one (the
+            // zone's last list is the complement of the kernel's children; a panic would have
+            // unwound past here).
+            unsafe { out.set_len(n_faces) };
+        }
         self.faces = Cow::Owned(out);
-        self.vertices = Cow::Owned(vertices);
         self.spare = faces;
         self.primal = false;
+        if let Some(fused) = fused {
+            // The other fine vertices from the children around them.
+            let f: &[Value<T, N>] = &self.faces;
+            let rest = fused.rest();
+            scatter_uninit(slots(&mut vertices, n_vertices), rest, |w| {
+                [primal_item(&t, f, w)]
+            })?;
+            match fused.whole() {
+                // SAFETY: every fine vertex is written, once, by the fused sums or the scatter
+                // (`Fused::whole`; a panic would have unwound past here).
+                true => unsafe { vertices.set_len(n_vertices) },
+                false => vertices.truncate(n_vertices),
+            }
+            self.finish_primal(vertices, curves);
+            return Ok(());
+        }
+        self.vertices = Cow::Owned(vertices);
         if windows.degree() % 2 == 1 {
             match windows.last_vertices() {
                 Some(items) => self.average_to_primal_at(step, items)?,
@@ -1041,6 +1091,22 @@ fn corner_centroid<T: Scalar, const N: usize>(
 #[inline(always)]
 fn quad_mean<T: Scalar, const N: usize>(q: &[Value<T, N>], quarter: T) -> Value<T, N> {
     scale(q.iter().fold(zero(), |s, &x| add(s, x)), quarter)
+}
+
+/// The first `n` items of `buffer` to write: its items when it holds them (initialised; they
+/// stay so), else its spare room.
+fn slots<V>(buffer: &mut Vec<V>, n: usize) -> &mut [MaybeUninit<V>] {
+    match buffer.len() >= n {
+        true => as_uninit(&mut buffer[..n]),
+        false => &mut buffer.spare_capacity_mut()[..n],
+    }
+}
+
+/// `items` as slots to write (it stays initialised: only values are written into it).
+fn as_uninit<V>(items: &mut [V]) -> &mut [MaybeUninit<V>] {
+    // SAFETY: `MaybeUninit<V>` has the layout of `V`, and the slots are written only with
+    // values.
+    unsafe { &mut *(items as *mut [V] as *mut [MaybeUninit<V>]) }
 }
 
 /// `buffer` holds at least `n` initialised items (the pass after it writes some of them and

@@ -8,7 +8,9 @@
 //! valence 4 and interior, no curve of the step born there) is therefore computed here by one
 //! separable filter of the coarse faces, rows then columns, instead of m passes through the fine
 //! level. A step of odd degree n takes the kernel for its first n - 1 averages and finishes with
-//! its last dual -> primal average over every vertex.
+//! its last dual -> primal average over every vertex; at degree 3 most fine vertices come
+//! straight from the coarse ones instead ([`super::fused`]), and the kernel makes only the
+//! children that the others read.
 //!
 //! The averages have positive weights, so the support is exactly what the passes would read, and
 //! a partial level on which a child is exact holds its whole support too: a child is classified
@@ -107,6 +109,7 @@ use std::mem::MaybeUninit;
 
 use rayon::prelude::*;
 
+use super::fused::Fused;
 use crate::curves::CurveNetwork;
 use crate::error::{Error, Result};
 use crate::memory;
@@ -145,6 +148,9 @@ pub(crate) struct Windows {
     partial: bool,
     /// With an odd degree made for some items, the fine vertices its last average makes.
     last_vertices: Option<Vec<u32>>,
+    /// Degree 3 on primal input: the fine vertices made straight from the coarse ones
+    /// ([`Fused`]); the kernel and the zone then make only the children the others read.
+    fused: Option<Fused>,
 }
 
 /// The items the passes of a step still compute, in increasing order: the coarse faces whose
@@ -260,7 +266,21 @@ impl Windows {
         if masks.iter().all(|&m| m == 0) {
             return Ok(None);
         }
-        let zone = Zone::of(coarse, fine, averages, &masks, None)?;
+        let fused = match (degree, primal) {
+            (3, true) => Fused::new(coarse, &masks, flags.tables())?,
+            _ => None,
+        };
+        // With fused points, the children that the other fine vertices read alone.
+        let read = match &fused {
+            Some(fused) => Some(faces_read(coarse, fine, fused.rest())?),
+            None => None,
+        };
+        if let Some(read) = &read {
+            for (f, mask) in masks.iter_mut().enumerate() {
+                *mask &= read.quad(f);
+            }
+        }
+        let zone = Zone::of(coarse, fine, averages, &masks, read.as_ref())?;
         let shares = shares(&masks, &nets, side)?;
         Ok(Some(Windows {
             degree,
@@ -275,6 +295,7 @@ impl Windows {
             zone,
             partial: false,
             last_vertices: None,
+            fused,
         }))
     }
 
@@ -306,9 +327,21 @@ impl Windows {
             return Ok(windows);
         }
         let odd = degree % 2 == 1;
-        let faces = match odd {
-            true => faces_read(coarse, fine, needed)?,
-            false => {
+        let (windows, fused) = match windows {
+            Some(mut w) => {
+                let fused = w.fused.take();
+                (Some(w), fused)
+            }
+            None => (None, None),
+        };
+        let fused = match fused {
+            Some(fused) => Some(fused.for_items(coarse, needed)?),
+            None => None,
+        };
+        let faces = match (odd, &fused) {
+            (true, Some(fused)) => faces_read(coarse, fine, fused.rest())?,
+            (true, None) => faces_read(coarse, fine, needed)?,
+            (false, _) => {
                 let mut faces = Bits::new(fine.num_faces())?;
                 for &f in needed {
                     faces.set(f as usize);
@@ -341,10 +374,11 @@ impl Windows {
             shares,
             zone,
             partial: true,
-            last_vertices: match odd {
-                true => Some(memory::collect(needed.iter().copied())?),
-                false => None,
+            last_vertices: match (odd, &fused) {
+                (true, None) => Some(memory::collect(needed.iter().copied())?),
+                _ => None,
             },
+            fused,
         }))
     }
 
@@ -358,6 +392,11 @@ impl Windows {
     /// ([`Windows::for_items`]).
     pub(super) fn last_vertices(&self) -> Option<&[u32]> {
         self.last_vertices.as_deref()
+    }
+
+    /// The fused points of a step of degree 3, if any ([`Fused`]).
+    pub(super) fn fused(&self) -> Option<&Fused> {
+        self.fused.as_ref()
     }
 
     /// The step's degree.
@@ -1050,7 +1089,7 @@ impl Flags {
 impl Flags {
     /// The tables as slices, which a walk holds in registers (read through `&Flags` they are
     /// loaded again after every store into a net).
-    fn tables(&self) -> Tables<'_> {
+    pub(super) fn tables(&self) -> Tables<'_> {
         Tables {
             twin: &self.twin,
             clean_face: &self.clean_face,
@@ -1066,7 +1105,7 @@ impl Flags {
 /// corners of their quads), and [`Flags::of`] checks that the vertices of `verts` are the
 /// level's; unchecked reads halve the instructions of a walk.
 #[derive(Clone, Copy)]
-struct Tables<'a> {
+pub(super) struct Tables<'a> {
     twin: &'a [u32],
     clean_face: &'a [bool],
     verts: &'a [u32],
@@ -1077,25 +1116,25 @@ struct Tables<'a> {
 impl Tables<'_> {
     /// The twin of corner `c`.
     #[inline(always)]
-    fn twin(self, c: u32) -> u32 {
+    pub(super) fn twin(self, c: u32) -> u32 {
         read(self.twin, c as usize)
     }
 
     /// Whether the face of corner `c` is clean.
     #[inline(always)]
-    fn clean(self, c: u32) -> bool {
+    pub(super) fn clean(self, c: u32) -> bool {
         read(self.clean_face, (c >> 2) as usize)
     }
 
     /// The vertex of corner `c`.
     #[inline(always)]
-    fn vertex(self, c: u32) -> u32 {
+    pub(super) fn vertex(self, c: u32) -> u32 {
         read(self.verts, c as usize)
     }
 
     /// Whether vertex `v` of `verts` can be inside a grid.
     #[inline(always)]
-    fn grid(self, v: u32) -> bool {
+    pub(super) fn grid(self, v: u32) -> bool {
         read(self.grid_vertex, v as usize)
     }
 }
@@ -1113,7 +1152,7 @@ fn read<T: Copy>(table: &[T], i: usize) -> T {
 
 /// The corner `k` steps after `c` in its quad (`c ^ 2` for two steps).
 #[inline(always)]
-fn after(c: u32, k: u32) -> u32 {
+pub(super) fn after(c: u32, k: u32) -> u32 {
     match k & 3 {
         0 => c,
         2 => c ^ 2,
@@ -1896,7 +1935,12 @@ pub(super) mod tests {
             let refinement = Refinement::new(&cage, &options).unwrap();
             let tables: usize = (0..refinement.curve_networks().len())
                 .filter_map(|j| refinement.step(j).windows)
-                .map(|w| 4 * w.nets.len() + w.masks.len() + w.shares.len())
+                .map(|w| {
+                    let fused = w.fused().map_or(0, |f| {
+                        4 * f.nets().len() + 2 * f.owned().len() + 4 * f.rest().len()
+                    });
+                    4 * w.nets.len() + w.masks.len() + w.shares.len() + fused
+                })
                 .sum();
             let bilinear = Options {
                 degree: 1,

@@ -15,7 +15,9 @@
 
 use std::mem::MaybeUninit;
 
+use super::fused::{self, Fused};
 use super::Tables;
+use crate::parallel::Disjoint;
 use crate::scalar::{Scalar, Value};
 
 /// The three sections of a quad level's fine vertices: old vertices, edge points, face points.
@@ -57,6 +59,49 @@ pub(super) fn gather_primal<T: Scalar, const N: usize>(
     false
 }
 
+/// Writes the fused points of `fused` ([`super::fused`]) from the coarse vertices' data `x`
+/// into `out` when the processor has AVX2 and the values are one to four channels of `f32` or
+/// `f64`; returns false, having written nothing, otherwise. `fused`, `x`, `tables` and `out`
+/// are as [`Fused::apply`] checked them.
+pub(super) fn fused_points<T: Scalar, const N: usize>(
+    fused: &Fused,
+    x: &[Value<T, N>],
+    tables: fused::ClosureIds,
+    out: &Disjoint<Value<T, N>>,
+) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::any::TypeId;
+        if !(1..=4).contains(&N) || !std::arch::is_x86_feature_detected!("avx2") {
+            return false;
+        }
+        if TypeId::of::<T>() == TypeId::of::<f32>() {
+            // SAFETY: `T` is `f32`: the same types; the rest is the caller's promise.
+            unsafe { avx2::fused::<f32, N>(fused, cast(x), tables, cast_disjoint(out)) };
+            return true;
+        }
+        if TypeId::of::<T>() == TypeId::of::<f64>() {
+            // SAFETY: `T` is `f64`: the same types; the rest is the caller's promise.
+            unsafe { avx2::fused::<f64, N>(fused, cast(x), tables, cast_disjoint(out)) };
+            return true;
+        }
+    }
+    let _ = (fused, x, tables, out);
+    false
+}
+
+/// `out` writing values of `[U; N]`.
+///
+/// # Safety
+/// `U` must be `T`.
+#[cfg(target_arch = "x86_64")]
+unsafe fn cast_disjoint<'a, 'o, T, U, const N: usize>(
+    out: &'a Disjoint<'o, [T; N]>,
+) -> &'a Disjoint<'o, [U; N]> {
+    // SAFETY: the same type (the caller's promise), so the same layout.
+    unsafe { &*(out as *const Disjoint<'o, [T; N]>).cast::<Disjoint<'o, [U; N]>>() }
+}
+
 /// `x` as a slice of `[U; N]`.
 ///
 /// # Safety
@@ -94,8 +139,9 @@ mod avx2 {
     use rayon::prelude::*;
 
     use super::PrimalSections;
-    use crate::parallel::CHUNK;
+    use crate::parallel::{Disjoint, CHUNK};
     use crate::scalar::{reciprocal, Scalar};
+    use crate::step::fused::{closure_points, ClosureIds, Fused, Sums, Weights, NET};
     use crate::step::Tables;
     use crate::topology::NONE;
 
@@ -198,6 +244,82 @@ mod avx2 {
         unsafe fn zero() -> __m256d {
             // SAFETY: as `plus`.
             unsafe { _mm256_setzero_pd() }
+        }
+    }
+
+    /// A vector register holding a value, as the fused points' sums see it. Made only inside
+    /// functions compiled for AVX2 ([`fused_chunk`]), where its operations are inlined.
+    #[derive(Clone, Copy)]
+    struct Reg<W: Lanes>(W::V);
+
+    impl<W: Lanes> Sums for Reg<W> {
+        type Weight = W;
+        #[inline(always)]
+        fn plus(self, other: Self) -> Self {
+            // SAFETY: a `Reg` exists only in code compiled for AVX2 (above).
+            Reg(unsafe { W::plus(self.0, other.0) })
+        }
+        #[inline(always)]
+        fn times(self, w: W) -> Self {
+            // SAFETY: as `plus`.
+            Reg(unsafe { W::scale(self.0, w) })
+        }
+    }
+
+    /// [`super::fused_points`] with vectors of `W`, in parallel chunks of faces.
+    ///
+    /// # Safety
+    /// The processor must have AVX2, and `fused`, `x`, `tables` and `out` must be as
+    /// [`Fused::apply`] checks them.
+    pub(super) unsafe fn fused<W: Lanes, const N: usize>(
+        fused: &Fused,
+        x: &[[W; N]],
+        tables: ClosureIds,
+        out: &Disjoint<[W; N]>,
+    ) {
+        let weights = Weights::new(W::from_f64);
+        let nets = fused.nets();
+        fused
+            .owned()
+            .par_chunks(CHUNK)
+            .enumerate()
+            // SAFETY: the caller's promise.
+            .for_each(|(chunk, owned)| unsafe {
+                fused_chunk(owned, nets, chunk * CHUNK, x, tables, out, weights)
+            });
+    }
+
+    /// The fused points of faces `start..start + owned.len()`.
+    ///
+    /// # Safety
+    /// As [`fused`].
+    #[target_feature(enable = "avx2")]
+    unsafe fn fused_chunk<W: Lanes, const N: usize>(
+        owned: &[u16],
+        nets: &[u32],
+        start: usize,
+        x: &[[W; N]],
+        tables: ClosureIds,
+        out: &Disjoint<[W; N]>,
+        weights: Weights<W>,
+    ) {
+        let base = x.as_ptr();
+        for (i, &bits) in owned.iter().enumerate() {
+            if bits == 0 {
+                continue;
+            }
+            let f = start + i;
+            // SAFETY: AVX2 is enabled here; the face's net is within `nets` and its ids within
+            // `x`, each written vertex below `out.len()` and written by this face alone
+            // (`Fused::apply` checked the tables, `Fused::new` made one owner a vertex).
+            unsafe {
+                let net = nets.get_unchecked(NET * f..NET * f + NET);
+                let p: [Reg<W>; NET] =
+                    std::array::from_fn(|k| Reg(W::load(base.add(*net.get_unchecked(k) as usize))));
+                closure_points(bits, &p, weights, |bit, value: Reg<W>| {
+                    W::store(out.slot(tables.fine_vertex(bit, f)), value.0)
+                });
+            }
         }
     }
 

@@ -1,0 +1,718 @@
+//! The whole step of degree 3 where the mesh is a grid, primal in and primal out: the fine
+//! vertices straight from the coarse ones, with no children in between.
+//!
+//! A step of degree 3 is replication and three averages; on primal input the regular windows
+//! ([`super::regular`]) make the children (two averages: `(9, 3, 3, 1) / 16` of their parent's
+//! corners) and the last average (dual -> primal) takes each fine vertex as the mean of the
+//! children around it. Where a fine vertex has four children around it and the kernel makes all
+//! four, that mean is a fixed sum of the coarse vertices (the cubic B-spline's masks): an old
+//! vertex `(36 v + 6 E + D) / 64` (`E` its four edge neighbours, `D` its four diagonal ones), an
+//! edge point `(6 A + S) / 16` (`A` its edge's ends, `S` the four other corners of its two
+//! faces), a face point the mean of its four corners. Each coarse face writes the points of its
+//! closure that it owns (its face point; the edge point of an edge whose first corner is its;
+//! the old vertex of a vertex whose first corner is its) from a 4 x 4 net of coarse vertices
+//! around it (the regular windows' walk of four averages), and the last average makes only the
+//! other fine vertices, from the children the kernel and the passes still make for them.
+//!
+//! The sums pair each point with its mirror image (`E` as (left + right) + (below + above), `D`
+//! as the two diagonals' pairs, `S` as the two sides' pairs) and add pairs in the same way
+//! whichever face's frame they are read in, so a point's bits do not depend on which face owns
+//! it: a partial level (limits, adaptive) that makes a point from another face, or in a face of
+//! another rotation, gets the same bits as the full level, and the decision (four kernel children
+//! around the point) is the same on both wherever the point is exact.
+//!
+//! Measured (2026-12-06, callgrind driver, 3,840-quad sphere, level 3, one thread): a cached
+//! evaluation of averaging 3 17.07M -> 9.77M instructions, a new plan and its evaluation 55.86M
+//! -> 81.43M (the nets and owners, made once per plan); `docs/research/fused-primal-kernel.md`.
+
+use std::mem::MaybeUninit;
+
+use rayon::prelude::*;
+
+use super::regular::{after, Tables as CornerTables};
+use crate::error::{Error, Result};
+use crate::memory;
+use crate::parallel::{Disjoint, CHUNK};
+use crate::scalar::{add, scale, Scalar, Value};
+use crate::topology::Level;
+
+/// Ids of a face's net: grid vertex `(x, y)` of its frame, `x` and `y` in `-1..=2`, at
+/// `4 (y + 1) + (x + 1)`; the face's corner 0 is at `(0, 0)`, corner `k` at [`CORNERS`]`[k]`.
+pub(super) const NET: usize = 16;
+
+/// Where a face's corners are in its frame.
+const CORNERS: [(i32, i32); 4] = [(0, 0), (1, 0), (1, 1), (0, 1)];
+
+/// The net index of frame point `(x, y)`.
+const fn at(x: i32, y: i32) -> u8 {
+    (4 * (y + 1) + (x + 1)) as u8
+}
+
+/// Per corner `k`: the net indices of its vertex, its edge neighbours as two mirrored pairs
+/// (left, right, below, above) and its diagonal neighbours as two mirrored pairs.
+const OLD: [[u8; 9]; 4] = {
+    let mut t = [[0; 9]; 4];
+    let mut k = 0;
+    while k < 4 {
+        let (x, y) = CORNERS[k];
+        t[k] = [
+            at(x, y),
+            at(x - 1, y),
+            at(x + 1, y),
+            at(x, y - 1),
+            at(x, y + 1),
+            at(x - 1, y - 1),
+            at(x + 1, y + 1),
+            at(x + 1, y - 1),
+            at(x - 1, y + 1),
+        ];
+        k += 1;
+    }
+    t
+};
+
+/// Per corner `k`, the net indices of the grid vertices a face's walk names from it: the
+/// corner's own, the two across edge `k` (from corner `k` to corner `k + 1`; at corner `k`,
+/// then at corner `k + 1`) and the far corner of the diagonal cell at corner `k + 1` (across
+/// edge `k`, then across the next edge of that face): the sixteen of the net.
+const RING: [[u8; 4]; 4] = {
+    let mut t = [[0; 4]; 4];
+    let mut k = 0;
+    while k < 4 {
+        let (ax, ay) = CORNERS[k];
+        let (bx, by) = CORNERS[(k + 1) % 4];
+        let (cx, cy) = CORNERS[(k + 2) % 4];
+        // The unit steps across edge k and across edge k + 1.
+        let (ox, oy) = (by - ay, ax - bx);
+        let (px, py) = (cy - by, bx - cx);
+        t[k] = [
+            at(ax, ay),
+            at(ax + ox, ay + oy),
+            at(bx + ox, by + oy),
+            at(bx + ox + px, by + oy + py),
+        ];
+        k += 1;
+    }
+    t
+};
+
+/// Per edge `k` (from corner `k` to corner `k + 1`): the net indices of its two ends, then of
+/// the two other corners on one side of it, then on the other.
+const EDGE: [[u8; 6]; 4] = {
+    let mut t = [[0; 6]; 4];
+    let mut k = 0;
+    while k < 4 {
+        let (ax, ay) = CORNERS[k];
+        let (bx, by) = CORNERS[(k + 1) % 4];
+        // The unit step across the edge.
+        let (ox, oy) = (by - ay, ax - bx);
+        t[k] = [
+            at(ax, ay),
+            at(bx, by),
+            at(ax + ox, ay + oy),
+            at(bx + ox, by + oy),
+            at(ax - ox, ay - oy),
+            at(bx - ox, by - oy),
+        ];
+        k += 1;
+    }
+    t
+};
+
+/// Bit of [`Fused::owned`] for the old vertex at corner `k`; `EDGE_BIT << k` for the edge
+/// point of edge `k`, [`FACE_BIT`] for the face point.
+const EDGE_BIT: u16 = 1 << 4;
+const FACE_BIT: u16 = 1 << 8;
+
+/// The fused last average of a step of degree 3 on primal input (module documentation).
+#[derive(Debug)]
+pub(super) struct Fused {
+    /// Per coarse face, the fine vertices of its closure that it writes: bit `k` the old
+    /// vertex at its corner `k`, bit `4 + k` the edge point of its edge `k`, bit 8 its face
+    /// point.
+    owned: Vec<u16>,
+    /// Per coarse face, [`NET`] coarse vertices (read only for faces that own a point).
+    nets: Vec<u32>,
+    /// The fine vertices the fused sums do not make, increasing: the last average makes them
+    /// from the children.
+    rest: Vec<u32>,
+    /// The level's vertices, edges and faces, whose corner tables [`ClosureIds::of`] checked
+    /// when the points were made (the nets' ids are below the first).
+    ids: [usize; 3],
+    /// Whether the fused points and `rest` are every fine vertex, each once: `rest` is what
+    /// the owners leave (not so for points made for some items).
+    whole: bool,
+}
+
+/// The sums of the fused points on a value of `N` channels or a vector register holding one:
+/// the same operations lane by lane, so every path gives the same bits.
+pub(super) trait Sums: Copy {
+    /// A weight.
+    type Weight: Copy;
+    /// `self + other`.
+    fn plus(self, other: Self) -> Self;
+    /// `self * w`.
+    fn times(self, w: Self::Weight) -> Self;
+}
+
+impl<T: Scalar, const N: usize> Sums for Value<T, N> {
+    type Weight = T;
+    #[inline(always)]
+    fn plus(self, other: Self) -> Self {
+        add(self, other)
+    }
+    #[inline(always)]
+    fn times(self, w: T) -> Self {
+        scale(self, w)
+    }
+}
+
+/// The weights of the sums: 36, 6, 1/64, 1/16 and 1/4, exact in either scalar type.
+#[derive(Clone, Copy)]
+pub(super) struct Weights<W> {
+    w36: W,
+    w6: W,
+    w64: W,
+    w16: W,
+    w4: W,
+}
+
+impl<W: Copy> Weights<W> {
+    /// The weights from a conversion of f64.
+    pub(super) fn new(of: impl Fn(f64) -> W) -> Self {
+        Weights {
+            w36: of(36.0),
+            w6: of(6.0),
+            w64: of(1.0 / 64.0),
+            w16: of(1.0 / 16.0),
+            w4: of(0.25),
+        }
+    }
+}
+
+/// Calls `write(bit, value)` for each point of `owned` (bits of [`Fused::owned`]) from the net
+/// `p` of its face.
+#[inline(always)]
+pub(super) fn closure_points<S: Sums>(
+    owned: u16,
+    p: &[S; NET],
+    w: Weights<S::Weight>,
+    mut write: impl FnMut(u16, S),
+) {
+    let pair = |a: u8, b: u8| p[a as usize].plus(p[b as usize]);
+    for (k, t) in OLD.iter().enumerate() {
+        if owned & (1 << k) != 0 {
+            let edges = pair(t[1], t[2]).plus(pair(t[3], t[4]));
+            let diagonals = pair(t[5], t[6]).plus(pair(t[7], t[8]));
+            let value = (p[t[0] as usize].times(w.w36))
+                .plus(edges.times(w.w6))
+                .plus(diagonals)
+                .times(w.w64);
+            write(1 << k, value);
+        }
+    }
+    for (k, t) in EDGE.iter().enumerate() {
+        if owned & (EDGE_BIT << k) != 0 {
+            let sides = pair(t[2], t[3]).plus(pair(t[4], t[5]));
+            let value = (pair(t[0], t[1]).times(w.w6)).plus(sides).times(w.w16);
+            write(EDGE_BIT << k, value);
+        }
+    }
+    if owned & FACE_BIT != 0 {
+        let [c0, c1, c2, c3] = OLD.map(|t| t[0]);
+        write(FACE_BIT, pair(c0, c2).plus(pair(c1, c3)).times(w.w4));
+    }
+}
+
+impl Fused {
+    /// The fused points of the step from `coarse` whose kernel writes the children of `masks`
+    /// (all four of a clean face, none of another, for two averages on primal input), with the
+    /// level's corner tables as the regular windows' walk reads them (`corners`: each corner's
+    /// twin, across its outgoing edge and at its end, and vertex, with a dead face after the
+    /// level's faces for a missing twin; whether each face is clean and each vertex can be
+    /// inside a grid); `None` when no point is fused.
+    pub(super) fn new(
+        coarse: &Level,
+        masks: &[u8],
+        corners: CornerTables,
+    ) -> Result<Option<Fused>> {
+        let ids = ClosureIds::of(coarse)?;
+        let [nv, ne, nf] = ids.sizes();
+        if masks.len() != nf {
+            return Err(Error::Internal(
+                "fused points: masks not the level's".into(),
+            ));
+        }
+        // Two averages of primal input read a face's own corners alone: the kernel makes all
+        // four children of a clean face (no curve vertex born from it) and none of another.
+        debug_assert!(
+            (0..nf).all(|f| masks[f] == if corners.clean(4 * f as u32) { 0xf } else { 0 })
+        );
+        let mut nets: Vec<u32> = memory::with_capacity(NET * nf)?;
+        let mut owned: Vec<u16> = memory::with_capacity(nf)?;
+        nets.spare_capacity_mut()[..NET * nf]
+            .par_chunks_mut(NET * CHUNK)
+            .zip(owned.spare_capacity_mut()[..nf].par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(chunk, (nets, owned))| {
+                for (i, (net, owned)) in nets.chunks_exact_mut(NET).zip(owned).enumerate() {
+                    let f = chunk * CHUNK + i;
+                    let net: &mut [MaybeUninit<u32>; NET] = net.try_into().expect("a net");
+                    let c: [u32; 4] = std::array::from_fn(|k| (4 * f + k) as u32);
+                    // Across edge k (from corner k to k + 1): `t[k]`, at corner k + 1; across
+                    // the next edge of that face from corner k + 1: `d[k]`, the diagonal cell.
+                    let t = c.map(|c| corners.twin(c));
+                    let d = t.map(|t| corners.twin(after(t, 3)));
+                    for k in 0..4 {
+                        let at = RING[k].map(usize::from);
+                        net[at[0]].write(corners.vertex(c[k]));
+                        net[at[1]].write(corners.vertex(after(t[k], 2)));
+                        net[at[2]].write(corners.vertex(after(t[k], 3)));
+                        net[at[3]].write(corners.vertex(after(d[k], 2)));
+                    }
+                    // Bit k of each mask: of the face across edge k (`t`), of the diagonal one
+                    // at corner k + 1 (`d`), or of corner k.
+                    let mask = |x: [bool; 4]| {
+                        (x.iter().enumerate()).fold(0u16, |m, (k, &b)| m | u16::from(b) << k)
+                    };
+                    let mut bits = 0;
+                    if corners.clean(c[0]) {
+                        let t_full = mask(t.map(|t| corners.clean(t)));
+                        let d_full = mask(d.map(|d| corners.clean(d)));
+                        let t_after = mask(t.map(|t| f < (t >> 2) as usize));
+                        let d_after = mask(d.map(|d| f < (d >> 2) as usize));
+                        let grid = mask(c.map(|c| corners.grid(corners.vertex(c))));
+                        // Corner k's faces: across edges k and k - 1, and the diagonal one at
+                        // corner k (bit k - 1 of `d`), all full; its owner is the first of
+                        // them and its own.
+                        let before = |m: u16| (m << 1 | m >> 3) & 0xf;
+                        let full = t_full & before(t_full) & before(d_full);
+                        let first = t_after & before(t_after) & before(d_after);
+                        let edges = t_full & mask(std::array::from_fn(|k| c[k] < t[k]));
+                        bits = FACE_BIT | (full & first & grid) | edges << 4;
+                    }
+                    owned.write(bits);
+                }
+            });
+        // SAFETY: every face's net (its sixteen grid vertices: `RING`) and bits were written
+        // above (a panic would have unwound past here).
+        unsafe {
+            nets.set_len(NET * nf);
+            owned.set_len(nf);
+        }
+        let count: usize = owned.iter().map(|b| b.count_ones() as usize).sum();
+        if count == 0 {
+            return Ok(None);
+        }
+        // The fused points, and the others as the rest.
+        let n = nv + ne + nf;
+        let mut fused: Vec<u64> = memory::zeroed(n.div_ceil(64))?;
+        for (f, &bits) in owned.iter().enumerate() {
+            // Bit by bit, each a constant once unrolled (the id's kind folds away).
+            for bit in (0..9).map(|b| 1 << b) {
+                if bits & bit != 0 {
+                    let w = ids.fine_vertex(bit, f);
+                    fused[w / 64] |= 1 << (w % 64);
+                }
+            }
+        }
+        // Each once: the owners of a point agree on which of them is first.
+        if fused.iter().map(|w| w.count_ones() as usize).sum::<usize>() != count {
+            return Err(Error::Internal(
+                "fused points: a fine vertex owned twice".into(),
+            ));
+        }
+        let mut rest = memory::with_capacity(n - count)?;
+        for (i, &word) in fused.iter().enumerate() {
+            let mut word = !word;
+            while word != 0 {
+                let w = 64 * i + word.trailing_zeros() as usize;
+                if w >= n {
+                    break;
+                }
+                rest.push(w as u32);
+                word &= word - 1;
+            }
+        }
+        Ok(Some(Fused {
+            owned,
+            nets,
+            rest,
+            ids: [nv, ne, nf],
+            whole: true,
+        }))
+    }
+
+    /// The same points restricted to the fine vertices `needed` (increasing) of a partial
+    /// level: a face writes only the needed points it owns, and the last average makes the
+    /// needed others.
+    pub(super) fn for_items(self, coarse: &Level, needed: &[u32]) -> Result<Fused> {
+        let tables = ClosureIds::of(coarse)?;
+        if self.owned.len() != coarse.num_faces() {
+            return Err(Error::Internal(
+                "fused points: made for another level".into(),
+            ));
+        }
+        let n = tables.nv + tables.ne + coarse.num_faces();
+        let mut wanted = memory::filled(n, false)?;
+        for &w in needed {
+            wanted[w as usize] = true;
+        }
+        let owned = memory::collect(self.owned.iter().enumerate().map(|(f, &bits)| {
+            let mut kept = 0;
+            let mut left = bits;
+            while left != 0 {
+                let bit = left & left.wrapping_neg();
+                if wanted[tables.fine_vertex(bit, f)] {
+                    kept |= bit;
+                }
+                left &= !bit;
+            }
+            kept
+        }))?;
+        let rest = memory::collect(self.rest.iter().copied().filter(|&w| wanted[w as usize]))?;
+        Ok(Fused {
+            owned,
+            nets: self.nets,
+            rest,
+            ids: self.ids,
+            whole: false,
+        })
+    }
+
+    /// Whether the fused points and [`Fused::rest`] are every fine vertex, each once.
+    pub(super) fn whole(&self) -> bool {
+        self.whole
+    }
+
+    /// The fine vertices the last average still makes (increasing).
+    pub(super) fn rest(&self) -> &[u32] {
+        &self.rest
+    }
+
+    /// Writes the fused points into `out` (per fine vertex) from the coarse vertices' data `x`
+    /// of `coarse`, the level the points were made for; the other fine vertices are left as
+    /// they are. An [`Error::Internal`] when `x` or `out` is too short or the level's tables
+    /// are not the points' (the buffers and levels come from the crate).
+    pub(super) fn apply<T: Scalar, const N: usize>(
+        &self,
+        x: &[Value<T, N>],
+        coarse: &Level,
+        out: &mut [MaybeUninit<Value<T, N>>],
+    ) -> Result<()> {
+        let tables = ClosureIds::again(coarse, self.ids)?;
+        let [nv, ne, nf] = self.ids;
+        // What lets the sums read and write unchecked: the nets' ids are vertices of the level
+        // (the walk writes no other: [`super::regular`]), and each written id is below `nv +
+        // ne + nf` (the tables were checked when the points were made).
+        let fits = self.owned.len() == nf
+            && self.nets.len() == NET * nf
+            && x.len() >= nv
+            && out.len() >= nv + ne + nf;
+        if !fits {
+            return Err(Error::Internal(
+                "fused points: the data or the output is not the points'".into(),
+            ));
+        }
+        let out = Disjoint::new(out);
+        if super::wide::fused_points(self, x, tables, &out) {
+            return Ok(());
+        }
+        let w = Weights::new(T::from_f64);
+        self.owned
+            .par_chunks(CHUNK)
+            .enumerate()
+            .for_each(|(chunk, owned)| {
+                for (i, &bits) in owned.iter().enumerate() {
+                    let f = chunk * CHUNK + i;
+                    if bits == 0 {
+                        continue;
+                    }
+                    let net = &self.nets[NET * f..NET * f + NET];
+                    let p: [Value<T, N>; NET] = std::array::from_fn(|i| x[net[i] as usize]);
+                    closure_points(bits, &p, w, |bit, value| {
+                        let v = tables.fine_vertex(bit, f);
+                        // SAFETY: below `nv + ne + nf` (checked above), and written by this
+                        // face alone: each fine vertex has one owner (`Fused::new`).
+                        unsafe { out.write(v, value) };
+                    });
+                }
+            });
+        Ok(())
+    }
+
+    /// Per coarse face, the points it writes.
+    pub(super) fn owned(&self) -> &[u16] {
+        &self.owned
+    }
+
+    /// Per coarse face, its net.
+    pub(super) fn nets(&self) -> &[u32] {
+        &self.nets
+    }
+}
+
+/// The largest entry of `table` (0 when empty), by a fold that vectorizes.
+fn largest(table: &[u32]) -> usize {
+    table.iter().fold(0, |m, &x| m.max(x)) as usize
+}
+
+/// The tables of a quad level that name a face's fine vertices, checked once.
+#[derive(Clone, Copy)]
+pub(super) struct ClosureIds<'a> {
+    corner_verts: &'a [u32],
+    corner_edges: &'a [u32],
+    nv: usize,
+    ne: usize,
+}
+
+impl<'a> ClosureIds<'a> {
+    /// The tables of `coarse`, an [`Error::Internal`] when they do not hold four corners a
+    /// face or name other vertices and edges than the level's (a bug).
+    fn of(coarse: &'a Level) -> Result<Self> {
+        let (nv, ne, nf) = (coarse.num_vertices, coarse.num_edges(), coarse.num_faces());
+        let (corner_verts, corner_edges) = (&coarse.corner_verts[..], coarse.corner_edges());
+        let fits = corner_verts.len() == 4 * nf
+            && corner_edges.len() == 4 * nf
+            && (nf == 0 || (largest(corner_verts) < nv && largest(corner_edges) < ne));
+        if !fits {
+            return Err(Error::Internal(
+                "fused points: a quad level's corner tables out of range".into(),
+            ));
+        }
+        Ok(ClosureIds {
+            corner_verts,
+            corner_edges,
+            nv,
+            ne,
+        })
+    }
+
+    /// The tables of the level `coarse` whose vertices, edges and faces [`ClosureIds::of`]
+    /// found as `sizes`: only the sizes are checked again (a level's tables do not change, and
+    /// the windows that hold the points are made with their step's level).
+    fn again(coarse: &'a Level, sizes: [usize; 3]) -> Result<Self> {
+        let (nv, ne, nf) = (coarse.num_vertices, coarse.num_edges(), coarse.num_faces());
+        let (corner_verts, corner_edges) = (&coarse.corner_verts[..], coarse.corner_edges());
+        if [nv, ne, nf] != sizes || corner_verts.len() != 4 * nf || corner_edges.len() != 4 * nf {
+            return Err(Error::Internal(
+                "fused points: made for another level".into(),
+            ));
+        }
+        Ok(ClosureIds {
+            corner_verts,
+            corner_edges,
+            nv,
+            ne,
+        })
+    }
+
+    /// The level's vertices, edges and faces.
+    fn sizes(self) -> [usize; 3] {
+        [self.nv, self.ne, self.corner_verts.len() / 4]
+    }
+
+    /// The fine vertex of bit `bit` of face `f`'s closure ([`Fused::owned`]): the old vertex
+    /// at corner `k`, `nv` plus the edge of corner `k`, or `nv + ne + f`; `f` a face of the
+    /// level.
+    #[inline(always)]
+    pub(super) fn fine_vertex(self, bit: u16, f: usize) -> usize {
+        let k = (bit.trailing_zeros() % 4) as usize;
+        debug_assert!(4 * f + k < self.corner_verts.len());
+        // SAFETY: `4 f + k` is a corner of a face of the level, and both tables hold four
+        // corners a face (`ClosureIds::of`).
+        unsafe {
+            if bit < EDGE_BIT {
+                *self.corner_verts.get_unchecked(4 * f + k) as usize
+            } else if bit < FACE_BIT {
+                self.nv + *self.corner_edges.get_unchecked(4 * f + k) as usize
+            } else {
+                self.nv + self.ne + f
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::refinement::Refinement;
+    use crate::step::regular::tests::{cube_grid, open_grid};
+    use crate::{Options, Rules};
+
+    /// Every bit of [`Fused::owned`].
+    const ALL: u16 = 0x1ff;
+
+    /// The nine points of a face's closure from its net `p`, by bit.
+    fn closure<T: Scalar>(p: &[[T; 3]; NET]) -> [Option<[T; 3]>; 9] {
+        let mut points = [None; 9];
+        closure_points(ALL, p, Weights::new(T::from_f64), |bit, value| {
+            points[bit.trailing_zeros() as usize] = Some(value);
+        });
+        points
+    }
+
+    /// Values whose sums round (mixed magnitudes and signs), from a fixed seed.
+    fn net<T: Scalar>(seed: u64) -> [[T; 3]; NET] {
+        let mut state = seed;
+        std::array::from_fn(|_| {
+            std::array::from_fn(|_| {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let unit = (state >> 11) as f64 / (1u64 << 53) as f64;
+                T::from_f64((unit - 0.3) * 10f64.powi((state % 7) as i32 - 3))
+            })
+        })
+    }
+
+    /// `p` seen from another frame: `q[at(map(x, y))] = p[at(x, y)]` where `map` lands in the
+    /// net, the rest of `q` from `fill`.
+    fn moved<T: Copy>(
+        p: &[[T; 3]; NET],
+        fill: &[[T; 3]; NET],
+        map: impl Fn(i32, i32) -> (i32, i32),
+    ) -> [[T; 3]; NET] {
+        let mut q = *fill;
+        for y in -1..=2 {
+            for x in -1..=2 {
+                let (u, v) = map(x, y);
+                if (-1..=2).contains(&u) && (-1..=2).contains(&v) {
+                    q[at(u, v) as usize] = p[at(x, y) as usize];
+                }
+            }
+        }
+        q
+    }
+
+    /// A point has the same bits whichever face sums it, in whichever of its frames: the face
+    /// turned a quarter (its corner k is the turned face's corner k + 1), and the face across
+    /// its edge 0 (the frame turned half about the edge's midpoint, which is how the two faces
+    /// of an edge see each other when the other face's corner 0 is at the edge). A partial
+    /// level may give a point another owner, and the adaptive points must stay the uniform
+    /// ones bit for bit.
+    fn same_bits_in_every_frame<T: Scalar + PartialEq>() {
+        for seed in 0..50 {
+            let p: [[T; 3]; NET] = net(seed);
+            let points = closure(&p);
+            // A quarter turn about the face's centre: (x, y) -> (1 - y, x).
+            let turned = closure(&moved(&p, &p, |x, y| (1 - y, x)));
+            for k in 0..4 {
+                let next = (k + 1) % 4;
+                assert_eq!(points[k], turned[next], "corner {k}, seed {seed}");
+                assert_eq!(points[4 + k], turned[4 + next], "edge {k}, seed {seed}");
+            }
+            assert_eq!(points[8], turned[8], "face point, seed {seed}");
+            // The face across edge 0 with its corner 0 at this face's corner 1: (x, y) -> (1 -
+            // x, -y); its own far row is other values.
+            let across = closure(&moved(&p, &net(seed + 1000), |x, y| (1 - x, -y)));
+            assert_eq!(points[0], across[1], "corner 0 across edge 0, seed {seed}");
+            assert_eq!(points[1], across[0], "corner 1 across edge 0, seed {seed}");
+            assert_eq!(points[4], across[4], "edge 0 from across, seed {seed}");
+        }
+    }
+
+    #[test]
+    fn a_point_has_the_same_bits_in_every_frame() {
+        same_bits_in_every_frame::<f32>();
+        same_bits_in_every_frame::<f64>();
+    }
+
+    /// The sums are the cubic B-spline's masks (`(1, 6, 1) / 8` at an old vertex, `(1, 1) / 2`
+    /// at a midpoint, in each direction), written out, to rounding.
+    #[test]
+    fn the_sums_are_the_cubic_masks() {
+        let p: [[f64; 3]; NET] = net(7);
+        let points = closure(&p);
+        let value = |x: i32, y: i32| p[at(x, y) as usize][0];
+        let vertex = |x: i32, y: i32| {
+            let w = [1.0, 6.0, 1.0];
+            (0..3)
+                .flat_map(|j| (0..3).map(move |i| (i, j)))
+                .map(|(i, j)| w[i] * w[j] * value(x + i as i32 - 1, y + j as i32 - 1))
+                .sum::<f64>()
+                / 64.0
+        };
+        for (k, &(x, y)) in CORNERS.iter().enumerate() {
+            let got = points[k].unwrap()[0];
+            assert!((got - vertex(x, y)).abs() <= 1e-12 * vertex(x, y).abs().max(1.0));
+        }
+        // Edge 0, from (0, 0) to (1, 0): (1, 1) / 2 along it, (1, 6, 1) / 8 across.
+        let edge = (0..3)
+            .map(|j| [1.0, 6.0, 1.0][j] * (value(0, j as i32 - 1) + value(1, j as i32 - 1)))
+            .sum::<f64>()
+            / 16.0;
+        assert!((points[4].unwrap()[0] - edge).abs() <= 1e-12 * edge.abs().max(1.0));
+        let face = (value(0, 0) + value(1, 0) + value(1, 1) + value(0, 1)) / 4.0;
+        assert!((points[8].unwrap()[0] - face).abs() <= 1e-12 * face.abs().max(1.0));
+    }
+
+    /// Every fine vertex of every step of degree 3 is made once, by the face that owns it or
+    /// by the last average; most of a mostly regular mesh's are fused, and none is where
+    /// its children are not the tensor product's: curve vertices (the open grid's boundary
+    /// and crease) and old vertices of another valence than 4 (the cube's corners).
+    #[test]
+    fn every_fine_vertex_is_made_once() {
+        let options = Options {
+            degree: 3,
+            levels: 3,
+            rules: Rules::Averaging,
+            ..Options::default()
+        };
+        let mut steps = 0;
+        for (cage, _) in [cube_grid(3), open_grid(7, 6, 10.0)] {
+            let refinement = Refinement::new(&cage, &options).unwrap();
+            for j in 0..refinement.curve_networks().len() {
+                let step = refinement.step(j);
+                let Some(fused) = step.windows.and_then(|w| w.fused()) else {
+                    continue;
+                };
+                steps += 1;
+                let ids = ClosureIds::of(step.coarse).unwrap();
+                let n = step.fine.num_vertices;
+                let mut made = vec![0u8; n];
+                for (f, &bits) in fused.owned.iter().enumerate() {
+                    for b in 0..9 {
+                        if bits & (1 << b) != 0 {
+                            made[ids.fine_vertex(1 << b, f)] += 1;
+                        }
+                    }
+                }
+                for &w in &fused.rest {
+                    made[w as usize] += 1;
+                }
+                assert!(
+                    made.iter().all(|&m| m == 1),
+                    "step {j}: a vertex made twice or never"
+                );
+                assert!(fused.whole());
+                // The cube's last step: all but the points near its eight corners.
+                let last = j + 1 == refinement.curve_networks().len();
+                if last && step.curves.vertices().is_empty() {
+                    assert!(
+                        fused.rest.len() < n / 10,
+                        "{} of {n} not fused",
+                        fused.rest.len()
+                    );
+                }
+                let rest = |w: u32| fused.rest.binary_search(&w).is_ok();
+                for cv in step.curves.vertices() {
+                    assert!(
+                        rest(cv.vertex),
+                        "step {j}: curve vertex {} fused",
+                        cv.vertex
+                    );
+                }
+                for v in 0..step.coarse.num_vertices {
+                    if step.coarse.corners_of_vertex(v).len() != 4 {
+                        assert!(
+                            rest(v as u32),
+                            "step {j}: vertex {v} of another valence fused"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(steps >= 4, "{steps} steps with fused points");
+    }
+}
