@@ -9,10 +9,11 @@
 //! vertex `(36 v + 6 E + D) / 64` (`E` its four edge neighbours, `D` its four diagonal ones), an
 //! edge point `(6 A + S) / 16` (`A` its edge's ends, `S` the four other corners of its two
 //! faces), a face point the mean of its four corners. Each coarse face writes the points of its
-//! closure that it owns (its face point; the edge point of an edge whose first corner is its;
-//! the old vertex of a vertex whose first corner is its) from a 4 x 4 net of coarse vertices
-//! around it (the regular windows' walk of four averages), and the last average makes only the
-//! other fine vertices, from the children the kernel and the passes still make for them.
+//! closure that it owns (its face point; the edge point of an edge whose smaller corner is its;
+//! the old vertex of a grid vertex where it is the lowest-numbered of the four faces) from a 4 x
+//! 4 net of coarse vertices around it (walked once per plan over the regular windows' corner
+//! tables), and the last average makes only the other fine vertices, from the children the
+//! kernel and the passes still make for them.
 //!
 //! The sums pair each point with its mirror image (`E` as (left + right) + (below + above), `D`
 //! as the two diagonals' pairs, `S` as the two sides' pairs) and add pairs in the same way
@@ -22,8 +23,8 @@
 //! around the point) is the same on both wherever the point is exact.
 //!
 //! Measured (2026-12-06, callgrind driver, 3,840-quad sphere, level 3, one thread): a cached
-//! evaluation of averaging 3 17.07M -> 9.77M instructions, a new plan and its evaluation 55.86M
-//! -> 81.43M (the nets and owners, made once per plan); `docs/research/fused-primal-kernel.md`.
+//! evaluation of averaging 3 17.08M -> 9.77M instructions, a new plan and its evaluation 55.87M
+//! -> 81.82M (the nets and owners, made once per plan); `docs/research/fused-primal-kernel.md`.
 
 use std::mem::MaybeUninit;
 
