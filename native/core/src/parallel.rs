@@ -442,10 +442,19 @@ pub(crate) fn scatter<V: Send, const G: usize>(
     at: &[u32],
     value: impl Fn(usize) -> [V; G] + Sync + Send,
 ) -> Result<()> {
-    // SAFETY: `MaybeUninit<V>` has the layout of `V`, and `scatter_uninit` writes only
-    // initialised values, so every item of `out` stays initialised.
-    let out = unsafe { &mut *(out as *mut [V] as *mut [MaybeUninit<V>]) };
+    // SAFETY: `scatter_uninit` writes only values, so every item of `out` stays initialised.
+    let out = unsafe { as_uninit(out) };
     scatter_uninit(out, at, value)
+}
+
+/// `items` as slots to write, for the writers of uninitialised memory.
+///
+/// # Safety
+/// Only values may be written into the slots (never `MaybeUninit::uninit()`), so that every
+/// item stays initialised.
+pub(crate) unsafe fn as_uninit<V>(items: &mut [V]) -> &mut [MaybeUninit<V>] {
+    // SAFETY: `MaybeUninit<V>` has the layout of `V`; the caller writes only values.
+    unsafe { &mut *(items as *mut [V] as *mut [MaybeUninit<V>]) }
 }
 
 /// Runs `work` on a thread of rayon's pool. A run of many short parallel loops started from

@@ -52,7 +52,7 @@ use rayon::prelude::*;
 use crate::curves::{CurveNetwork, CurveVertex, LevelSharpness};
 use crate::error::Result;
 use crate::parallel::{
-    fill_zip, gather_sections, gather_zip, hinted_or_abort, scatter, scatter_uninit,
+    as_uninit, fill_zip, gather_sections, gather_zip, hinted_or_abort, scatter, scatter_uninit,
     with_capacity_hinted, CHUNK,
 };
 use crate::scalar::{add, reciprocal, scale, zero, Scalar, Value};
@@ -520,7 +520,8 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
             }
         };
         let children_out = match fused {
-            Some(_) => as_uninit(&mut out[..n_faces]),
+            // SAFETY: the kernel writes only values.
+            Some(_) => unsafe { as_uninit(&mut out[..n_faces]) },
             None => &mut out.spare_capacity_mut()[..n_faces],
         };
         debug_assert_eq!(windows.primal(), primal);
@@ -1094,19 +1095,13 @@ fn quad_mean<T: Scalar, const N: usize>(q: &[Value<T, N>], quarter: T) -> Value<
 }
 
 /// The first `n` items of `buffer` to write: its items when it holds them (initialised; they
-/// stay so), else its spare room.
+/// stay so: its callers write only values), else its spare room.
 fn slots<V>(buffer: &mut Vec<V>, n: usize) -> &mut [MaybeUninit<V>] {
     match buffer.len() >= n {
-        true => as_uninit(&mut buffer[..n]),
+        // SAFETY: the slots' writers (the fused points, `scatter_uninit`) write only values.
+        true => unsafe { as_uninit(&mut buffer[..n]) },
         false => &mut buffer.spare_capacity_mut()[..n],
     }
-}
-
-/// `items` as slots to write (it stays initialised: only values are written into it).
-fn as_uninit<V>(items: &mut [V]) -> &mut [MaybeUninit<V>] {
-    // SAFETY: `MaybeUninit<V>` has the layout of `V`, and the slots are written only with
-    // values.
-    unsafe { &mut *(items as *mut [V] as *mut [MaybeUninit<V>]) }
 }
 
 /// `buffer` holds at least `n` initialised items (the pass after it writes some of them and

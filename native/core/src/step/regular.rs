@@ -1014,7 +1014,7 @@ fn curve_parents(coarse: &Level, curves: &CurveNetwork) -> Result<[Vec<bool>; 3]
 /// `nf` after them, which stands for "no cell": a step across any of its sides lands on it
 /// again, it is never clean and its corners are at vertex 0 (the id a net holds where no cell
 /// is placed, which no child weighs), so placing a face's cells needs no test for a missing one.
-struct Flags {
+pub(super) struct Flags {
     /// Per vertex, whether it can be inside a grid (interior, manifold, of valence 4).
     grid_vertex: Vec<bool>,
     /// Per face (and the dead one, false), whether no curve vertex of the step is born from it
@@ -1031,7 +1031,7 @@ struct Flags {
 }
 
 impl Flags {
-    fn of(coarse: &Level, curves: &CurveNetwork) -> Result<Flags> {
+    pub(super) fn of(coarse: &Level, curves: &CurveNetwork) -> Result<Flags> {
         let (nv, nf) = (coarse.num_vertices, coarse.num_faces());
         let dead = 4 * nf as u32;
         let corner_edges = coarse.corner_edges();
@@ -1113,7 +1113,7 @@ pub(super) struct Tables<'a> {
     dead: u32,
 }
 
-impl Tables<'_> {
+impl<'a> Tables<'a> {
     /// The twin of corner `c`.
     #[inline(always)]
     pub(super) fn twin(self, c: u32) -> u32 {
@@ -1136,6 +1136,13 @@ impl Tables<'_> {
     #[inline(always)]
     pub(super) fn grid(self, v: u32) -> bool {
         read(self.grid_vertex, v as usize)
+    }
+
+    /// The twin and vertex tables themselves, for a walk that reads them in vectors: `4 nf +
+    /// 4` entries each, every twin below `4 nf + 4` and every vertex one of the level's (the
+    /// bounds of [`read`]).
+    pub(super) fn corner_tables(self) -> (&'a [u32], &'a [u32]) {
+        (self.twin, self.verts)
     }
 }
 
@@ -1509,16 +1516,24 @@ fn faces_read(coarse: &Level, fine: &Level, items: &[u32]) -> Result<Bits> {
 
 /// A set of items of a level as bits: the list of those set comes out in increasing order
 /// without a sort, for a pass over a word per 64 items.
-struct Bits(Vec<u64>);
+pub(super) struct Bits(Vec<u64>);
 
 impl Bits {
-    fn new(n: usize) -> Result<Bits> {
+    /// The empty set of `n` items.
+    pub(super) fn new(n: usize) -> Result<Bits> {
         Ok(Bits(memory::zeroed(n.div_ceil(64))?))
     }
 
+    /// Adds item `i`.
     #[inline(always)]
-    fn set(&mut self, i: usize) {
+    pub(super) fn set(&mut self, i: usize) {
         self.0[i / 64] |= 1 << (i % 64);
+    }
+
+    /// Whether item `i` is in the set.
+    #[inline(always)]
+    pub(super) fn contains(&self, i: usize) -> bool {
+        self.0[i / 64] >> (i % 64) & 1 != 0
     }
 
     /// Items `4q..4q + 4` (never across a word).

@@ -61,12 +61,12 @@ pub(super) fn gather_primal<T: Scalar, const N: usize>(
 
 /// Writes the fused points of `fused` ([`super::fused`]) from the coarse vertices' data `x`
 /// into `out` when the processor has AVX2 and the values are one to four channels of `f32` or
-/// `f64`; returns false, having written nothing, otherwise. `fused`, `x`, `tables` and `out`
+/// `f64`; returns false, having written nothing, otherwise. `fused`, `x`, `ids` and `out`
 /// are as [`Fused::apply`] checked them.
 pub(super) fn fused_points<T: Scalar, const N: usize>(
     fused: &Fused,
     x: &[Value<T, N>],
-    tables: fused::ClosureIds,
+    ids: fused::ClosureIds,
     out: &Disjoint<Value<T, N>>,
 ) -> bool {
     #[cfg(target_arch = "x86_64")]
@@ -77,16 +77,46 @@ pub(super) fn fused_points<T: Scalar, const N: usize>(
         }
         if TypeId::of::<T>() == TypeId::of::<f32>() {
             // SAFETY: `T` is `f32`: the same types; the rest is the caller's promise.
-            unsafe { avx2::fused::<f32, N>(fused, cast(x), tables, cast_disjoint(out)) };
+            unsafe { avx2::fused::<f32, N>(fused, cast(x), ids, cast_disjoint(out)) };
             return true;
         }
         if TypeId::of::<T>() == TypeId::of::<f64>() {
             // SAFETY: `T` is `f64`: the same types; the rest is the caller's promise.
-            unsafe { avx2::fused::<f64, N>(fused, cast(x), tables, cast_disjoint(out)) };
+            unsafe { avx2::fused::<f64, N>(fused, cast(x), ids, cast_disjoint(out)) };
             return true;
         }
     }
-    let _ = (fused, x, tables, out);
+    let _ = (fused, x, ids, out);
+    false
+}
+
+/// Writes the nets ([`fused::NET`] ids each) of the faces `start..` that `nets` holds from
+/// the walk's corner tables when the processor has AVX2; returns false, having written
+/// nothing, otherwise. The same ids as the loop of [`super::fused`]: four corners at once.
+pub(super) fn fused_nets(
+    corners: super::regular::Tables,
+    start: usize,
+    nets: &mut [MaybeUninit<u32>],
+) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let (twin, verts) = corners.corner_tables();
+        // The gathers index by `i32`.
+        if std::arch::is_x86_feature_detected!("avx2") && twin.len() <= i32::MAX as usize {
+            let faces = nets.len() / fused::NET;
+            assert!(
+                nets.len().is_multiple_of(fused::NET)
+                    && 4 * (start + faces) + 4 <= twin.len()
+                    && verts.len() == twin.len(),
+                "nets of the tables' faces"
+            );
+            // SAFETY: AVX2 is there; the faces are the tables' (above), whose twins and
+            // vertices are within them (`Tables::corner_tables`).
+            unsafe { avx2::nets(twin, verts, start, nets) };
+            return true;
+        }
+    }
+    let _ = (corners, start, nets);
     false
 }
 
@@ -269,12 +299,12 @@ mod avx2 {
     /// [`super::fused_points`] with vectors of `W`, in parallel chunks of faces.
     ///
     /// # Safety
-    /// The processor must have AVX2, and `fused`, `x`, `tables` and `out` must be as
+    /// The processor must have AVX2, and `fused`, `x`, `ids` and `out` must be as
     /// [`Fused::apply`] checks them.
     pub(super) unsafe fn fused<W: Lanes, const N: usize>(
         fused: &Fused,
         x: &[[W; N]],
-        tables: ClosureIds,
+        ids: ClosureIds,
         out: &Disjoint<[W; N]>,
     ) {
         let weights = Weights::new(W::from_f64);
@@ -285,7 +315,7 @@ mod avx2 {
             .enumerate()
             // SAFETY: the caller's promise.
             .for_each(|(chunk, owned)| unsafe {
-                fused_chunk(owned, nets, chunk * CHUNK, x, tables, out, weights)
+                fused_chunk(owned, nets, chunk * CHUNK, x, ids, out, weights)
             });
     }
 
@@ -299,7 +329,7 @@ mod avx2 {
         nets: &[u32],
         start: usize,
         x: &[[W; N]],
-        tables: ClosureIds,
+        ids: ClosureIds,
         out: &Disjoint<[W; N]>,
         weights: Weights<W>,
     ) {
@@ -311,14 +341,58 @@ mod avx2 {
             let f = start + i;
             // SAFETY: AVX2 is enabled here; the face's net is within `nets` and its ids within
             // `x`, each written vertex below `out.len()` and written by this face alone
-            // (`Fused::apply` checked the tables, `Fused::new` made one owner a vertex).
+            // (`Fused::apply` checked the sizes; `Owners::of` gave each point one owner and
+            // checked its id).
             unsafe {
                 let net = nets.get_unchecked(NET * f..NET * f + NET);
                 let p: [Reg<W>; NET] =
                     std::array::from_fn(|k| Reg(W::load(base.add(*net.get_unchecked(k) as usize))));
                 closure_points(bits, &p, weights, |bit, value: Reg<W>| {
-                    W::store(out.slot(tables.fine_vertex(bit, f)), value.0)
+                    W::store(out.slot(ids.fine_vertex(bit, f)), value.0)
                 });
+            }
+        }
+    }
+
+    /// [`super::fused_nets`]: per face, its four corners' twins `t` and the twins `d` across
+    /// the corner before each `t`, in one vector of four each; the net is then four vectors,
+    /// the corners' vertices and those of `t ^ 2`, of the corner before `t`, and of `d ^ 2`.
+    ///
+    /// # Safety
+    /// The processor must have AVX2; `twin` and `verts` as [`super::fused_nets`] checks them,
+    /// with `4 nf + 4` entries for the `nf` faces of the level, `start + nets.len() / NET` of
+    /// them at most, every twin below `4 nf + 4` and `twin.len()` at most `i32::MAX`.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn nets(
+        twin: &[u32],
+        verts: &[u32],
+        start: usize,
+        nets: &mut [MaybeUninit<u32>],
+    ) {
+        let (twins, vertices) = (twin.as_ptr().cast::<i32>(), verts.as_ptr().cast::<i32>());
+        let lanes = _mm_setr_epi32(0, 1, 2, 3);
+        let (quad, corner, two) = (_mm_set1_epi32(!3), _mm_set1_epi32(3), _mm_set1_epi32(2));
+        for (i, net) in nets.chunks_exact_mut(NET).enumerate() {
+            let f = start + i;
+            let c = _mm_add_epi32(_mm_set1_epi32(4 * f as i32), lanes);
+            // SAFETY: every index is a corner of the level or of the dead face, below
+            // `twin.len() = verts.len()` (the caller's promise): `c` of a face, `t` and `d`
+            // twins, the others corners of their quads; the net has `NET` = 16 ids.
+            unsafe {
+                let t = _mm_i32gather_epi32::<4>(twins, c);
+                // The corner before `t` in its quad (`after(t, 3)`).
+                let before = _mm_or_si128(
+                    _mm_and_si128(t, quad),
+                    _mm_and_si128(_mm_add_epi32(t, corner), corner),
+                );
+                let d = _mm_i32gather_epi32::<4>(twins, before);
+                let out = net.as_mut_ptr().cast::<__m128i>();
+                _mm_storeu_si128(out, _mm_loadu_si128(vertices.add(4 * f).cast()));
+                let across = _mm_i32gather_epi32::<4>(vertices, _mm_xor_si128(t, two));
+                _mm_storeu_si128(out.add(1), across);
+                _mm_storeu_si128(out.add(2), _mm_i32gather_epi32::<4>(vertices, before));
+                let diagonal = _mm_i32gather_epi32::<4>(vertices, _mm_xor_si128(d, two));
+                _mm_storeu_si128(out.add(3), diagonal);
             }
         }
     }
