@@ -360,7 +360,7 @@ impl Fused {
                     closure_points(bits, &p, w, |bit, value| {
                         let v = ids.fine_vertex(bit, f);
                         // SAFETY: below `nv + ne + nf` (checked above), and written by this
-                        // face alone: each fine vertex has one owner (`Fused::new`).
+                        // face alone: each fine vertex has one owner (`Owners::of`).
                         unsafe { out.write(v, value) };
                     });
                 }
@@ -384,7 +384,7 @@ impl Fused {
 ///
 /// Measured (2026-12-06, callgrind driver, 3,840-quad sphere, a new plan and its evaluation of
 /// averaging 3 at level 3, one thread): the scalar walk is about 190 instructions a face
-/// (15.8M of 77.1M), the vectors' about 25 (gathers of four corners at once).
+/// (15.8M of 77.1M), the vectors' about 33 (2.7M: gathers of four corners at once).
 fn nets(corners: CornerTables, nf: usize, wide: bool) -> Result<Vec<u32>> {
     let mut nets: Vec<u32> = memory::with_capacity(NET * nf)?;
     nets.spare_capacity_mut()[..NET * nf]
@@ -679,32 +679,45 @@ mod tests {
         assert!((points[8].unwrap()[0] - face).abs() <= 1e-12 * face.abs().max(1.0));
     }
 
-    /// The nets of the vectors are the loop's, id for id, on every step with fused points of a
-    /// cube of grids and of an open grid with a crease (boundaries: twins at the dead face).
-    /// Without AVX2 both are the loop's.
-    #[test]
-    fn nets_in_vectors_are_the_loops() {
+    /// Calls `check(j, step, fused, last)` for each step `j` with fused points of degree 3 and
+    /// `levels` levels on a cube of grids and on an open grid with a crease (`last`: the
+    /// run's last step); returns how many there were.
+    fn each_fused_step(
+        levels: u32,
+        mut check: impl FnMut(usize, &crate::step::Step, &Fused, bool),
+    ) -> usize {
         let options = Options {
             degree: 3,
-            levels: 2,
+            levels,
             rules: Rules::Averaging,
             ..Options::default()
         };
         let mut steps = 0;
         for (cage, _) in [cube_grid(3), open_grid(7, 6, 10.0)] {
             let refinement = Refinement::new(&cage, &options).unwrap();
-            for j in 0..refinement.curve_networks().len() {
+            let n = refinement.curve_networks().len();
+            for j in 0..n {
                 let step = refinement.step(j);
-                if step.windows.and_then(|w| w.fused()).is_none() {
-                    continue;
+                if let Some(fused) = step.windows.and_then(|w| w.fused()) {
+                    steps += 1;
+                    check(j, &step, fused, j + 1 == n);
                 }
-                steps += 1;
-                let flags = super::super::regular::Flags::of(step.coarse, step.curves).unwrap();
-                let nf = step.coarse.num_faces();
-                let wide = nets(flags.tables(), nf, true).unwrap();
-                assert_eq!(wide, nets(flags.tables(), nf, false).unwrap(), "step {j}");
             }
         }
+        steps
+    }
+
+    /// The nets of the vectors are the loop's, id for id, on every step with fused points of a
+    /// cube of grids and of an open grid with a crease (boundaries: twins at the dead face).
+    /// Without AVX2 both are the loop's.
+    #[test]
+    fn nets_in_vectors_are_the_loops() {
+        let steps = each_fused_step(2, |j, step, _, _| {
+            let flags = super::super::regular::Flags::of(step.coarse, step.curves).unwrap();
+            let nf = step.coarse.num_faces();
+            let wide = nets(flags.tables(), nf, true).unwrap();
+            assert_eq!(wide, nets(flags.tables(), nf, false).unwrap(), "step {j}");
+        });
         // Both steps of the cube; the open grid's second (its first has no clean face).
         assert_eq!(steps, 3, "the steps with fused points");
     }
@@ -715,65 +728,49 @@ mod tests {
     /// and crease) and old vertices of another valence than 4 (the cube's corners).
     #[test]
     fn every_fine_vertex_is_made_once() {
-        let options = Options {
-            degree: 3,
-            levels: 3,
-            rules: Rules::Averaging,
-            ..Options::default()
-        };
-        let mut steps = 0;
-        for (cage, _) in [cube_grid(3), open_grid(7, 6, 10.0)] {
-            let refinement = Refinement::new(&cage, &options).unwrap();
-            for j in 0..refinement.curve_networks().len() {
-                let step = refinement.step(j);
-                let Some(fused) = step.windows.and_then(|w| w.fused()) else {
-                    continue;
-                };
-                steps += 1;
-                let ids = ClosureIds::of(step.coarse).unwrap();
-                let n = step.fine.num_vertices;
-                let mut made = vec![0u8; n];
-                for (f, &bits) in fused.owned.iter().enumerate() {
-                    for b in 0..9 {
-                        if bits & (1 << b) != 0 {
-                            made[ids.fine_vertex(1 << b, f)] += 1;
-                        }
-                    }
-                }
-                for &w in &fused.rest {
-                    made[w as usize] += 1;
-                }
-                assert!(
-                    made.iter().all(|&m| m == 1),
-                    "step {j}: a vertex made twice or never"
-                );
-                // The cube's last step: all but the points near its eight corners.
-                let last = j + 1 == refinement.curve_networks().len();
-                if last && step.curves.vertices().is_empty() {
-                    assert!(
-                        fused.rest.len() < n / 10,
-                        "{} of {n} not fused",
-                        fused.rest.len()
-                    );
-                }
-                let rest = |w: u32| fused.rest.binary_search(&w).is_ok();
-                for cv in step.curves.vertices() {
-                    assert!(
-                        rest(cv.vertex),
-                        "step {j}: curve vertex {} fused",
-                        cv.vertex
-                    );
-                }
-                for v in 0..step.coarse.num_vertices {
-                    if step.coarse.corners_of_vertex(v).len() != 4 {
-                        assert!(
-                            rest(v as u32),
-                            "step {j}: vertex {v} of another valence fused"
-                        );
+        let steps = each_fused_step(3, |j, step, fused, last| {
+            let ids = ClosureIds::of(step.coarse).unwrap();
+            let n = step.fine.num_vertices;
+            let mut made = vec![0u8; n];
+            for (f, &bits) in fused.owned.iter().enumerate() {
+                for b in 0..9 {
+                    if bits & (1 << b) != 0 {
+                        made[ids.fine_vertex(1 << b, f)] += 1;
                     }
                 }
             }
-        }
+            for &w in &fused.rest {
+                made[w as usize] += 1;
+            }
+            assert!(
+                made.iter().all(|&m| m == 1),
+                "step {j}: a vertex made twice or never"
+            );
+            // The cube's last step: all but the points near its eight corners.
+            if last && step.curves.vertices().is_empty() {
+                assert!(
+                    fused.rest.len() < n / 10,
+                    "{} of {n} not fused",
+                    fused.rest.len()
+                );
+            }
+            let rest = |w: u32| fused.rest.binary_search(&w).is_ok();
+            for cv in step.curves.vertices() {
+                assert!(
+                    rest(cv.vertex),
+                    "step {j}: curve vertex {} fused",
+                    cv.vertex
+                );
+            }
+            for v in 0..step.coarse.num_vertices {
+                if step.coarse.corners_of_vertex(v).len() != 4 {
+                    assert!(
+                        rest(v as u32),
+                        "step {j}: vertex {v} of another valence fused"
+                    );
+                }
+            }
+        });
         assert!(steps >= 4, "{steps} steps with fused points");
     }
 }

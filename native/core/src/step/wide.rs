@@ -12,6 +12,9 @@
 //! indexing does). Now 11.4M of 17.8M at degree 3 (about 35 instructions a fine vertex);
 //! averaging 5 and 7 34.6M -> 28.9M, 9 48.9M -> 43.2M; the rest of an odd-degree evaluation is
 //! the regular windows' kernel ([`super::regular`]).
+//!
+//! Degree 3's fused points ([`super::fused`]) have their sums and their nets' walk here too: the
+//! same operations as the portable code, four lanes at a time.
 
 use std::mem::MaybeUninit;
 
