@@ -252,7 +252,7 @@ impl Fused {
             (0..nf).all(|f| masks[f] == if corners.clean(4 * f as u32) { 0xf } else { 0 })
         );
         let owners = Owners::of(coarse, ids, corners)?;
-        if owners.count == 0 {
+        if owners.rest.len() == nv + ne + nf {
             return Ok(None);
         }
         let nets = nets(corners, nf, true)?;
@@ -419,10 +419,8 @@ fn nets(corners: CornerTables, nf: usize, wide: bool) -> Result<Vec<u32>> {
 struct Owners {
     /// Per coarse face, its bits of [`Fused::owned`].
     owned: Vec<u16>,
-    /// The fine vertices not fused, increasing.
+    /// The fine vertices not fused, increasing (all of them when none is).
     rest: Vec<u32>,
-    /// The fused points.
-    count: usize,
 }
 
 impl Owners {
@@ -444,14 +442,12 @@ impl Owners {
             false => 0,
         }))?;
         let mut rest: Vec<u32> = Vec::new();
-        let mut count = 0;
-        let mut own = |owned: &mut [u16], corner: u32, bit: u16, point: usize| {
+        let own = |owned: &mut [u16], corner: u32, bit: u16, point: usize| {
             let (f, bit) = ((corner >> 2) as usize, bit << (corner & 3));
             if ids.fine_vertex(bit, f) != point {
                 return Err(broken());
             }
             owned[f] |= bit;
-            count += 1;
             Ok(())
         };
         let leave = |rest: &mut Vec<u32>, point: usize| {
@@ -482,12 +478,11 @@ impl Owners {
             }
         }
         for (f, &bits) in owned.iter().enumerate() {
-            match bits & FACE_BIT {
-                0 => leave(&mut rest, nv + ne + f)?,
-                _ => count += 1,
+            if bits & FACE_BIT == 0 {
+                leave(&mut rest, nv + ne + f)?;
             }
         }
-        Ok(Owners { owned, rest, count })
+        Ok(Owners { owned, rest })
     }
 }
 

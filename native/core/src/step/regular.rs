@@ -271,10 +271,9 @@ impl Windows {
             _ => None,
         };
         // With fused points, the children that the other fine vertices read alone.
-        let read = match &fused {
-            Some(fused) => Some(faces_read(coarse, fine, fused.rest())?),
-            None => None,
-        };
+        let read = (fused.as_ref())
+            .map(|fused| faces_read(coarse, fine, fused.rest()))
+            .transpose()?;
         if let Some(read) = &read {
             for (f, mask) in masks.iter_mut().enumerate() {
                 *mask &= read.quad(f);
@@ -309,7 +308,7 @@ impl Windows {
     /// with other faces than quads, a degree without a kernel, windows made for the other kind
     /// of data).
     pub(crate) fn for_items(
-        windows: Option<Windows>,
+        mut windows: Option<Windows>,
         coarse: &Level,
         fine: &Level,
         degree: u32,
@@ -327,17 +326,9 @@ impl Windows {
             return Ok(windows);
         }
         let odd = degree % 2 == 1;
-        let (windows, fused) = match windows {
-            Some(mut w) => {
-                let fused = w.fused.take();
-                (Some(w), fused)
-            }
-            None => (None, None),
-        };
-        let fused = match fused {
-            Some(fused) => Some(fused.for_items(coarse, needed)?),
-            None => None,
-        };
+        let fused = (windows.as_mut().and_then(|w| w.fused.take()))
+            .map(|fused| fused.for_items(coarse, needed))
+            .transpose()?;
         let faces = match (odd, &fused) {
             (true, Some(fused)) => faces_read(coarse, fine, fused.rest())?,
             (true, None) => faces_read(coarse, fine, needed)?,
