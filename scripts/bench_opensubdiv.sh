@@ -34,6 +34,13 @@ if [ ! -x "$DRIVER" ] || [ "$ROOT/bench/opensubdiv/driver.cpp" -nt "$DRIVER" ]; 
     g++ -std=c++17 -O3 -march=native -o "$DRIVER" "$ROOT/bench/opensubdiv/driver.cpp" -losdCPU
 fi
 
+# A balloon device that reports free pages to its host (virtio feature bit 5) makes the first
+# touch of a transparent huge page bimodal by process (README, the extension's allocator).
+for features in /sys/bus/virtio/drivers/virtio_balloon/virtio*/features; do
+    if [ -r "$features" ] && [ "$(cut -c6 "$features")" = 1 ]; then
+        log "warning: this VM reports free pages to its host; rows that touch new memory can be several times slower in some processes (MIMALLOC_ALLOW_THP=0 steadies them: README)"
+    fi
+done
 log "$(date -u +%H:%M:%S) UTC, load average before the run: $(cut -d' ' -f1-3 /proc/loadavg) on $(nproc) cores"
 cd "$ROOT"
 BIDEGREE_OSD_DRIVER="$DRIVER" cargo bench -p bidegree --bench opensubdiv

@@ -31,6 +31,9 @@ use pyo3::prelude::*;
 /// with mimalloc), which glibc had given back to the system when they were freed (under
 /// `strace`, in one case: a rayon worker's arena heap mapped and unmapped every call); mimalloc
 /// keeps freed pages for a second before purging them, longer than a frame.
+/// Transparent huge pages stay as mimalloc has them (allowed): on a VM that reports free pages
+/// to its host their first touch is bimodal by process, and `MIMALLOC_ALLOW_THP=0` turns them
+/// off for the whole process (README, measured there).
 #[global_allocator]
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
