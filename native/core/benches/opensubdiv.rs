@@ -39,14 +39,17 @@
 //! was 7.9 GiB; OpenSubdiv's was 9.9 GiB; OpenSubdiv's cached side is left out of a row when both
 //! sides' cached data together exceed it), `BIDEGREE_BENCH_CAGES` (e.g. `4k` or `4k,250k`),
 //! `BIDEGREE_BENCH_LEVELS` (e.g. `2,3`), `BIDEGREE_BENCH_SCHEMES` (e.g. `classic 3,averaging
-//! 4`), `BIDEGREE_BENCH_LIMIT` (`0` skips the limit rows).
+//! 4`), `BIDEGREE_BENCH_LIMIT` (`0` skips the limit rows), `BIDEGREE_BENCH_LIMIT_DEGREES` (the
+//! limit rows' degrees, e.g. `3,4`; default 2 to 9).
 //!
 //! Limit rows (issue 16, [`limit_rows`]): on the 4k cage, averaging degrees 2..9 at the
 //! benchmark's levels (4 skipped: minutes per row), `Plan::limit_surface` (positions and
 //! normals) against `Plan::evaluate` of the same plan, both cached ("limit/eval", target
 //! <= 2), and the first call (`Plan::new` + `limit_surface`, the limit masks already cached in
 //! the process) against a fresh `Plan::new` + `evaluate` ("first/fresh", target <= 3), each
-//! pair in interleaved rounds as above.
+//! pair in interleaved rounds as above. The cached `Plan::limit_positions` (positions alone)
+//! is timed in the same rounds ("pos/eval"): the difference is what the normals cost, one per
+//! output corner (four times the positions' bytes on a quad mesh).
 //! In instructions (`examples/callgrind.rs`, one thread, level 3; 2026-12-03, lim16b) the first
 //! call costs 5.0x (degree 3), 6.0x (4) and 14x (9) a fresh evaluation (10.5x, 13.1x and 27x
 //! before the chunked stencil walk), the cached one 4.3x, 2.7x and 6.9x a cached evaluation (5.5x,
@@ -552,7 +555,8 @@ fn main() {
         println!("load average (1 min) after each round: {}", loads.join(" "));
     }
     if std::env::var("BIDEGREE_BENCH_LIMIT").as_deref() != Ok("0") {
-        limit_rows(&levels, timing);
+        let degrees = env_list("BIDEGREE_BENCH_LIMIT_DEGREES").unwrap_or_else(|| (2..=9).collect());
+        limit_rows(&levels, &degrees, timing);
         hard_limit_rows(timing, seconds);
     }
     println!("\nload average at the end: {}", load_average());
@@ -737,29 +741,31 @@ impl SchemeRow {
 // Limit rows (issue 16, engineer "limits"): kept apart from the OpenSubdiv table above.
 
 /// The limit rows of the module documentation.
-fn limit_rows(levels: &[u32], timing: Rounds) {
+fn limit_rows(levels: &[u32], degrees: &[u32], timing: Rounds) {
     let (cage, _, _, points) = ico_quad_sphere(8);
     println!(
         "\nlimit surface, cage 4k (load average {}): ratios of times, each the median of {} \
          interleaved rounds (range: lowest-highest), limit/eval = cached limit_surface / cached \
-         evaluate (target <= 2), first/fresh = Plan::new + limit_surface / Plan::new + evaluate \
-         (target <= 3); times are each side's median sample",
+         evaluate (target <= 2), pos/eval = cached limit_positions / cached evaluate, \
+         first/fresh = Plan::new + limit_surface / Plan::new + evaluate (target <= 3); times are \
+         each side's median sample",
         load_average(),
         timing.rounds
     );
     let Rounds { rounds, sample_s } = timing;
     let moved: Vec<f32> = points.iter().map(|x| x * 1.01).collect();
-    /// One row: a plan, its samplers (eval, limit, fresh, first) and their samples by round.
+    /// One row: a plan, its samplers (eval, limit, positions, fresh, first) and their samples
+    /// by round.
     struct Row {
         options: Options,
         plan: Plan,
         extra: u32,
-        samplers: [Sampler; 4],
-        samples: [Vec<f64>; 4],
+        samplers: [Sampler; 5],
+        samples: [Vec<f64>; 5],
     }
     let mut rows = Vec::new();
     for &level in levels.iter().filter(|&&l| l <= 3) {
-        for degree in 2..=9 {
+        for &degree in degrees {
             let options = Options {
                 degree,
                 levels: level,
@@ -784,13 +790,16 @@ fn limit_rows(levels: &[u32], timing: Rounds) {
     }
     let loads = run_rounds("limit rows", rounds, |r| {
         for row in &mut rows {
-            let [eval, limit, fresh, first] = &mut row.samplers;
+            let [eval, limit, positions, fresh, first] = &mut row.samplers;
             let (plan, options) = (&row.plan, &row.options);
             let cached = round(
                 r,
                 vec![
                     Box::new(|| eval.sample(sample_s, || plan.evaluate(&moved, 3).unwrap())),
                     Box::new(|| limit.sample(sample_s, || plan.limit_surface(&moved).unwrap())),
+                    Box::new(|| {
+                        positions.sample(sample_s, || plan.limit_positions(&moved, 3).unwrap())
+                    }),
                 ],
             );
             let new = round(
@@ -818,35 +827,44 @@ fn limit_rows(levels: &[u32], timing: Rounds) {
         }
     });
     println!(
-        "{:>5} {:>6} {:>10} {:>10} {:>10} {:>10} {:>10} {:>11} {:>5} {:>11} {:>11}",
+        "{:>5} {:>6} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10} {:>8} {:>11} {:>5} {:>11} {:>11} \
+         {:>11}",
         "level",
         "degree",
         "eval ms",
         "limit ms",
+        "pos ms",
         "fresh ms",
         "first ms",
         "limit/eval",
+        "pos/eval",
         "first/fresh",
         "extra",
         "l/e range",
+        "p/e range",
         "f/f range"
     );
     for row in &rows {
-        let [eval, limit, fresh, first] = &row.samples;
+        let [eval, limit, positions, fresh, first] = &row.samples;
         let limit_eval = Ratio::of(limit, eval);
+        let positions_eval = Ratio::of(positions, eval);
         let first_fresh = Ratio::of(first, fresh);
         println!(
-            "{:>5} {:>6} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>11.2} {:>5} {:>11} {:>11}",
+            "{:>5} {:>6} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>8.2} {:>11.2} \
+             {:>5} {:>11} {:>11} {:>11}",
             row.options.levels,
             row.options.degree,
             median(eval),
             median(limit),
+            median(positions),
             median(fresh),
             median(first),
             limit_eval.median,
+            positions_eval.median,
             first_fresh.median,
             row.extra,
             Ratio::range(Some(&limit_eval)),
+            Ratio::range(Some(&positions_eval)),
             Ratio::range(Some(&first_fresh)),
         );
     }
