@@ -11,7 +11,7 @@
 //! for case in fresh-averaging-3 cached-averaging-3 fresh-classic-3 cached-classic-3 \
 //!             fresh-averaging-4 cached-averaging-4 fresh-averaging-9 cached-averaging-9 \
 //!             limit-surface-4 adaptive-4 adaptive-flat-4-5 adaptive-uniform-4-5 limit-ico-4 limit-first-ico-4 limit-first-fan-400-9 \
-//!             limit-first-ngon-1000-9 limit-semisharp-4 limit-sharp-4 \
+//!             limit-first-ngon-1000-9 limit-semisharp-4 limit-sharp-4 limit-positions-ico-4 \
 //!             uvs-classic-3 uvs-averaging-4 uvs-first-classic-3 uvs-first-averaging-4 \
 //!             uvs-shared-classic-3 uvs-shared-averaging-4 \
 //!             fresh-fins-averaging-3 fresh-flipped-averaging-3 fresh-loose-fins-averaging-3 \
@@ -33,7 +33,8 @@
 //! around every base patch (mode `boundaries`), to compare with "cached" of the same scheme;
 //! "uvs-first" is a new plan's first `evaluate_face_varying` (the face-varying mesh built), to
 //! compare with "fresh"; "uvs-shared" the cached UVs in the indexed form
-//! (`evaluate_face_varying_shared`).
+//! (`evaluate_face_varying_shared`); "limit-positions-ico-D" a cached `limit_positions` (no
+//! normals) on the sphere.
 //!
 //! Generic code is instantiated in this binary, so LLVM's inlining of the library's steps
 //! depends on every case here: an A/B of a change compares two builds of the same file.
@@ -155,6 +156,22 @@ fn main() {
         measured(&|| {
             let plan = Plan::new(&cage, &options(4, Rules::Averaging)).unwrap();
             black_box(plan.limit_surface(&points).unwrap());
+        });
+    } else if let Some(degree) = case
+        .strip_prefix("limit-positions-ico-")
+        .and_then(|d| d.parse::<u32>().ok())
+    {
+        // A cached limit_positions on the ico sphere (positions alone: limit-ico-D less the
+        // normals).
+        let o = Options {
+            degree,
+            levels: sphere_levels,
+            ..Options::default()
+        };
+        let plan = Plan::new(&cage, &o).unwrap();
+        black_box(plan.limit_positions(&points, 3).unwrap());
+        measured(&|| {
+            black_box(plan.limit_positions(&points, 3).unwrap());
         });
     } else if let Some((shape, degree)) = case
         .strip_prefix("limit-")
