@@ -80,6 +80,31 @@ def test_release_buffers_changes_no_result(dtype: type) -> None:
     assert all(np.abs(a - b).max() > 0.1 for a, b in zip(first[:2], other[:2], strict=True))
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_vertex_normals_put_the_corners_together(dtype: type) -> None:
+    """normals="vertex": the same positions and one normal per output vertex, its corners'
+    bit for bit where they agree (every vertex of the smooth cube at degree 4), else the unit
+    vector along their sum (degree 1: each face's bilinear normal at its corners)."""
+    tolerance = 1e-6 if dtype == np.float32 else 1e-12
+    for degree in (1, 4):
+        plan = bidegree.Plan(cube(dtype), degree=degree, levels=2)
+        positions, at_corners = plan.limit_surface()
+        same, at_vertices = plan.limit_surface(normals="vertex")
+        np.testing.assert_array_equal(same, positions)
+        assert at_vertices.shape == positions.shape and at_vertices.dtype == dtype
+        corners = plan.face_indices
+        agree = np.ones(len(positions), dtype=bool)
+        np.logical_and.at(agree, corners, (at_corners == at_vertices[corners]).all(axis=1))
+        sums = np.zeros((len(positions), 3))
+        np.add.at(sums, corners, at_corners.astype(np.float64))
+        unit = sums / np.linalg.norm(sums, axis=1)[:, None]
+        split = ~agree
+        np.testing.assert_allclose(at_vertices[split], unit[split], rtol=0, atol=tolerance)
+        assert split.any() if degree == 1 else not split.any()
+    with pytest.raises(bidegree.InvalidInputError, match="normals"):
+        plan.limit_surface(normals="face")  # type: ignore[arg-type]
+
+
 def test_limit_refusals() -> None:
     mesh = cube()
     with pytest.raises(bidegree.InvalidInputError, match="primal"):

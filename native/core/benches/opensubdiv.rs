@@ -47,9 +47,11 @@
 //! normals) against `Plan::evaluate` of the same plan, both cached ("limit/eval", target
 //! <= 2), and the first call (`Plan::new` + `limit_surface`, the limit masks already cached in
 //! the process) against a fresh `Plan::new` + `evaluate` ("first/fresh", target <= 3), each
-//! pair in interleaved rounds as above. The cached `Plan::limit_positions` (positions alone)
-//! is timed in the same rounds ("pos/eval"): the difference is what the normals cost, one per
-//! output corner (four times the positions' bytes on a quad mesh).
+//! pair in interleaved rounds as above. The cached `Plan::limit_positions` (positions alone,
+//! "pos/eval") and the cached `limit_surface` with one normal per vertex
+//! (`NormalDomain::Vertex`, "vtx/eval") are timed in the same rounds: the differences are what
+//! the normals cost, one per output corner by default (four times the positions' bytes on a
+//! quad mesh).
 //! In instructions (`examples/callgrind.rs`, one thread, level 3; 2026-12-03, lim16b) the first
 //! call costs 5.0x (degree 3), 6.0x (4) and 14x (9) a fresh evaluation (10.5x, 13.1x and 27x
 //! before the chunked stencil walk), the cached one 4.3x, 2.7x and 6.9x a cached evaluation (5.5x,
@@ -68,7 +70,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
 use std::time::Instant;
 
-use bidegree::{estimate, Options, Plan, Rules};
+use bidegree::{estimate, NormalDomain, Options, Plan, Rules};
 
 mod allocator;
 mod cages;
@@ -746,7 +748,8 @@ fn limit_rows(levels: &[u32], degrees: &[u32], timing: Rounds) {
     println!(
         "\nlimit surface, cage 4k (load average {}): ratios of times, each the median of {} \
          interleaved rounds (range: lowest-highest), limit/eval = cached limit_surface / cached \
-         evaluate (target <= 2), pos/eval = cached limit_positions / cached evaluate, \
+         evaluate (target <= 2), pos/eval = cached limit_positions / cached evaluate, vtx/eval \
+         = cached limit_surface with normals per vertex / cached evaluate, \
          first/fresh = Plan::new + limit_surface / Plan::new + evaluate (target <= 3); times are \
          each side's median sample",
         load_average(),
@@ -754,14 +757,14 @@ fn limit_rows(levels: &[u32], degrees: &[u32], timing: Rounds) {
     );
     let Rounds { rounds, sample_s } = timing;
     let moved: Vec<f32> = points.iter().map(|x| x * 1.01).collect();
-    /// One row: a plan, its samplers (eval, limit, positions, fresh, first) and their samples
-    /// by round.
+    /// One row: a plan, its samplers (eval, limit, positions, limit with vertex normals,
+    /// fresh, first) and their samples by round.
     struct Row {
         options: Options,
         plan: Plan,
         extra: u32,
-        samplers: [Sampler; 5],
-        samples: [Vec<f64>; 5],
+        samplers: [Sampler; 6],
+        samples: [Vec<f64>; 6],
     }
     let mut rows = Vec::new();
     for &level in levels.iter().filter(|&&l| l <= 3) {
@@ -790,7 +793,7 @@ fn limit_rows(levels: &[u32], degrees: &[u32], timing: Rounds) {
     }
     let loads = run_rounds("limit rows", rounds, |r| {
         for row in &mut rows {
-            let [eval, limit, positions, fresh, first] = &mut row.samplers;
+            let [eval, limit, positions, vertex, fresh, first] = &mut row.samplers;
             let (plan, options) = (&row.plan, &row.options);
             let cached = round(
                 r,
@@ -799,6 +802,12 @@ fn limit_rows(levels: &[u32], degrees: &[u32], timing: Rounds) {
                     Box::new(|| limit.sample(sample_s, || plan.limit_surface(&moved).unwrap())),
                     Box::new(|| {
                         positions.sample(sample_s, || plan.limit_positions(&moved, 3).unwrap())
+                    }),
+                    Box::new(|| {
+                        vertex.sample(sample_s, || {
+                            plan.limit_surface_with(&moved, NormalDomain::Vertex)
+                                .unwrap()
+                        })
                     }),
                 ],
             );
@@ -827,44 +836,51 @@ fn limit_rows(levels: &[u32], degrees: &[u32], timing: Rounds) {
         }
     });
     println!(
-        "{:>5} {:>6} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10} {:>8} {:>11} {:>5} {:>11} {:>11} \
-         {:>11}",
+        "{:>5} {:>6} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>10} {:>8} {:>8} {:>11} {:>5} {:>11} \
+         {:>11} {:>11} {:>11}",
         "level",
         "degree",
         "eval ms",
         "limit ms",
         "pos ms",
+        "vtx ms",
         "fresh ms",
         "first ms",
         "limit/eval",
         "pos/eval",
+        "vtx/eval",
         "first/fresh",
         "extra",
         "l/e range",
         "p/e range",
+        "v/e range",
         "f/f range"
     );
     for row in &rows {
-        let [eval, limit, positions, fresh, first] = &row.samples;
+        let [eval, limit, positions, vertex, fresh, first] = &row.samples;
         let limit_eval = Ratio::of(limit, eval);
         let positions_eval = Ratio::of(positions, eval);
+        let vertex_eval = Ratio::of(vertex, eval);
         let first_fresh = Ratio::of(first, fresh);
         println!(
-            "{:>5} {:>6} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>8.2} {:>11.2} \
-             {:>5} {:>11} {:>11} {:>11}",
+            "{:>5} {:>6} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>10.2} {:>8.2} {:>8.2} \
+             {:>11.2} {:>5} {:>11} {:>11} {:>11} {:>11}",
             row.options.levels,
             row.options.degree,
             median(eval),
             median(limit),
             median(positions),
+            median(vertex),
             median(fresh),
             median(first),
             limit_eval.median,
             positions_eval.median,
+            vertex_eval.median,
             first_fresh.median,
             row.extra,
             Ratio::range(Some(&limit_eval)),
             Ratio::range(Some(&positions_eval)),
+            Ratio::range(Some(&vertex_eval)),
             Ratio::range(Some(&first_fresh)),
         );
     }

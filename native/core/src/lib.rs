@@ -65,8 +65,8 @@ pub use error::{AdaptiveStage, Error, Result};
 pub use face_varying::{FaceVaryingMode, SharedValues};
 pub use mesh::{validate_geometry, Cage, Corner, Crease, INFINITELY_SHARP};
 pub use options::{
-    estimate, Boundary, Creasing, Estimate, Options, OutputKind, Rules, DEFAULT_MEMORY_BUDGET,
-    MAX_DEGREE, MAX_LEVELS,
+    estimate, Boundary, Creasing, Estimate, NormalDomain, Options, OutputKind, Rules,
+    DEFAULT_MEMORY_BUDGET, MAX_DEGREE, MAX_LEVELS,
 };
 pub use plan::Plan;
 pub use scalar::Scalar;

@@ -50,6 +50,20 @@ pub enum Rules {
     Classic,
 }
 
+/// Where [`crate::Plan::limit_surface_with`] puts the limit normals (Blender's attribute
+/// domains; USD's `faceVarying` and `vertex` interpolation).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum NormalDomain {
+    /// One normal per output face corner, split where the surface has more than one: one per
+    /// side at curve vertices, per face at degree 1.
+    #[default]
+    Corner,
+    /// One normal per output vertex, as the positions (OpenSubdiv's form): where a vertex's
+    /// corners have different normals, the unit vector along their sum (smooth shading across
+    /// the split).
+    Vertex,
+}
+
 /// How semi-sharp edge sharpness decreases from level to level.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Creasing {

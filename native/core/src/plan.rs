@@ -13,7 +13,7 @@ use crate::evaluate;
 use crate::face_varying::{self, FaceVaryingCache, FaceVaryingMode, SharedValues, Topology};
 use crate::limit::{self, LimitCache};
 use crate::mesh::{check_values, Cage};
-use crate::options::Options;
+use crate::options::{NormalDomain, Options};
 use crate::output::OutputMesh;
 use crate::parallel::in_pool;
 use crate::refinement::Refinement;
@@ -314,17 +314,34 @@ impl Plan {
     /// per side at curve vertices and corners (split normals). Degenerate geometry gives zero
     /// vectors. Averaging rules only.
     pub fn limit_surface<T: Scalar>(&self, points: &[T]) -> Result<(Vec<T>, Vec<T>)> {
+        self.limit_surface_with(points, NormalDomain::Corner)
+    }
+
+    /// [`Plan::limit_surface`] with the normals per output corner or per output vertex
+    /// ([`NormalDomain`]; per vertex a quarter of the bytes on a quad mesh, where writing the
+    /// corners' normals is a large part of the call).
+    pub fn limit_surface_with<T: Scalar>(
+        &self,
+        points: &[T],
+        normals: NormalDomain,
+    ) -> Result<(Vec<T>, Vec<T>)> {
         check_values(points, 3, self.num_input_vertices())?;
         // In the pool, as an evaluation: the limit runs many short parallel loops (its partial
         // levels' passes), each of which, started from outside, is handed to the pool and
         // waited for ([`in_pool`]).
         in_pool(|| {
-            let (positions, normals) =
-                limit::surface(&self.refinement, &self.scratch, &self.limit, points)?;
-            Ok((
-                self.output.vertex_values(positions, 3)?,
-                self.output.face_varying(normals, 3)?,
-            ))
+            let (positions, values) = limit::surface(
+                &self.refinement,
+                &self.scratch,
+                &self.limit,
+                points,
+                normals,
+            )?;
+            let values = match normals {
+                NormalDomain::Corner => self.output.face_varying(values, 3)?,
+                NormalDomain::Vertex => self.output.vertex_values(values, 3)?,
+            };
+            Ok((self.output.vertex_values(positions, 3)?, values))
         })
     }
 

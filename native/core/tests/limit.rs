@@ -6,7 +6,7 @@
 mod common;
 
 use bidegree::analysis::{cardinal_bspline, cardinal_bspline_derivative, vertex_masks};
-use bidegree::{Cage, Error, Options, OutputKind, Plan, Rules};
+use bidegree::{Cage, Error, NormalDomain, Options, OutputKind, Plan, Rules};
 use common::{cage, cube, plan, torus, Random};
 
 /// A cube with a triangle fan on top (valence-5 and valence-3 points, a non-quad cage).
@@ -445,6 +445,57 @@ fn crease_normals_are_one_per_side() {
                 let along: f64 = (0..3).map(|k| positions[3 * v + k] * expected[k]).sum();
                 assert!((along - 1.0).abs() < 1e-9);
             }
+        }
+    }
+}
+
+/// Normals per vertex are the corners' put together: the same positions, and at each output
+/// vertex its corners' normal where they agree (bitwise: most vertices of a smooth mesh), else
+/// the unit vector along their sum (curve vertices, the sharp cube's edges, degree 1's faces).
+#[test]
+fn vertex_normals_are_the_corners_put_together() {
+    let sharp_cube = {
+        let (cage, points) = cube();
+        let mut edges: Vec<(i64, i64, f32)> = (0..4).map(|i| (i, i + 4, f32::INFINITY)).collect();
+        for f in [[0, 3, 2, 1], [4, 5, 6, 7]] {
+            edges.extend((0..4).map(|i| (f[i], f[(i + 1) % 4], f32::INFINITY)));
+        }
+        (cage.with_creases(&edges).unwrap(), points)
+    };
+    let cages = [
+        ("pyramid cube", pyramid_cube()),
+        ("cylinder", cylinder(4, 7, 3)),
+        ("sharp cube", sharp_cube),
+    ];
+    for (name, (cage, points)) in &cages {
+        for degree in [1u32, 2, 3, 4, 5] {
+            let p = plan(cage, degree, 2);
+            let (positions, at_corners) = p.limit_surface(points).unwrap();
+            let (same, at_vertices) = p.limit_surface_with(points, NormalDomain::Vertex).unwrap();
+            assert_eq!(same, positions, "{name}, degree {degree}: positions");
+            assert_eq!(at_vertices.len(), positions.len());
+            let mut corners_of = vec![Vec::new(); positions.len() / 3];
+            for (c, &v) in p.output_face_vertices().iter().enumerate() {
+                corners_of[v as usize].push(&at_corners[3 * c..3 * c + 3]);
+            }
+            let (mut agreeing, mut split) = (0, 0);
+            for (v, corners) in corners_of.iter().enumerate() {
+                let normal = &at_vertices[3 * v..3 * v + 3];
+                if corners.iter().all(|n| n == &corners[0]) {
+                    assert_eq!(normal, corners[0], "{name}, degree {degree}, vertex {v}");
+                    agreeing += 1;
+                    continue;
+                }
+                let sum: Vec<f64> = (0..3).map(|k| corners.iter().map(|n| n[k]).sum()).collect();
+                let length = dot(&sum, &sum).sqrt();
+                let unit: Vec<f64> = sum.iter().map(|x| x / length).collect();
+                let gap = max_gap(normal, &unit);
+                assert!(gap < 1e-12, "{name}, degree {degree}, vertex {v}: {gap:e}");
+                split += 1;
+            }
+            // A boundary has one side: split normals only at creases and at degree 1.
+            assert!(agreeing > 0);
+            assert!(split > 0 || *name != "sharp cube" && degree > 1);
         }
     }
 }

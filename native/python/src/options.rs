@@ -1,7 +1,8 @@
 //! Option strings and numbers from Python into the core's option types, and back.
 
 use bidegree::{
-    Boundary, Creasing, Error, FaceVaryingMode, Options, OutputKind, Rules, MAX_DEGREE, MAX_LEVELS,
+    Boundary, Creasing, Error, FaceVaryingMode, NormalDomain, Options, OutputKind, Rules,
+    MAX_DEGREE, MAX_LEVELS,
 };
 
 use crate::errors::invalid;
@@ -46,6 +47,17 @@ pub(crate) fn parse_face_varying_mode(mode: &str) -> bidegree::Result<FaceVaryin
             )))
         }
     })
+}
+
+/// The normals' domain from its Python name (`"corner"` or `"vertex"`).
+pub(crate) fn parse_normal_domain(domain: &str) -> bidegree::Result<NormalDomain> {
+    match domain {
+        "corner" => Ok(NormalDomain::Corner),
+        "vertex" => Ok(NormalDomain::Vertex),
+        other => Err(invalid(format!(
+            "normals must be 'corner' or 'vertex', not {other:?}"
+        ))),
+    }
 }
 
 /// The Python name of an output kind.

@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
-use bidegree::{Error, FaceVaryingMode, Options, Plan, Scalar};
+use bidegree::{Error, FaceVaryingMode, NormalDomain, Options, Plan, Scalar};
 use numpy::{
     Element, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
 };
@@ -15,7 +15,9 @@ use crate::arrays::{array2, check_output, contiguous, floats, to_i32, Floats};
 use crate::cage::PyCage;
 use crate::errors::{guard, invalid, run, to_py_err};
 use crate::obj::{write_mesh, FaceVarying};
-use crate::options::{boundary_name, options, output_name, parse_face_varying_mode, rules_name};
+use crate::options::{
+    boundary_name, options, output_name, parse_face_varying_mode, parse_normal_domain, rules_name,
+};
 
 /// Registers the plan class and the one-call functions in the extension module.
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -166,17 +168,21 @@ impl PyPlan {
         }
     }
 
-    /// Limit positions `(N, 3)` and unit limit normals `(output corners, 3)` of points `(V, 3)`.
+    /// Limit positions `(N, 3)` and unit limit normals `(output corners, 3)` (or `(N, 3)`
+    /// with `normals="vertex"`) of points `(V, 3)`.
+    #[pyo3(signature = (points, normals="corner"))]
     fn limit_surface<'py>(
         &self,
         py: Python<'py>,
         points: &Bound<'py, PyAny>,
+        normals: &str,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
         type Pair<'py> = (Bound<'py, PyAny>, Bound<'py, PyAny>);
         fn surface<'py, T: Scalar + Element>(
             py: Python<'py>,
             plan: &Plan,
             points: &PyReadonlyArray2<'_, T>,
+            domain: NormalDomain,
         ) -> PyResult<Pair<'py>> {
             if points.shape()[1] != 3 {
                 let shape = points.shape();
@@ -187,7 +193,7 @@ impl PyPlan {
             }
             let data = contiguous(points, "points")?;
             let (positions, normals) = run(py, || {
-                let (positions, normals) = plan.limit_surface(data)?;
+                let (positions, normals) = plan.limit_surface_with(data, domain)?;
                 check_output(&positions, 3, data)?;
                 Ok((positions, normals))
             })?;
@@ -196,9 +202,10 @@ impl PyPlan {
                 array2(py, normals, 3)?.into_any(),
             ))
         }
+        let domain = parse_normal_domain(normals).map_err(|e| to_py_err(py, e))?;
         match floats(points, "points")? {
-            Floats::F32(a) => surface(py, &self.inner, &a),
-            Floats::F64(a) => surface(py, &self.inner, &a),
+            Floats::F32(a) => surface(py, &self.inner, &a, domain),
+            Floats::F64(a) => surface(py, &self.inner, &a, domain),
         }
     }
 

@@ -113,7 +113,7 @@ use crate::curves::LevelSharpness;
 use crate::error::{Error, Result};
 use crate::evaluate::{in_groups_of_four, run, run_parts};
 use crate::memory;
-use crate::options::{Options, OutputKind};
+use crate::options::{NormalDomain, Options, OutputKind};
 use crate::parallel::{gather_hinted, gather_indexed, with_capacity_hinted, CHUNK};
 use crate::refinement::Refinement;
 use crate::scalar::{add, mad, scale, zero, Scalar, Value};
@@ -1394,10 +1394,10 @@ pub(crate) fn positions<T: Scalar>(
             rule,
         };
         Ok(match n {
-            1 => limit.of::<T, 1>(group, false)?.0,
-            2 => limit.of::<T, 2>(group, false)?.0,
-            3 => limit.of::<T, 3>(group, false)?.0,
-            _ => limit.of::<T, 4>(group, false)?.0,
+            1 => limit.of::<T, 1>(group, None)?.0,
+            2 => limit.of::<T, 2>(group, None)?.0,
+            3 => limit.of::<T, 3>(group, None)?.0,
+            _ => limit.of::<T, 4>(group, None)?.0,
         })
     };
     if channels <= 4 {
@@ -1415,6 +1415,7 @@ pub(crate) fn surface<T: Scalar>(
     scratch: &Scratch,
     cache: &LimitCache,
     points: &[T],
+    domain: NormalDomain,
 ) -> Result<(Vec<T>, Vec<T>)> {
     let rule = check(refinement, true)?;
     let limit = Limit {
@@ -1423,7 +1424,7 @@ pub(crate) fn surface<T: Scalar>(
         cache,
         rule,
     };
-    let (positions, normals) = limit.of::<T, 3>(points, true)?;
+    let (positions, normals) = limit.of::<T, 3>(points, Some(domain))?;
     let normals = normals.ok_or_else(|| Error::Internal("limit: no normals made".into()))?;
     Ok((positions, normals))
 }
@@ -1437,12 +1438,14 @@ struct Limit<'a> {
 }
 
 impl Limit<'_> {
-    /// Limit positions (and normals) of `N`-channel values.
+    /// Limit positions (and normals, per vertex or corner of the last level) of `N`-channel
+    /// values.
     fn of<T: Scalar, const N: usize>(
         &self,
         values: &[T],
-        normals: bool,
+        domain: Option<NormalDomain>,
     ) -> Result<(Vec<T>, Option<Vec<T>>)> {
+        let normals = domain.is_some();
         let r = self.refinement;
         let (points, _) = values.as_chunks::<N>();
         let compact = r.compact(points);
@@ -1469,9 +1472,26 @@ impl Limit<'_> {
                         "limit: a degree-1 run left dual data".into(),
                     ));
                 };
-                let normals = match normals {
-                    true => Some(face_corner_normals(r.last_level(), &last)?),
-                    false => None,
+                let normals = match domain {
+                    Some(domain) => {
+                        let corners = face_corner_normals(r.last_level(), &last)?;
+                        Some(match domain {
+                            NormalDomain::Corner => corners.into_flattened(),
+                            NormalDomain::Vertex => {
+                                let last = r.last_level();
+                                let vertex = |v: usize| {
+                                    unit_sum(
+                                        last.corners_of_vertex(v)
+                                            .iter()
+                                            .map(|&c| corners[c as usize]),
+                                    )
+                                };
+                                memory::collect((0..last.num_vertices).map(vertex))?
+                                    .into_flattened()
+                            }
+                        })
+                    }
+                    None => None,
                 };
                 Ok((last.into_flattened(), normals))
             }
@@ -1517,9 +1537,9 @@ impl Limit<'_> {
                         own.positions[v as usize] = next.positions[i];
                     }
                 }
-                let normals = match normals {
-                    true => Some(self.stencil_normals(&stages)?),
-                    false => None,
+                let normals = match domain {
+                    Some(domain) => Some(self.stencil_normals(&mut stages, domain)?),
+                    None => None,
                 };
                 let own = stages.swap_remove(0);
                 // The level's data goes back to the buffers of the run that made it, the
@@ -1603,12 +1623,14 @@ impl Limit<'_> {
         Ok(out)
     }
 
-    /// Unit normals per output corner from the values of the stencils' `stages` (the plan's,
-    /// then the local extension's; see [`surface`]): each vertex's from the stage that has its
-    /// stencil.
+    /// Unit normals per corner or per vertex of the last level from the values of the
+    /// stencils' `stages` (the plan's, then the local extension's; see [`surface`]): each
+    /// vertex's from the stage that has its stencil. Per vertex, the plan's stage gives its
+    /// array of normals up (it is the output).
     fn stencil_normals<T: Scalar, const N: usize>(
         &self,
-        stages: &[StencilValues<T, N>],
+        stages: &mut [StencilValues<T, N>],
+        domain: NormalDomain,
     ) -> Result<Vec<T>> {
         let fans = (stages.iter())
             .map(|s| fan_normals(s.stencils, &s.data, &s.positions))
@@ -1633,13 +1655,26 @@ impl Limit<'_> {
             }
             n
         };
+        let st = stages[0].stencils;
+        let elsewhere = st.local_vertices.iter().chain(&st.fan_vertex);
+        if domain == NormalDomain::Vertex {
+            // The plan's own stencils' normals are every vertex's but those of the local
+            // extension and of the fans, whose corners are put together.
+            let put_right = memory::collect(elsewhere.map(|&v| {
+                let at_corners = last.corners_of_vertex(v as usize).iter();
+                (v, unit_sum(at_corners.map(|&c| resolved(c as usize))))
+            }))?;
+            let mut out = std::mem::take(&mut stages[0].normals);
+            for (v, n) in put_right {
+                out[v as usize] = n;
+            }
+            return Ok(out.into_flattened());
+        }
         // Most corners take the plan's own stencil's normal at their vertex (a gather by the
         // corner table); the corners at the vertices of the local extension and of the fans
         // are then put right.
-        let own = &stages[0];
-        let mut out = gather_indexed(&own.normals, corners)?;
-        let st = own.stencils;
-        for &v in st.local_vertices.iter().chain(&st.fan_vertex) {
+        let mut out = gather_indexed(&stages[0].normals, corners)?;
+        for &v in elsewhere {
             for &c in last.corners_of_vertex(v as usize) {
                 out[c as usize] = resolved(c as usize);
             }
@@ -1807,23 +1842,40 @@ fn fan_normals<T: Scalar, const N: usize>(
     })
 }
 
+/// One normal for a vertex from the normals at its corners: theirs when they are all the same
+/// (so a smooth vertex's is bitwise its corners'), else the unit vector along their sum (zero
+/// when it vanishes).
+fn unit_sum<T: Scalar>(mut normals: impl Iterator<Item = [T; 3]> + Clone) -> [T; 3] {
+    let Some(first) = normals.next() else {
+        return [T::default(); 3];
+    };
+    if normals.clone().all(|n| n == first) {
+        return first;
+    }
+    let at = |n: [T; 3]| DVec3::new(n[0].to_f64(), n[1].to_f64(), n[2].to_f64());
+    (at(first) + normals.map(at).sum::<DVec3>())
+        .normalize_or_zero()
+        .to_array()
+        .map(T::from_f64)
+}
+
 /// Unit normals of each face's bilinear patch at its corners, face after face.
 fn face_corner_normals<T: Scalar, const N: usize>(
     level: &Level,
     points: &[[T; N]],
-) -> Result<Vec<T>> {
+) -> Result<Vec<[T; 3]>> {
     let at = |v: u32| {
         let x = &points[v as usize];
         DVec3::new(x[0].to_f64(), x[1].to_f64(), x[2].to_f64())
     };
-    let mut out = memory::with_capacity(3 * level.num_corners())?;
+    let mut out = memory::with_capacity(level.num_corners())?;
     for f in 0..level.num_faces() {
         let face = &level.corner_verts[level.face_corners(f)];
         let k = face.len();
         for i in 0..k {
             let p = at(face[i]);
             let (next, prev) = (at(face[(i + 1) % k]) - p, at(face[(i + k - 1) % k]) - p);
-            out.extend(
+            out.push(
                 next.cross(prev)
                     .normalize_or_zero()
                     .to_array()
@@ -2169,8 +2221,22 @@ mod tests {
         *whole.0.lock().unwrap() = Some(Arc::new(build(refinement, None, true).unwrap()));
         let local = LimitCache::default();
         *local.0.lock().unwrap() = Some(Arc::new(build(refinement, Some(0), true).unwrap()));
-        let (p, n) = surface(refinement, &Scratch::default(), &local, points).unwrap();
-        let (q, m) = surface(refinement, &Scratch::default(), &whole, points).unwrap();
+        let (p, n) = surface(
+            refinement,
+            &Scratch::default(),
+            &local,
+            points,
+            NormalDomain::Corner,
+        )
+        .unwrap();
+        let (q, m) = surface(
+            refinement,
+            &Scratch::default(),
+            &whole,
+            points,
+            NormalDomain::Corner,
+        )
+        .unwrap();
         let extra = |c: &LimitCache| extra_levels(refinement, c).unwrap();
         // Composed stencils around isolated irregular vertices need no level where they take
         // every vertex that is not clean.
@@ -2226,9 +2292,15 @@ mod tests {
         st.extra_levels = m;
         let cache = LimitCache::default();
         *cache.0.lock().unwrap() = Some(Arc::new(st));
-        surface(refinement, &Scratch::default(), &cache, points)
-            .unwrap()
-            .1
+        surface(
+            refinement,
+            &Scratch::default(),
+            &cache,
+            points,
+            NormalDomain::Corner,
+        )
+        .unwrap()
+        .1
     }
 
     /// A sphere of quads (an icosahedron's triangles split into three quads each, then `n x n`
@@ -2338,9 +2410,23 @@ mod tests {
         for_each_refinement(&cases, 1..=2, |refinement, points, case| {
             let whole = LimitCache::default();
             *whole.0.lock().unwrap() = Some(Arc::new(build(refinement, None, true).unwrap()));
-            let (q, m) = surface(refinement, &Scratch::default(), &whole, points).unwrap();
+            let (q, m) = surface(
+                refinement,
+                &Scratch::default(),
+                &whole,
+                points,
+                NormalDomain::Corner,
+            )
+            .unwrap();
             let cache = LimitCache::default();
-            let (p, n) = surface(refinement, &Scratch::default(), &cache, points).unwrap();
+            let (p, n) = surface(
+                refinement,
+                &Scratch::default(),
+                &cache,
+                points,
+                NormalDomain::Corner,
+            )
+            .unwrap();
             let st = stencils(refinement, &cache).unwrap();
             let count = (st.masks_of.iter())
                 .filter(|m| matches!(m, LimitMask::Composed(_)))
@@ -2419,11 +2505,13 @@ mod tests {
                 let st = build(refinement, Some(LOCAL_SHARE), tiled).unwrap();
                 *cache.0.lock().unwrap() = Some(Arc::new(st));
                 let scratch = Scratch::default();
-                let (p, n) = surface(refinement, &scratch, cache, points).unwrap();
+                let (p, n) =
+                    surface(refinement, &scratch, cache, points, NormalDomain::Corner).unwrap();
                 let q = positions(refinement, &scratch, cache, points, 3).unwrap();
                 assert_eq!(p, q, "{case}: positions alone");
                 let single: Vec<f32> = points.iter().map(|&x| x as f32).collect();
-                let (p32, n32) = surface(refinement, &scratch, cache, &single).unwrap();
+                let (p32, n32) =
+                    surface(refinement, &scratch, cache, &single, NormalDomain::Corner).unwrap();
                 let widen = |x: Vec<f32>| x.into_iter().map(f64::from).collect::<Vec<_>>();
                 (p, n, widen(p32), widen(n32))
             };
@@ -2499,18 +2587,22 @@ mod tests {
             let refinement = at_level_3(cage, degree);
             let other: Vec<f64> = points.iter().map(|&x| 2.0 * x + 0.25).collect();
             let (scratch, cache) = (Scratch::default(), LimitCache::default());
-            let first = surface(&refinement, &scratch, &cache, points).unwrap();
+            let first =
+                surface(&refinement, &scratch, &cache, points, NormalDomain::Corner).unwrap();
             let st = stencils(&refinement, &cache).unwrap();
             let extended = st.extended.as_ref().map(|e| &e.1);
             assert_eq!(extended.is_some(), whole, "degree {degree}");
-            let between = surface(&refinement, &scratch, &cache, &other).unwrap();
-            let again = surface(&refinement, &scratch, &cache, points).unwrap();
+            let between =
+                surface(&refinement, &scratch, &cache, &other, NormalDomain::Corner).unwrap();
+            let again =
+                surface(&refinement, &scratch, &cache, points, NormalDomain::Corner).unwrap();
             assert_eq!(first, again, "degree {degree}");
             assert_ne!(first, between, "degree {degree}");
             assert!(extended.is_none_or(|s| s.kept_buffers() > 0));
             cache.release_buffers();
             assert!(extended.is_none_or(|s| s.kept_buffers() == 0));
-            let released = surface(&refinement, &scratch, &cache, points).unwrap();
+            let released =
+                surface(&refinement, &scratch, &cache, points, NormalDomain::Corner).unwrap();
             assert_eq!(first, released, "degree {degree}: buffers freed");
             let positions = positions(&refinement, &scratch, &cache, points, 3).unwrap();
             assert_eq!(positions, first.0, "degree {degree}: positions alone");

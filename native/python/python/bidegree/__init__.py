@@ -24,6 +24,7 @@ from ._adaptive import AdaptiveResult, subdivide_adaptive
 from ._convert import Boundary as Boundary  # the option types, for annotations
 from ._convert import Creasing as Creasing
 from ._convert import FloatArray as FloatArray
+from ._convert import NormalDomain as NormalDomain
 from ._convert import Output as Output
 from ._convert import Rules as Rules
 from ._convert import UvMode as UvMode

@@ -28,6 +28,7 @@ Boundary = Literal["edge-only", "edge-and-corner", "none"]
 Rules = Literal["averaging", "classic"]
 Creasing = Literal["uniform", "chaikin"]
 UvMode = Literal["none", "corners-only", "corners-plus1", "corners-plus2", "boundaries", "all"]
+NormalDomain = Literal["corner", "vertex"]
 FloatArray = NDArray[np.float32] | NDArray[np.float64]
 
 OUTPUTS = ("primal", "dual")
@@ -36,6 +37,7 @@ RULES = ("averaging", "classic")
 CREASING = ("uniform", "chaikin")
 #: OpenSubdiv's face-varying modes (``FVarLinearInterpolation``), smoothest first.
 UV_MODES = ("none", "corners-only", "corners-plus1", "corners-plus2", "boundaries", "all")
+NORMAL_DOMAINS = ("corner", "vertex")
 _INT64_MIN, _INT64_MAX = -(2**63), 2**63 - 1
 
 
