@@ -2137,6 +2137,22 @@ mod tests {
     use crate::mesh::Cage;
     use std::mem::MaybeUninit;
 
+    /// [`surface`] with normals per corner, on scratch buffers of its own.
+    fn corner_surface<T: Scalar>(
+        refinement: &Refinement,
+        cache: &LimitCache,
+        points: &[T],
+    ) -> (Vec<T>, Vec<T>) {
+        surface(
+            refinement,
+            &Scratch::default(),
+            cache,
+            points,
+            NormalDomain::Corner,
+        )
+        .unwrap()
+    }
+
     /// An n x n grid of unit quads in the plane z = bump(x, y) (boundary, valence-2 corners).
     fn grid(n: usize) -> (Cage, Vec<f64>) {
         let id = |i: usize, j: usize| (i * (n + 1) + j) as i64;
@@ -2221,22 +2237,8 @@ mod tests {
         *whole.0.lock().unwrap() = Some(Arc::new(build(refinement, None, true).unwrap()));
         let local = LimitCache::default();
         *local.0.lock().unwrap() = Some(Arc::new(build(refinement, Some(0), true).unwrap()));
-        let (p, n) = surface(
-            refinement,
-            &Scratch::default(),
-            &local,
-            points,
-            NormalDomain::Corner,
-        )
-        .unwrap();
-        let (q, m) = surface(
-            refinement,
-            &Scratch::default(),
-            &whole,
-            points,
-            NormalDomain::Corner,
-        )
-        .unwrap();
+        let (p, n) = corner_surface(refinement, &local, points);
+        let (q, m) = corner_surface(refinement, &whole, points);
         let extra = |c: &LimitCache| extra_levels(refinement, c).unwrap();
         // Composed stencils around isolated irregular vertices need no level where they take
         // every vertex that is not clean.
@@ -2292,15 +2294,7 @@ mod tests {
         st.extra_levels = m;
         let cache = LimitCache::default();
         *cache.0.lock().unwrap() = Some(Arc::new(st));
-        surface(
-            refinement,
-            &Scratch::default(),
-            &cache,
-            points,
-            NormalDomain::Corner,
-        )
-        .unwrap()
-        .1
+        corner_surface(refinement, &cache, points).1
     }
 
     /// A sphere of quads (an icosahedron's triangles split into three quads each, then `n x n`
@@ -2410,23 +2404,9 @@ mod tests {
         for_each_refinement(&cases, 1..=2, |refinement, points, case| {
             let whole = LimitCache::default();
             *whole.0.lock().unwrap() = Some(Arc::new(build(refinement, None, true).unwrap()));
-            let (q, m) = surface(
-                refinement,
-                &Scratch::default(),
-                &whole,
-                points,
-                NormalDomain::Corner,
-            )
-            .unwrap();
+            let (q, m) = corner_surface(refinement, &whole, points);
             let cache = LimitCache::default();
-            let (p, n) = surface(
-                refinement,
-                &Scratch::default(),
-                &cache,
-                points,
-                NormalDomain::Corner,
-            )
-            .unwrap();
+            let (p, n) = corner_surface(refinement, &cache, points);
             let st = stencils(refinement, &cache).unwrap();
             let count = (st.masks_of.iter())
                 .filter(|m| matches!(m, LimitMask::Composed(_)))
