@@ -1472,27 +1472,15 @@ impl Limit<'_> {
                         "limit: a degree-1 run left dual data".into(),
                     ));
                 };
-                let normals = match domain {
-                    Some(domain) => {
+                let normals = domain
+                    .map(|domain| {
                         let corners = face_corner_normals(r.last_level(), &last)?;
-                        Some(match domain {
-                            NormalDomain::Corner => corners.into_flattened(),
-                            NormalDomain::Vertex => {
-                                let last = r.last_level();
-                                let vertex = |v: usize| {
-                                    unit_sum(
-                                        last.corners_of_vertex(v)
-                                            .iter()
-                                            .map(|&c| corners[c as usize]),
-                                    )
-                                };
-                                memory::collect((0..last.num_vertices).map(vertex))?
-                                    .into_flattened()
-                            }
-                        })
-                    }
-                    None => None,
-                };
+                        match domain {
+                            NormalDomain::Corner => Ok(corners.into_flattened()),
+                            NormalDomain::Vertex => vertex_normals(r.last_level(), &corners),
+                        }
+                    })
+                    .transpose()?;
                 Ok((last.into_flattened(), normals))
             }
             LimitMethod::Eigen => {
@@ -1537,10 +1525,9 @@ impl Limit<'_> {
                         own.positions[v as usize] = next.positions[i];
                     }
                 }
-                let normals = match domain {
-                    Some(domain) => Some(self.stencil_normals(&mut stages, domain)?),
-                    None => None,
-                };
+                let normals = (domain)
+                    .map(|domain| self.stencil_normals(&mut stages, domain))
+                    .transpose()?;
                 let own = stages.swap_remove(0);
                 // The level's data goes back to the buffers of the run that made it, the
                 // normals per vertex to the limit's.
@@ -1857,6 +1844,20 @@ fn unit_sum<T: Scalar>(mut normals: impl Iterator<Item = [T; 3]> + Clone) -> [T;
         .normalize_or_zero()
         .to_array()
         .map(T::from_f64)
+}
+
+/// One normal per vertex of `level` from the normals at its corners (`corners`, per corner of
+/// the level), each by [`unit_sum`].
+fn vertex_normals<T: Scalar>(level: &Level, corners: &[[T; 3]]) -> Result<Vec<T>> {
+    let vertex = |v: usize| {
+        unit_sum(
+            level
+                .corners_of_vertex(v)
+                .iter()
+                .map(|&c| corners[c as usize]),
+        )
+    };
+    Ok(memory::collect((0..level.num_vertices).map(vertex))?.into_flattened())
 }
 
 /// Unit normals of each face's bilinear patch at its corners, face after face.
