@@ -3,13 +3,13 @@
 One ``bpy`` process with the extension's handlers registered from ``addon/bidegree``. Cages:
 Suzanne subdivided twice (7,872 quads) and three times (31,488 quads), Catmull-Clark applied.
 For each cage, level (2, 3) and scheme (bidegree classic degree 3 = what Subsurf computes, and
-bidegree's default averaging degree 4), two operations are timed, each as the median of several
-repetitions, with everything Blender does included (handlers, mesh writes, both depsgraph
-passes, the evaluated mesh read back):
+bidegree's default averaging degree 4, both with the default *Limit Positions* as Subsurf's
+default *Use Limit Surface*; and degree 4 without it, ``avg 4 refin``), two operations are
+timed, each as the median of several repetitions, with everything Blender does included
+(handlers, mesh writes, both depsgraph passes, the evaluated mesh read back):
 
 * **edit**: move one vertex of the cage (its shape keys' basis), ``view_layer.update()``, touch
-  the evaluated
-  mesh (as drawing or exporting would; it makes Subsurf's lazy wrapper subdivide);
+  the evaluated mesh (as drawing or exporting would; it makes Subsurf's lazy wrapper subdivide);
 * **frame**: step a shape-key animation one frame (``scene.frame_set``), touch the evaluated
   mesh.
 
@@ -181,6 +181,7 @@ def main() -> None:
             for scheme, settings in (
                 ("classic 3", {"degree": 3, "rules": "classic"}),
                 ("averaging 4", {"degree": 4}),
+                ("avg 4 refin", {"degree": 4, "limit": False}),
             ):
                 pair = _objects(scene, cage, scheme)
                 for obj in pair:

@@ -94,6 +94,22 @@ def test_memory_budget_and_adaptive_reach_the_request() -> None:
     ]
 
 
+def test_has_limit_positions_is_what_the_core_gives() -> None:
+    for output in ("primal", "dual"):
+        for rules, degrees in (("averaging", (1, 2, 3, 4)), ("classic", (1, 2, 3))):
+            for degree in degrees:
+                for levels in (0, 1):
+                    options = Options(
+                        degree=degree, levels=levels, output=output, rules=rules, limit=True
+                    )
+                    try:
+                        options.subdivide(cube())
+                        given = True
+                    except bidegree.InvalidInputError:
+                        given = False
+                    assert options.has_limit_positions() == given, options
+
+
 def test_from_namespace_takes_every_field_the_cli_has() -> None:
     from bidegree import cli
 

@@ -51,8 +51,9 @@ def test_registration(addon: ModuleType, scene: Any) -> None:
         assert bpy.ops.object.bidegree_add() == {"FINISHED"}
     (mod,) = modifier.bidegree_modifiers(obj)
     assert obj.modifiers.active == mod and scene.render.use_lock_interface
-    # The settings are the modifier's inputs, with the defaults of Options.
-    defaults = bidegree.options.Options()
+    # The settings are the modifier's inputs, with the defaults of Options but Limit Positions,
+    # which is on, as Subdivision Surface's Use Limit Surface.
+    defaults = bidegree.options.Options(limit=True)
     # (Blender stores the tolerance as float32.)
     assert modifier.options_of(mod) == defaults.replace(tolerance=float(np.float32(1e-3)))
     assert modifier.get_input(mod, "Render Levels") == 3
@@ -101,12 +102,16 @@ def test_creases_uvs_materials_and_shading_survive(scene: Any) -> None:
         ),
         4,
         2,
+        limit=True,
     )
     points, _sizes, corners = mesh_arrays(out)
     np.testing.assert_array_equal(corners, ref.face_indices)
     np.testing.assert_allclose(points, ref.points, atol=1e-6)
     smooth = bidegree.subdivide(
-        bidegree.Mesh(cage.points, face_sizes=cage.face_sizes, face_indices=cage.face_indices), 4, 2
+        bidegree.Mesh(cage.points, face_sizes=cage.face_sizes, face_indices=cage.face_indices),
+        4,
+        2,
+        limit=True,
     )
     assert np.abs(np.asarray(smooth.points) - np.asarray(ref.points)).max() > 1e-3
     assert set(out.uv_layers.keys()) == {"UVMap", "Second"}
@@ -142,7 +147,7 @@ def test_edits_reuse_the_plan(scene: Any) -> None:
     got = evaluated(obj, update())
     assert stats.plan_builds == builds and stats.plan_reuses == reuses + 1
     assert modifier.CACHE.plan(key) is plan and stats.skips >= skips
-    ref = bidegree.subdivide(cage_reference(obj, mod), 4, 2)
+    ref = bidegree.subdivide(cage_reference(obj, mod), 4, 2, limit=True)
     np.testing.assert_allclose(got[0], ref.points, atol=1e-6)
     # A topology change (a modifier above) and a settings change rebuild the plan.
     tri = obj.modifiers.new("Tri", "TRIANGULATE")
@@ -154,7 +159,7 @@ def test_edits_reuse_the_plan(scene: Any) -> None:
     got = evaluated(obj, update())
     assert stats.plan_builds == builds + 2
     np.testing.assert_allclose(
-        got[0], bidegree.subdivide(cage_reference(obj, mod), 3, 2).points, atol=1e-6
+        got[0], bidegree.subdivide(cage_reference(obj, mod), 3, 2, limit=True).points, atol=1e-6
     )
 
 
@@ -200,7 +205,9 @@ def test_gui_reads_only_the_cages_that_change(addon: ModuleType, scene: Any) -> 
         handlers._follow_up()
         got = evaluated(obj, update())
         np.testing.assert_allclose(
-            got[0], bidegree.subdivide(cage_reference(obj, mod), 3, 1).points, atol=1e-6
+            got[0],
+            bidegree.subdivide(cage_reference(obj, mod), 3, 1, limit=True).points,
+            atol=1e-6,
         )
     finally:
         handlers.PREDICT = saved

@@ -32,7 +32,9 @@ modifier: Any = None
 
 
 def subdivided(mesh: Any, **kw: Any) -> Any:
-    return bidegree.options.Options(**kw).subdivide(mesh)
+    """The surface of ``mesh`` that a modifier with the settings ``kw`` shows (primal, uniform,
+    averaging: with its limit positions, on by default)."""
+    return bidegree.options.Options(**{"limit": True, **kw}).subdivide(mesh)
 
 
 def sort_rows(points: np.ndarray) -> np.ndarray:
@@ -48,6 +50,73 @@ def reference_object(scene: Any, result: Any, name: str = "Reference") -> Any:
     starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
     faces = [idx[s : s + n].tolist() for s, n in zip(starts, sizes, strict=True)]
     return make_object(scene, name, np.asarray(result.points), faces)
+
+
+# --------------------------------------------------------------------------- 0: the default
+
+
+def test_default_is_subdivision_surfaces_limit_surface(scene: Any) -> None:
+    """Limit Positions is on by default, as Subdivision Surface's Use Limit Surface: with the
+    classic rules at degree 3 the surface is Blender's own default one, point for point."""
+    obj = cube(scene)
+    obj.data.vertices[7].co = (1.6, 1.3, 1.4)
+    mod = bidegree_blender.add_modifier(obj, degree=3, levels=2, rules="classic")
+    got = evaluated(obj, update())
+    assert modifier.status(obj, mod).error == ""
+    ref = bpy.data.objects.new("Subsurf", obj.data)
+    scene.collection.objects.link(ref)
+    sub = ref.modifiers.new("Subsurf", "SUBSURF")
+    sub.levels = 2
+    assert sub.use_limit_surface  # Blender's default
+    want = evaluated(ref, update())
+    assert len(got[0]) == len(want[0]) and len(got[1]) == len(want[1])
+    # The same points in another order: each of Blender's has one of bidegree's within 1e-6
+    # (measured 2.5e-7: float32), and no two share it.
+    distance = np.linalg.norm(want[0][:, None, :] - got[0][None, :, :], axis=2)
+    nearest = distance.argmin(axis=1)
+    assert distance.min(axis=1).max() < 1e-6, distance.min(axis=1).max()
+    assert len(set(nearest.tolist())) == len(nearest)
+    refined = subdivided(cage_reference(obj, mod), degree=3, levels=2, rules="classic", limit=False)
+    assert np.abs(np.asarray(refined.points) - got[0]).max() > 1e-2  # the limit made a difference
+
+
+@pytest.mark.parametrize(
+    "settings",
+    [
+        pytest.param({"output": "dual"}, id="dual"),
+        pytest.param({"degree": 2, "rules": "classic"}, id="classic-2"),
+        pytest.param({"adaptive": True, "tolerance": 0.01}, id="adaptive"),
+        pytest.param({"levels": 0}, id="level-0"),
+    ],
+)
+def test_limit_positions_left_out_where_the_surface_has_none(
+    scene: Any, settings: dict[str, Any]
+) -> None:
+    """Where Options would refuse limit positions (and at level 0, which shows the cage, as
+    Blender's modifier does), the default Limit Positions is left out instead of refusing."""
+    obj = cube(scene)
+    obj.data.vertices[7].co = (1.6, 1.3, 1.4)
+    mod = bidegree_blender.add_modifier(obj, **settings)
+    got = evaluated(obj, update())
+    assert modifier.status(obj, mod).error == ""
+    assert modifier.settings_of(mod).limit and not modifier.options_of(mod).limit
+    cage = cage_reference(obj, mod)
+    options = bidegree.options.Options(**settings)
+    if options.adaptive:
+        ref = options.subdivide_adaptive(cage)
+        np.testing.assert_array_equal(got[2], ref.triangles.reshape(-1))
+        np.testing.assert_allclose(got[0], ref.points, atol=1e-6)
+        # Renders and exports are uniform: they have limit positions.
+        assert modifier.options_of(mod, render=True).limit
+        assert modifier.options_of(mod, uniform=True).limit
+    else:
+        assert_surface(got, options.subdivide(cage))
+    if options.levels == 0:
+        np.testing.assert_array_equal(got[0], np.asarray(cage.points, dtype=np.float32))
+    # Back where the surface has them, the setting applies again.
+    modifier.configure(mod, output="primal", rules="averaging", adaptive=False, levels=1)
+    got = evaluated(obj, update())
+    assert_surface(got, subdivided(cage_reference(obj, mod), degree=options.degree, levels=1))
 
 
 # --------------------------------------------------------------------------- 1: the stack
@@ -218,20 +287,26 @@ def test_animation_render_has_per_frame_surfaces(scene: Any, render_levels: int)
 # --------------------------------------------------------------------------- 3: Apply
 
 
+#: Settings, and whether the surface has limit positions (Limit Positions is on by default and
+#: left out where the surface has none: adaptive and dual output).
 SETTINGS = [
-    pytest.param({"degree": 3, "levels": 2, "rules": "classic"}, id="classic"),
-    pytest.param({"degree": 4, "levels": 2, "limit": True, "normals": True}, id="limit"),
-    pytest.param({"degree": 3, "levels": 3, "adaptive": True, "tolerance": 0.01}, id="adaptive"),
-    pytest.param({"degree": 2, "levels": 2, "output": "dual"}, id="dual"),
+    pytest.param({"degree": 3, "levels": 2, "rules": "classic"}, True, id="classic"),
+    pytest.param({"degree": 4, "levels": 2, "limit": True, "normals": True}, True, id="limit"),
+    pytest.param(
+        {"degree": 3, "levels": 3, "adaptive": True, "tolerance": 0.01}, False, id="adaptive"
+    ),
+    pytest.param({"degree": 2, "levels": 2, "output": "dual"}, False, id="dual"),
     pytest.param(
         {"degree": 5, "levels": 1, "use_creases": False, "boundary": "edge-and-corner"},
+        True,
         id="no-creases",
     ),
+    pytest.param({"degree": 4, "levels": 2, "limit": False}, False, id="refined"),
 ]
 
 
-@pytest.mark.parametrize("settings", SETTINGS)
-def test_apply_bakes_what_is_shown(scene: Any, settings: dict[str, Any]) -> None:
+@pytest.mark.parametrize(("settings", "limit"), SETTINGS)
+def test_apply_bakes_what_is_shown(scene: Any, settings: dict[str, Any], limit: bool) -> None:
     obj = cube(scene)
     obj.data.vertices[7].co = (1.6, 1.3, 1.4)
     crease = obj.data.attributes.new("crease_edge", "FLOAT", "EDGE")
@@ -251,7 +326,7 @@ def test_apply_bakes_what_is_shown(scene: Any, settings: dict[str, Any]) -> None
         holder.corner_normals.foreach_get("vector", normals)
     # Every setting reached the surface: it is what the Options give for the cage.
     cage = cage_reference(obj, mod, crease=settings.get("use_creases", True))
-    options = bidegree.options.Options(**settings)
+    options = bidegree.options.Options(**{**settings, "limit": limit})
     if options.adaptive:
         ref = options.subdivide_adaptive(cage)
         np.testing.assert_array_equal(shown[2], ref.triangles.reshape(-1))

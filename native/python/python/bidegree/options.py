@@ -143,6 +143,14 @@ class Options:
 
     # ----------------------------------------------------------------------------- requests
 
+    def has_limit_positions(self) -> bool:
+        """Whether the uniform surface of these options has limit positions (the core refuses
+        ``limit`` otherwise): the primal output, and with classic rules degree 3 (OpenSubdiv's
+        masks) from level 1 on."""
+        if self.output != "primal":
+            return False
+        return self.rules == "averaging" or (self.degree == 3 and self.levels > 0)
+
     def unsupported_by_adaptive(self) -> list[str]:
         """The settings adaptive subdivision cannot honour (empty when it can)."""
         return [

@@ -168,7 +168,7 @@ def export_modifier_usd(
     stem, ext = os.path.splitext(filename)
     if depsgraph is None:
         depsgraph = bpy.context.evaluated_depsgraph_get()
-    options = modifier.options_of(mod).replace(adaptive=False)
+    options = modifier.options_of(mod, uniform=True)
     cage = modifier.read_cage(obj, mod, depsgraph)
     if not os.path.isdir(directory):
         raise bidegree.BidegreeIOError(f"{path}: directory {directory} does not exist")

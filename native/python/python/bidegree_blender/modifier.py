@@ -44,7 +44,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 #: Name of the add-on's node group; its custom property says which layout it has.
 NODE_GROUP = "bidegree"
 NODE_GROUP_TAG = "bidegree_node_group"
-NODE_GROUP_VERSION = 2  # 2: the UV Smooth menu
+NODE_GROUP_VERSION = 3  # 2: the UV Smooth menu; 3: Limit Positions on by default
 #: Custom properties of a holder object: its variant, owner object and owner modifier.
 HOLDER_TAG = "bidegree_holder"
 OWNER_TAG = "bidegree_owner"
@@ -84,7 +84,15 @@ SETTINGS: tuple[tuple[str, str, Any, Any, Any, str], ...] = (
         None,
         "Use edge and vertex creases (sharpness 10 * crease^2, as OpenSubdiv)",
     ),
-    ("Limit Positions", "BOOLEAN", False, None, None, "Vertices on the limit surface"),
+    (
+        "Limit Positions",
+        "BOOLEAN",
+        True,
+        None,
+        None,
+        "Vertices on the limit surface, as Subdivision Surface's Use Limit Surface (from level 1, "
+        "primal output, uniform levels; classic rules: degree 3; elsewhere left out)",
+    ),
     (
         "Limit Normals",
         "BOOLEAN",
@@ -393,9 +401,31 @@ def set_input(mod: bpy.types.Modifier, name: str, value: Any) -> None:
     mod[_identifiers(mod.node_group)[name]] = value
 
 
-def options_of(mod: bpy.types.Modifier, *, render: bool = False) -> Options:
-    """The :class:`~bidegree.options.Options` of a bidegree modifier (render: render levels,
-    uniform). Give the *evaluated* modifier to get animated values in a render."""
+def options_of(mod: bpy.types.Modifier, *, render: bool = False, uniform: bool = False) -> Options:
+    """The :class:`~bidegree.options.Options` a bidegree modifier computes its surface with
+    (render: render levels, uniform; uniform: viewport levels without *Adaptive*, as an export).
+    Give the *evaluated* modifier to get animated values in a render.
+
+    *Limit Positions* (on by default, as Subdivision Surface's *Use Limit Surface*) is left out
+    where the surface has none: at level 0 (the cage, as Blender shows it), for the dual output,
+    adaptive output and classic rules at degrees other than 3, where ``Options`` would refuse it.
+    """
+    return surface_options(settings_of(mod, render=render, uniform=uniform))
+
+
+def surface_options(settings: Options) -> Options:
+    """``settings`` without ``limit`` where their surface has no limit positions (see
+    :func:`options_of`)."""
+    if settings.limit and (
+        settings.levels == 0 or settings.adaptive or not settings.has_limit_positions()
+    ):
+        return settings.replace(limit=False)
+    return settings
+
+
+def settings_of(mod: bpy.types.Modifier, *, render: bool = False, uniform: bool = False) -> Options:
+    """The modifier's settings as they are set (the node group's stamp is made of them), as
+    :class:`~bidegree.options.Options`; :func:`options_of` gives what it computes."""
     ids = _identifiers(mod.node_group)
 
     def read(name: str) -> Any:
@@ -411,7 +441,7 @@ def options_of(mod: bpy.types.Modifier, *, render: bool = False) -> Options:
         limit=bool(read("Limit Positions")),
         normals=bool(read("Limit Normals")),
         # Adaptive subdivision is a viewport option: renders stay uniform.
-        adaptive=bool(read("Adaptive")) and not render,
+        adaptive=bool(read("Adaptive")) and not (render or uniform),
         tolerance=float(read("Tolerance")),
         uv_mode=attributes.UV_SMOOTH[uv_smooth(mod)],
     )
@@ -588,9 +618,10 @@ def invalidate(holder: bpy.types.Object) -> None:
         holder.location = (-1.0, 0.0, -1.0)
 
 
-def _mark(holder: bpy.types.Object, options: Options, cage_faces: int) -> None:
-    """Stamp ``holder`` as computed for ``options`` and a cage of ``cage_faces`` faces."""
-    wanted = (stamp(options), float(options.tolerance), float(cage_faces))
+def _mark(holder: bpy.types.Object, settings: Options, cage_faces: int) -> None:
+    """Stamp ``holder`` as computed for the modifier's ``settings`` and a cage of
+    ``cage_faces`` faces."""
+    wanted = (stamp(settings), float(settings.tolerance), float(cage_faces))
     if tuple(holder.location) != wanted:
         holder.location = wanted
 
@@ -663,6 +694,8 @@ class _Target:
 
     obj: bpy.types.Object
     mod: bpy.types.Modifier
+    #: The modifier's settings (its stamp) and what its surface is computed with.
+    settings: Options | None = None
     options: Options | None = None
     cage: mesh_io.CageArrays | None = None
     error: BaseException | None = None
@@ -763,6 +796,7 @@ def _write(target: _Target, variant: str, holder: bpy.types.Object) -> UpdateRep
         if target.error is not None:
             raise target.error
         assert target.cage is not None and target.options is not None
+        assert target.settings is not None
         report = CACHE.update(
             key,
             target.cage,
@@ -780,7 +814,7 @@ def _write(target: _Target, variant: str, holder: bpy.types.Object) -> UpdateRep
         else:
             _set_error(obj, mod, text)
         return None
-    _mark(holder, target.options, target.cage.num_faces)
+    _mark(holder, target.settings, target.cage.num_faces)
     if variant == RENDER:
         state.render_error = ""
         return report
@@ -859,7 +893,8 @@ def end_read(depsgraph: bpy.types.Depsgraph | None) -> list[tuple[Any, Any, Upda
                 if mod is None or getattr(mod, flag):
                     continue  # not evaluated by this depsgraph (hidden, other view layer)
                 try:
-                    target.options = options_of(mod, render=render)
+                    target.settings = settings_of(mod, render=render)
+                    target.options = surface_options(target.settings)
                 except bidegree.BidegreeError as exc:
                     target.error = exc
                 read.append(target)
@@ -886,7 +921,7 @@ def estimated_faces(targets: Iterable[_Target] | None = None) -> int:
     faces = 0
     for target in reading() if targets is None else targets:
         try:
-            levels = options_of(target.mod, render=_reading["render"]).levels
+            levels = settings_of(target.mod, render=_reading["render"]).levels
         except bidegree.BidegreeError:  # a bad setting is reported by the update itself
             continue
         faces += len(target.obj.data.polygons) * 4 ** min(levels, 16)
