@@ -51,7 +51,8 @@
 //! "pos/eval") and the cached `limit_surface` with one normal per vertex
 //! (`NormalDomain::Vertex`, "vtx/eval") are timed in the same rounds: the differences are what
 //! the normals cost, one per output corner by default (four times the positions' bytes on a
-//! quad mesh).
+//! quad mesh). The first `limit_positions` (`Plan::new` + `limit_positions`, "pfirst/fresh") is
+//! the add-on's first update with its default *Limit Positions*.
 //! In instructions (`examples/callgrind.rs`, one thread, level 3; 2026-12-03, lim16b) the first
 //! call costs 5.0x (degree 3), 6.0x (4) and 14x (9) a fresh evaluation (10.5x, 13.1x and 27x
 //! before the chunked stencil walk), the cached one 4.3x, 2.7x and 6.9x a cached evaluation (5.5x,
@@ -750,21 +751,22 @@ fn limit_rows(levels: &[u32], degrees: &[u32], timing: Rounds) {
          interleaved rounds (range: lowest-highest), limit/eval = cached limit_surface / cached \
          evaluate (target <= 2), pos/eval = cached limit_positions / cached evaluate, vtx/eval \
          = cached limit_surface with normals per vertex / cached evaluate, \
-         first/fresh = Plan::new + limit_surface / Plan::new + evaluate (target <= 3); times are \
-         each side's median sample",
+         first/fresh = Plan::new + limit_surface / Plan::new + evaluate (target <= 3), \
+         pfirst/fresh = Plan::new + limit_positions / Plan::new + evaluate; times are each \
+         side's median sample",
         load_average(),
         timing.rounds
     );
     let Rounds { rounds, sample_s } = timing;
     let moved: Vec<f32> = points.iter().map(|x| x * 1.01).collect();
     /// One row: a plan, its samplers (eval, limit, positions, limit with vertex normals,
-    /// fresh, first) and their samples by round.
+    /// fresh, first, first positions) and their samples by round.
     struct Row {
         options: Options,
         plan: Plan,
         extra: u32,
-        samplers: [Sampler; 6],
-        samples: [Vec<f64>; 6],
+        samplers: [Sampler; 7],
+        samples: [Vec<f64>; 7],
     }
     let mut rows = Vec::new();
     for &level in levels.iter().filter(|&&l| l <= 3) {
@@ -793,7 +795,7 @@ fn limit_rows(levels: &[u32], degrees: &[u32], timing: Rounds) {
     }
     let loads = run_rounds("limit rows", rounds, |r| {
         for row in &mut rows {
-            let [eval, limit, positions, vertex, fresh, first] = &mut row.samplers;
+            let [eval, limit, positions, vertex, fresh, first, first_positions] = &mut row.samplers;
             let (plan, options) = (&row.plan, &row.options);
             let cached = round(
                 r,
@@ -828,6 +830,13 @@ fn limit_rows(levels: &[u32], degrees: &[u32], timing: Rounds) {
                             (plan, out)
                         })
                     }),
+                    Box::new(|| {
+                        first_positions.sample(sample_s, || {
+                            let plan = Plan::new(&cage, options).unwrap();
+                            let out = plan.limit_positions(&points, 3).unwrap();
+                            (plan, out)
+                        })
+                    }),
                 ],
             );
             for (list, ms) in row.samples.iter_mut().zip(cached.into_iter().chain(new)) {
@@ -836,8 +845,8 @@ fn limit_rows(levels: &[u32], degrees: &[u32], timing: Rounds) {
         }
     });
     println!(
-        "{:>5} {:>6} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>10} {:>8} {:>8} {:>11} {:>5} {:>11} \
-         {:>11} {:>11} {:>11}",
+        "{:>5} {:>6} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>10} {:>8} {:>8} {:>11} {:>12} \
+         {:>5} {:>11} {:>11} {:>11} {:>11} {:>11}",
         "level",
         "degree",
         "eval ms",
@@ -846,25 +855,29 @@ fn limit_rows(levels: &[u32], degrees: &[u32], timing: Rounds) {
         "vtx ms",
         "fresh ms",
         "first ms",
+        "pfirst ms",
         "limit/eval",
         "pos/eval",
         "vtx/eval",
         "first/fresh",
+        "pfirst/fresh",
         "extra",
         "l/e range",
         "p/e range",
         "v/e range",
-        "f/f range"
+        "f/f range",
+        "pf/f range"
     );
     for row in &rows {
-        let [eval, limit, positions, vertex, fresh, first] = &row.samples;
+        let [eval, limit, positions, vertex, fresh, first, first_positions] = &row.samples;
         let limit_eval = Ratio::of(limit, eval);
         let positions_eval = Ratio::of(positions, eval);
         let vertex_eval = Ratio::of(vertex, eval);
         let first_fresh = Ratio::of(first, fresh);
+        let positions_fresh = Ratio::of(first_positions, fresh);
         println!(
-            "{:>5} {:>6} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>10.2} {:>8.2} {:>8.2} \
-             {:>11.2} {:>5} {:>11} {:>11} {:>11} {:>11}",
+            "{:>5} {:>6} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>10.2} {:>8.2} \
+             {:>8.2} {:>11.2} {:>12.2} {:>5} {:>11} {:>11} {:>11} {:>11} {:>11}",
             row.options.levels,
             row.options.degree,
             median(eval),
@@ -873,15 +886,18 @@ fn limit_rows(levels: &[u32], degrees: &[u32], timing: Rounds) {
             median(vertex),
             median(fresh),
             median(first),
+            median(first_positions),
             limit_eval.median,
             positions_eval.median,
             vertex_eval.median,
             first_fresh.median,
+            positions_fresh.median,
             row.extra,
             Ratio::range(Some(&limit_eval)),
             Ratio::range(Some(&positions_eval)),
             Ratio::range(Some(&vertex_eval)),
             Ratio::range(Some(&first_fresh)),
+            Ratio::range(Some(&positions_fresh)),
         );
     }
     println!("load average (1 min) after each round: {}", loads.join(" "));
