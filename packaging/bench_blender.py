@@ -4,7 +4,8 @@ One ``bpy`` process with the extension's handlers registered from ``addon/bidegr
 Suzanne subdivided twice (7,872 quads) and three times (31,488 quads), Catmull-Clark applied.
 For each cage, level (2, 3) and scheme (bidegree classic degree 3 = what Subsurf computes, and
 bidegree's default averaging degree 4, both with the default *Limit Positions* as Subsurf's
-default *Use Limit Surface*; and degree 4 without it, ``avg 4 refin``), two operations are
+default *Use Limit Surface*; degree 4 without it, ``avg 4 refin``, and with *Limit Normals*,
+``avg 4 normal``), two operations are
 timed, each as the median of several repetitions, with everything Blender does included
 (handlers, mesh writes, both depsgraph passes, the evaluated mesh read back):
 
@@ -182,6 +183,7 @@ def main() -> None:
                 ("classic 3", {"degree": 3, "rules": "classic"}),
                 ("averaging 4", {"degree": 4}),
                 ("avg 4 refin", {"degree": 4, "limit": False}),
+                ("avg 4 normal", {"degree": 4, "normals": True}),
             ):
                 pair = _objects(scene, cage, scheme)
                 for obj in pair:

@@ -101,6 +101,7 @@ def test_vertex_normals_put_the_corners_together(dtype: type) -> None:
         split = ~agree
         np.testing.assert_allclose(at_vertices[split], unit[split], rtol=0, atol=tolerance)
         assert split.any() if degree == 1 else not split.any()
+        assert plan.limit_normals_split == (degree == 1)  # known without the points
     with pytest.raises(bidegree.InvalidInputError, match="normals"):
         plan.limit_surface(normals="face")  # type: ignore[arg-type]
 
@@ -115,6 +116,8 @@ def test_limit_refusals() -> None:
         bidegree.Plan(mesh, degree=4, levels=1).limit_surface(np.zeros((8, 2)))
     assert bidegree.Plan(mesh, degree=4, levels=1).limit_extra_levels >= 1
     assert bidegree.Plan(torus(), degree=4, levels=1).limit_extra_levels == 0
+    with pytest.raises(bidegree.InvalidInputError, match="classic"):
+        _ = bidegree.Plan(mesh, degree=3, levels=1, rules="classic").limit_normals_split
 
 
 def test_subdivide_to_the_limit_still_validates_the_geometry() -> None:

@@ -313,6 +313,51 @@ def test_custom_normals_match_subsurf(scene: Any) -> None:
     bpy.data.meshes.remove(result)
 
 
+def test_limit_normals_are_per_vertex_where_that_is_exact(scene: Any) -> None:
+    """Limit Normals per vertex (Blender 5's point custom normals) where no vertex's corners
+    differ, per corner once a sharp crease splits some; either way Blender's corner normals
+    are the limit surface's."""
+    obj = make_object(scene, "Cube", CUBE_POINTS, CUBE_FACES)
+    obj.data.vertices[7].co = (1.6, 1.3, 1.4)
+    points = np.array([tuple(v.co) for v in obj.data.vertices], dtype=np.float32)
+    edge = tuple(obj.data.edges[0].vertices)
+    # Blender 4 encodes custom normals (16-bit angles in normal spaces, above).
+    atol = 1e-6 if bpy.app.version >= (5, 0, 0) else 1e-2
+    # The modifier's update of positions alone keeps them per vertex.
+    mod = bidegree_blender.add_modifier(obj, normals=True)
+    update()
+    obj.data.vertices[0].co = (-1.3, -1.1, -1.0)
+    obj.data.update()
+    update()
+    modifier = bidegree_blender.modifier
+    assert modifier.status(obj, mod).action == "reused", modifier.status(obj, mod)
+    shown = modifier.holders(obj, mod)["viewport"].data
+    if bpy.app.version >= (5, 0, 0):
+        assert shown.attributes["custom_normal"].domain == "POINT"
+    moved = np.array([tuple(v.co) for v in obj.data.vertices], dtype=np.float32)
+    _, want = bidegree.Plan(bidegree.Mesh(moved, CUBE_FACES), 4, 2).limit_surface(moved)
+    got = np.zeros(3 * len(shown.loops), dtype=np.float32)
+    shown.corner_normals.foreach_get("vector", got)
+    np.testing.assert_allclose(got.reshape(-1, 3), want, rtol=0, atol=atol)
+    obj.modifiers.remove(mod)
+    obj.data.vertices[0].co = CUBE_POINTS[0]
+    for sharp in (False, True):
+        if sharp:
+            obj.data.attributes.new("crease_edge", "FLOAT", "EDGE").data[0].value = 1.0
+        result = subdivided(obj, degree=4, levels=2, limit=True, normals=True)
+        creases = (np.array([edge]), np.array([10.0], dtype=np.float32)) if sharp else None
+        plan = bidegree.Plan(bidegree.Mesh(points, CUBE_FACES, creases=creases), 4, 2)
+        assert plan.limit_normals_split == sharp
+        _, want = plan.limit_surface(points)
+        got = np.zeros(3 * len(result.loops), dtype=np.float32)
+        result.corner_normals.foreach_get("vector", got)
+        if bpy.app.version >= (5, 0, 0):
+            domain = result.attributes["custom_normal"].domain
+            assert domain == ("CORNER" if sharp else "POINT")
+        np.testing.assert_allclose(got.reshape(-1, 3), want, rtol=0, atol=atol)
+        bpy.data.meshes.remove(result)
+
+
 # --------------------------------------------------------------------------- adaptive output
 
 

@@ -345,6 +345,16 @@ impl Plan {
         })
     }
 
+    /// Whether some output vertex has different limit normals at its corners: the two sides of
+    /// a crease, the sectors of a corner (degree 1: every face its own). `false` means one
+    /// normal per vertex ([`NormalDomain::Vertex`]) is every corner's normal exactly, in a
+    /// quarter of the bytes on a quad mesh (Blender's point custom normals, USD's `vertex`
+    /// interpolation); `true`, that per vertex the splits shade smoothly. Averaging rules only,
+    /// as [`Plan::limit_surface`]; the limit's stencils are built on first use.
+    pub fn limit_normals_split(&self) -> Result<bool> {
+        in_pool(|| limit::normals_split(&self.refinement, &self.limit))
+    }
+
     /// Levels the limit evaluation adds to this plan (built on first use, kept in the plan).
     pub fn limit_extra_levels(&self) -> Result<u32> {
         in_pool(|| limit::extra_levels(&self.refinement, &self.limit))

@@ -453,7 +453,7 @@ fn crease_normals_are_one_per_side() {
 /// vertex its corners' normal where they agree (bitwise: most vertices of a smooth mesh), else
 /// the unit vector along their sum (curve vertices, the sharp cube's edges, degree 1's faces).
 #[test]
-fn vertex_normals_are_the_corners_put_together() {
+fn vertex_normals_are_the_corners_put_together_and_split_is_known() {
     let sharp_cube = {
         let (cage, points) = cube();
         let mut edges: Vec<(i64, i64, f32)> = (0..4).map(|i| (i, i + 4, f32::INFINITY)).collect();
@@ -462,10 +462,23 @@ fn vertex_normals_are_the_corners_put_together() {
         }
         (cage.with_creases(&edges).unwrap(), points)
     };
+    let semi_sharp = |creases: &[(i64, i64, f32)]| {
+        let (cage, points) = cube();
+        (cage.with_creases(creases).unwrap(), points)
+    };
     let cages = [
         ("pyramid cube", pyramid_cube()),
         ("cylinder", cylinder(4, 7, 3)),
         ("sharp cube", sharp_cube),
+        // Sharp at level 2 (split), and smooth by then (its limit past the local extension).
+        (
+            "semi-sharp",
+            semi_sharp(&[(4, 5, 1.5), (5, 6, 0.5), (6, 7, 3.0)]),
+        ),
+        (
+            "soft",
+            semi_sharp(&[(4, 5, 0.5), (5, 6, 0.5), (6, 7, 0.5), (7, 4, 0.5)]),
+        ),
     ];
     for (name, (cage, points)) in &cages {
         for degree in [1u32, 2, 3, 4, 5] {
@@ -496,6 +509,10 @@ fn vertex_normals_are_the_corners_put_together() {
             // A boundary has one side: split normals only at creases and at degree 1.
             assert!(agreeing > 0);
             assert!(split > 0 || *name != "sharp cube" && degree > 1);
+            // The plan says so without the data: with no split, the normals per vertex are
+            // every corner's (the branch above).
+            let said = p.limit_normals_split().unwrap();
+            assert_eq!(said, split > 0, "{name}, degree {degree}: split {split}");
         }
     }
 }
@@ -532,6 +549,14 @@ fn limit_refusals_are_typed() {
     assert!(classic(3).limit_positions(&points, 3).is_ok());
     assert!(matches!(
         classic(3).limit_surface(&points),
+        Err(Error::InvalidInput(_))
+    ));
+    assert!(matches!(
+        classic(3).limit_normals_split(),
+        Err(Error::InvalidInput(_))
+    ));
+    assert!(matches!(
+        dual.limit_normals_split(),
         Err(Error::InvalidInput(_))
     ));
     assert!(matches!(

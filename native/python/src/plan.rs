@@ -226,6 +226,13 @@ impl PyPlan {
         run(py, || self.inner.limit_extra_levels())
     }
 
+    /// Whether some output vertex has different limit normals at its corners (creases,
+    /// corners; degree 1's faces): without, normals per vertex are exact.
+    #[getter]
+    fn limit_normals_split(&self, py: Python<'_>) -> PyResult<bool> {
+        run(py, || self.inner.limit_normals_split())
+    }
+
     /// `"averaging"` or `"classic"`.
     #[getter]
     fn rules(&self, py: Python<'_>) -> PyResult<&'static str> {

@@ -1375,6 +1375,51 @@ pub(crate) fn extra_levels(refinement: &Refinement, cache: &LimitCache) -> Resul
     }
 }
 
+/// Whether some output vertex has different limit normals at its corners (see
+/// [`crate::Plan::limit_normals_split`]): the corners of a vertex take the normal of one
+/// stage's stencil or of its fans ([`corner_source`]), and only fans differ among them.
+pub(crate) fn normals_split(refinement: &Refinement, cache: &LimitCache) -> Result<bool> {
+    match check(refinement, true)? {
+        // Each face's bilinear patch has its own normal at its corners.
+        LimitMethod::Interpolating => Ok(true),
+        LimitMethod::CatmullClark => Err(Error::Internal(
+            "limit: classic normals passed the check".into(),
+        )),
+        LimitMethod::Eigen => {
+            let st = stencils(refinement, cache)?;
+            let mut stages = vec![&*st];
+            while let Some((local, _)) = &stages[stages.len() - 1].local {
+                stages.push(local);
+            }
+            let last = refinement.last_level();
+            // Every other vertex takes its stencil's normal at all of its corners.
+            Ok(st.local_vertices.iter().chain(&st.fan_vertex).any(|&v| {
+                let corners = last.corners_of_vertex(v as usize);
+                let source = |c: &u32| corner_source(&stages, *c as usize, v);
+                let first = corners.first().map(source);
+                corners.iter().any(|c| Some(source(c)) != first)
+            }))
+        }
+    }
+}
+
+/// Where the limit normal at output corner `c` (of vertex `v`) comes from: `(k, i, fan)`, the
+/// stage `k` of `stages` (the plan's stencils, then the local extension's) that has the
+/// vertex's stencil `i`, and the fan of that stage the corner takes (`NONE`: the stencil's own
+/// normal); `k` is past the stages if none has it.
+fn corner_source(stages: &[&Stencils], c: usize, v: u32) -> (usize, u32, u32) {
+    let mut i = v;
+    for (k, st) in stages.iter().enumerate() {
+        if st.masks_of[i as usize] == LimitMask::Local {
+            // Its stencil is the next stage's at its place among the local ones.
+            i = st.local_vertices.binary_search(&i).unwrap_or_default() as u32;
+            continue;
+        }
+        return (k, i, st.corner_fan[c]);
+    }
+    (stages.len(), i, NONE)
+}
+
 /// Limit positions at the output vertices (the drawing mesh's) of any per-vertex data of the
 /// cage (`channels` interleaved values per cage vertex, checked). Old vertices keep their ids,
 /// so the first values are the limits at the cage vertices.
@@ -1624,23 +1669,11 @@ impl Limit<'_> {
             .collect::<Result<Vec<_>>>()?;
         let last = self.refinement.last_level();
         let corners = &last.corner_verts;
-        let resolved = |c: usize| {
-            let mut i = corners[c];
-            let mut n = [T::default(); 3];
-            for (stage, fans) in stages.iter().zip(&fans) {
-                let st = stage.stencils;
-                if st.masks_of[i as usize] == LimitMask::Local {
-                    // Its stencil is the next stage's at its place among the local ones.
-                    i = st.local_vertices.binary_search(&i).unwrap_or_default() as u32;
-                    continue;
-                }
-                n = match st.corner_fan[c] {
-                    NONE => stage.normals[i as usize],
-                    f => fans[f as usize].to_array().map(T::from_f64),
-                };
-                break;
-            }
-            n
+        let stencils: Vec<&Stencils> = stages.iter().map(|s| s.stencils).collect();
+        let resolved = |c: usize| match corner_source(&stencils, c, corners[c]) {
+            (k, _, _) if k == stages.len() => [T::default(); 3],
+            (k, i, NONE) => stages[k].normals[i as usize],
+            (k, _, f) => fans[k][f as usize].to_array().map(T::from_f64),
         };
         let st = stages[0].stencils;
         let elsewhere = st.local_vertices.iter().chain(&st.fan_vertex);

@@ -251,6 +251,21 @@ class Plan(_Output):
         is isolated: its neighbours' limits are then composed stencils); built on first use."""
         return int(self._native_plan.limit_extra_levels)
 
+    @property
+    def limit_normals_split(self) -> bool:
+        """Whether some output vertex has different limit normals at its corners: the two
+        sides of an infinitely sharp crease, the sectors of a corner (degree 1: every face its
+        own; semi-sharp creases are smooth in the limit). ``False`` means
+        ``limit_surface(normals="vertex")`` gives every corner's normal exactly, in a quarter of
+        the bytes (Blender's point custom normals, USD's ``vertex`` normals); built on first
+        use, with the limit's stencils.
+
+        Raises:
+            InvalidInputError: dual output, classic rules (no limit normals).
+            MemoryBudgetError: the extra levels would not fit the memory budget.
+        """
+        return bool(self._native_plan.limit_normals_split)
+
     @overload
     def evaluate_face_varying(
         self,

@@ -180,12 +180,16 @@ class Options:
         return bidegree.Plan(mesh, **self._request())
 
     def evaluate(
-        self, plan: bidegree.Plan, points: np.ndarray
+        self,
+        plan: bidegree.Plan,
+        points: np.ndarray,
+        normals_domain: bidegree.NormalDomain = "corner",
     ) -> tuple[np.ndarray, np.ndarray | None]:
         """The output points of ``points`` through ``plan`` (refined, or limit positions with
-        ``limit``) and, with ``normals``, the limit normals per output face corner."""
+        ``limit``) and, with ``normals``, the limit normals per output face corner (per output
+        vertex with ``normals_domain="vertex"``, see :meth:`bidegree.Plan.limit_surface`)."""
         if self.normals:
-            positions, normals = plan.limit_surface(points)
+            positions, normals = plan.limit_surface(points, normals=normals_domain)
             return (positions if self.limit else plan.evaluate(points)), normals
         if self.limit:
             return plan.limit_positions(points), None

@@ -378,12 +378,14 @@ def write_mesh(
     active_uv: str | None = None,
     materials: list[Any] | None = None,
     normals: np.ndarray | None = None,
+    normals_domain: str = "CORNER",
 ) -> bpy.types.Mesh:
     """Replace the geometry of ``mesh`` with the given arrays (fast path, no ``calc_edges``).
 
     Per-face data of the cage (``material_index``, ``sharp_face``) is carried over
     through ``face_origin``; ``uv_maps`` (name -> ``(C, 2)``) become UV maps;
-    ``normals`` (one per face corner) become custom normals.
+    ``normals`` (one per face corner, or per vertex with ``normals_domain="POINT"``) become
+    custom normals.
 
     Returns:
         ``mesh`` itself.
@@ -440,45 +442,60 @@ def write_mesh(
         mesh.uv_layers.active = mesh.uv_layers[active_uv]
         mesh.uv_layers[active_uv].active_render = True
 
-    _set_normals(mesh, normals)
+    _set_normals(mesh, normals, normals_domain)
     mesh.update(calc_edges=False)
     return mesh
 
 
 def write_positions(
-    mesh: bpy.types.Mesh, points: np.ndarray, normals: np.ndarray | None = None
+    mesh: bpy.types.Mesh,
+    points: np.ndarray,
+    normals: np.ndarray | None = None,
+    normals_domain: str = "CORNER",
 ) -> None:
     """Overwrite the vertex positions of ``mesh`` (same vertex count) and its custom normals
-    (``None`` removes them) and tag it for redraw."""
+    (``None`` removes them; per corner, or per vertex with ``normals_domain="POINT"``) and tag
+    it for redraw."""
     _set(mesh.attributes["position"].data, "vector", points, np.float32)
-    _set_normals(mesh, normals)
+    _set_normals(mesh, normals, normals_domain)
     mesh.update(calc_edges=False)
 
 
-#: The corner attribute Blender 5 reads custom normals from (a float vector per corner, the
-#: "free" storage: written directly, no encoding into normal spaces).
+#: The attribute Blender 5 reads custom normals from (a float vector per corner or per vertex,
+#: the "free" storage: written directly, no encoding into normal spaces).
 CUSTOM_NORMAL = "custom_normal"
 
 
-def _set_normals(mesh: bpy.types.Mesh, normals: np.ndarray | None) -> None:
-    """Custom normals per face corner (``None``: none, the shading comes from the faces)."""
+def point_normals() -> bool:
+    """Whether this Blender keeps custom normals per vertex as they are (5.0 on: a point
+    ``custom_normal`` attribute; Blender 4 encodes them per corner whichever way they come)."""
     import bpy
 
-    if bpy.app.version < (5, 0, 0):
-        # Blender 4 encodes custom normals into normal spaces; only its own call writes them.
+    return bool(bpy.app.version >= (5, 0, 0))
+
+
+def _set_normals(mesh: bpy.types.Mesh, normals: np.ndarray | None, domain: str = "CORNER") -> None:
+    """Custom normals per face corner, or per vertex with ``domain="POINT"`` (``None``: none,
+    the shading comes from the faces)."""
+    if domain not in ("CORNER", "POINT"):
+        raise bidegree.InternalError(f"custom normals per {domain!r}")
+    if not point_normals():
+        # Blender 4 encodes custom normals into normal spaces; only its own calls write them.
         if normals is not None:
-            mesh.normals_split_custom_set(np.ascontiguousarray(normals, dtype=np.float32))
+            values = np.ascontiguousarray(normals, dtype=np.float32)
+            if domain == "POINT":
+                mesh.normals_split_custom_set_from_vertices(values)
+            else:
+                mesh.normals_split_custom_set(values)
         return
     existing = mesh.attributes.get(CUSTOM_NORMAL)
     if normals is None:
         if existing is not None:
             mesh.attributes.remove(existing)
         return
-    if existing is not None and (
-        existing.domain != "CORNER" or existing.data_type != "FLOAT_VECTOR"
-    ):
+    if existing is not None and (existing.domain != domain or existing.data_type != "FLOAT_VECTOR"):
         mesh.attributes.remove(existing)
         existing = None
     if existing is None:
-        existing = mesh.attributes.new(CUSTOM_NORMAL, "FLOAT_VECTOR", "CORNER")
+        existing = mesh.attributes.new(CUSTOM_NORMAL, "FLOAT_VECTOR", domain)
     _set(existing.data, "vector", normals, np.float32)

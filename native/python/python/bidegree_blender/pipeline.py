@@ -143,8 +143,10 @@ class Surface:
     edges: np.ndarray
     corner_edges: np.ndarray
     face_origin: np.ndarray
-    #: Limit normals per face corner (custom normals), or ``None``.
+    #: Custom normals (the limit normals, or the cage's carried over), or ``None``.
     normals: np.ndarray | None = None
+    #: Where ``normals`` are: ``"CORNER"`` (per face corner) or ``"POINT"`` (per vertex).
+    normals_domain: str = "CORNER"
     #: UV map name -> (corners, 2).
     uv_maps: dict[str, np.ndarray] = field(default_factory=dict)
     #: Vertex group name -> (points,) weights (every group of the cage, in its order).
@@ -191,8 +193,12 @@ def plan_surface(
     """The :class:`Surface` of ``cage`` through ``plan`` (``with_attributes=False``: points and
     normals only, for a positions-only update of a mesh that has the rest). Normals: the limit
     normals with ``options.normals``, else the cage's custom normals carried over (they follow
-    the positions), else none."""
-    points, normals = options.evaluate(plan, cage.points)
+    the positions), else none. The limit normals are per vertex where that is exact (no split
+    vertex, :attr:`bidegree.Plan.limit_normals_split`) and Blender stores them so (5.0 on):
+    a quarter of the corners' bytes, and Blender draws them without corner normals."""
+    per_vertex = options.normals and mesh_io.point_normals() and not plan.limit_normals_split
+    domain = "POINT" if per_vertex else "CORNER"
+    points, normals = options.evaluate(plan, cage.points, "vertex" if per_vertex else "corner")
     if normals is None and cage.attributes.custom_normals is not None:
         normals = attributes.custom_normals(plan, cage.attributes.custom_normals)
     surface = Surface(
@@ -203,6 +209,7 @@ def plan_surface(
         corner_edges=plan.corner_edges,
         face_origin=plan.face_origin,
         normals=normals,
+        normals_domain=domain,
     )
     if with_attributes:
         surface.uv_maps = _plan_uv_maps(plan, cage, options)
@@ -305,6 +312,7 @@ def write_surface(
         active_uv=cage.active_uv,
         materials=materials,
         normals=surface.normals,
+        normals_domain=surface.normals_domain,
     )
     attributes.write_attributes(mesh, surface.attributes)
     if holder is not None:
@@ -314,7 +322,7 @@ def write_surface(
 def write_positions(mesh: bpy.types.Mesh, surface: Surface) -> None:
     """Overwrite the positions (and custom normals) of ``mesh``, which has ``surface``'s
     topology already."""
-    mesh_io.write_positions(mesh, surface.points, surface.normals)
+    mesh_io.write_positions(mesh, surface.points, surface.normals, surface.normals_domain)
 
 
 def subdivide_object(
