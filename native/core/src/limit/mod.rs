@@ -1377,7 +1377,10 @@ pub(crate) fn extra_levels(refinement: &Refinement, cache: &LimitCache) -> Resul
 
 /// Whether some output vertex has different limit normals at its corners (see
 /// [`crate::Plan::limit_normals_split`]): the corners of a vertex take the normal of one
-/// stage's stencil or of its fans ([`corner_source`]), and only fans differ among them.
+/// stage's stencil or of its fans ([`corner_source`]), and only fans differ among them. A
+/// closed fan goes all around its vertex, so the closed fans at one vertex (a valence-2
+/// vertex's, one per corner, each from its own corner) are one normal, summed in another
+/// order.
 pub(crate) fn normals_split(refinement: &Refinement, cache: &LimitCache) -> Result<bool> {
     match check(refinement, true)? {
         // Each face's bilinear patch has its own normal at its corners.
@@ -1393,9 +1396,13 @@ pub(crate) fn normals_split(refinement: &Refinement, cache: &LimitCache) -> Resu
             }
             let last = refinement.last_level();
             // Every other vertex takes its stencil's normal at all of its corners.
+            let closed = |k: usize, f: u32| stages[k].fan_closed[f as usize];
             Ok(st.local_vertices.iter().chain(&st.fan_vertex).any(|&v| {
                 let corners = last.corners_of_vertex(v as usize);
-                let source = |c: &u32| corner_source(&stages, *c as usize, v);
+                let source = |c: &u32| match corner_source(&stages, *c as usize, v) {
+                    (k, i, f) if f != NONE && closed(k, f) => (k, i, NONE - 1),
+                    other => other,
+                };
                 let first = corners.first().map(source);
                 corners.iter().any(|c| Some(source(c)) != first)
             }))
