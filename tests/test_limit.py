@@ -131,20 +131,31 @@ def test_subdivide_to_the_limit_still_validates_the_geometry() -> None:
         assert info.value.vertex == 3
 
 
-def test_usd_carries_face_varying_limit_normals(tmp_path: Path) -> None:
+def test_usd_carries_limit_normals(tmp_path: Path) -> None:
+    """Per point where every point's corners agree (the smooth cube), per corner at a sharp
+    crease; either way each corner's normal is the limit's."""
     pxr = pytest.importorskip("pxr")
     from bidegree import usd
 
-    mesh = cube()
-    result = bidegree.subdivide(mesh, degree=4, levels=2, limit=True, normals=True)
-    path = tmp_path / "limit.usda"
-    usd.export(path, mesh, result)
-    assert usd.validate(path) == []
-    stage = pxr.Usd.Stage.Open(str(path))
-    prim = pxr.UsdGeom.Mesh(stage.GetPrimAtPath("/Bidegree/Result"))
-    assert prim.GetNormalsInterpolation() == pxr.UsdGeom.Tokens.faceVarying
-    normals = np.array(prim.GetNormalsAttr().Get())
-    np.testing.assert_allclose(normals, result.normals, atol=1e-6)
+    smooth = cube()
+    sharp = bidegree.Mesh(
+        smooth.points,
+        face_sizes=smooth.face_sizes,
+        face_indices=smooth.face_indices,
+        creases=(np.array([smooth.face_indices[:2]]), np.array([10.0], dtype=np.float32)),
+    )
+    for mesh, interpolation in ((smooth, "vertex"), (sharp, "faceVarying")):
+        result = bidegree.subdivide(mesh, degree=4, levels=2, limit=True, normals=True)
+        path = tmp_path / f"limit-{interpolation}.usda"
+        usd.export(path, mesh, result)
+        assert usd.validate(path) == []
+        stage = pxr.Usd.Stage.Open(str(path))
+        prim = pxr.UsdGeom.Mesh(stage.GetPrimAtPath("/Bidegree/Result"))
+        assert prim.GetNormalsInterpolation() == interpolation
+        normals = np.array(prim.GetNormalsAttr().Get())
+        if interpolation == "vertex":
+            normals = normals[np.array(prim.GetFaceVertexIndicesAttr().Get())]
+        np.testing.assert_allclose(normals, result.normals, rtol=0, atol=1e-6)
 
 
 def test_cli_limit_and_normals(tmp_path: Path) -> None:

@@ -249,9 +249,10 @@ def test_first_use_order_describes_the_same_surface(tmp_path: Path) -> None:
         np.testing.assert_array_equal(pts[-2:], [[9.0, 9.0, 9.0], [-9.0, -9.0, -9.0]])
         np.testing.assert_allclose(file_dist[-2:], dist[[5, n + 1]], rtol=1e-6)
         normals = _np(written.GetNormalsAttr().Get())
-        if name == "Result":  # limit normals, one per face corner: as computed
-            assert written.GetNormalsInterpolation() == UsdGeom.Tokens.faceVarying
-            np.testing.assert_allclose(normals, result.normals, rtol=0, atol=1e-6)
+        if name == "Result":  # limit normals, one per point (the cube is smooth): as computed
+            assert written.GetNormalsInterpolation() == UsdGeom.Tokens.vertex
+            np.testing.assert_array_equal(normals[-2:], 0.0)  # used by no face
+            np.testing.assert_allclose(normals[file_indices], result.normals, rtol=0, atol=1e-6)
             st = _np(primvars.GetPrimvar("st").Get())
             np.testing.assert_allclose(st, result.uvs, rtol=0, atol=1e-6)
         else:  # area-weighted vertex normals at each point

@@ -31,7 +31,9 @@ Conventions:
   creases and corners refer to it).
 - Winding is counter-clockwise (``orientation = rightHanded``), as in OBJ and in bidegree.
 - Normals of the result are its limit normals when it has them (``Result.normals``, from
-  ``normals=True``: ``faceVarying`` interpolation, one per face corner, split at creases), else
+  ``normals=True``): ``vertex`` interpolation, one per point, when every point's corners have the
+  same normal as written (float32, bit for bit: a smooth surface, boundaries included; a quarter
+  of the data), else ``faceVarying``, one per face corner, split at creases. Otherwise
   *area-weighted vertex normals* (``vertex`` interpolation): each face contributes its vector
   area (Newell's formula, exact for planar faces) to each of its vertices and the sums are
   normalised.  A vertex whose sum vanishes gets a zero normal.
@@ -376,6 +378,17 @@ def _extent(pxr: Any, points: np.ndarray) -> Any:
     return _vec3f(pxr, np.stack([points.min(axis=0), points.max(axis=0)]))
 
 
+def _per_point(
+    per_corner: np.ndarray, face_indices: np.ndarray, num_points: int
+) -> np.ndarray | None:
+    """``per_corner`` values as float32, one per point, when every point's corners have the
+    same ones bit for bit (points no face uses get zeros), else ``None``."""
+    values = np.asarray(per_corner, dtype=np.float32)
+    out = np.zeros((num_points, values.shape[1]), dtype=np.float32)
+    out[face_indices] = values
+    return out if np.array_equal(out[face_indices], values) else None
+
+
 def _define_polymesh(
     pxr: Any,
     stage: Any,
@@ -388,8 +401,9 @@ def _define_polymesh(
     point_order: str = "first-use",
 ) -> Any:
     """Define a plain polygon mesh (subdivisionScheme = none) at ``path``, its points in
-    ``point_order`` (:data:`POINT_ORDERS`). ``normals``: an array (corners, 3) is written
-    face-varying (limit normals), ``True`` computes vertex normals. ``uvs``: ``(values,
+    ``point_order`` (:data:`POINT_ORDERS`). ``normals``: an array (corners, 3) is written per
+    point where every point's corners agree, else face-varying (limit normals); ``True``
+    computes vertex normals. ``uvs``: ``(values,
     indices)``, an indexed ``primvars:st``, or ``(per-corner values, None)``."""
     UsdGeom, Sdf = pxr.UsdGeom, pxr.Sdf
     order = _PointOrder(topo, point_order == "first-use")
@@ -402,8 +416,13 @@ def _define_polymesh(
     mesh.CreateFaceVertexIndicesAttr(_ints(pxr, order.face_indices))
     mesh.CreateExtentAttr(_extent(pxr, points))
     if isinstance(normals, np.ndarray):
-        mesh.CreateNormalsAttr(_vec3f(pxr, normals))
-        mesh.SetNormalsInterpolation(UsdGeom.Tokens.faceVarying)
+        at_points = _per_point(normals, order.face_indices, len(points))
+        if at_points is None:
+            mesh.CreateNormalsAttr(_vec3f(pxr, normals))
+            mesh.SetNormalsInterpolation(UsdGeom.Tokens.faceVarying)
+        else:
+            mesh.CreateNormalsAttr(_vec3f(pxr, at_points))
+            mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
     elif normals:
         mesh.CreateNormalsAttr(
             _vec3f(pxr, vertex_normals(points, topo.face_sizes, order.face_indices))
