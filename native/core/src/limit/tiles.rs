@@ -912,46 +912,44 @@ impl Geometry<'_> {
         let origin = n + 1;
         let mut cells = [NONE; MAX_CELLS * MAX_CELLS];
         let cell = |a: usize, b: usize| b * side + a;
-        // From `from`, `step` as far as it goes, each cell reached written at the next place.
-        let follow = |cells: &mut [u32],
-                      from: u32,
-                      step: &dyn Fn(u32) -> Option<u32>,
-                      places: &mut dyn Iterator<Item = usize>| {
+        // From `from`, `step` as far as it goes, each cell reached written at the next place
+        // (generic, not `dyn`: the steps inline into the walk).
+        fn follow(
+            cells: &mut [u32],
+            from: u32,
+            step: impl Fn(u32) -> Option<u32>,
+            places: impl Iterator<Item = usize>,
+        ) {
             let mut c = from;
             for at in places {
                 let Some(next) = step(c) else { break };
                 c = next;
                 cells[at] = c;
             }
-        };
+        }
         let first = 4 * anchor as u32;
         cells[cell(origin, origin)] = first;
         follow(
             &mut cells,
             first,
-            &right,
-            &mut (origin + 1..side).map(|a| cell(a, origin)),
+            right,
+            (origin + 1..side).map(|a| cell(a, origin)),
         );
         follow(
             &mut cells,
             first,
-            &left,
-            &mut (0..origin).rev().map(|a| cell(a, origin)),
+            left,
+            (0..origin).rev().map(|a| cell(a, origin)),
         );
         for a in 0..side {
             let base = cells[cell(a, origin)];
             if base != NONE {
+                follow(&mut cells, base, up, (origin + 1..side).map(|b| cell(a, b)));
                 follow(
                     &mut cells,
                     base,
-                    &up,
-                    &mut (origin + 1..side).map(|b| cell(a, b)),
-                );
-                follow(
-                    &mut cells,
-                    base,
-                    &down,
-                    &mut (0..origin).rev().map(|b| cell(a, b)),
+                    down,
+                    (0..origin).rev().map(|b| cell(a, b)),
                 );
             }
         }
