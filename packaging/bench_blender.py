@@ -5,9 +5,9 @@ Suzanne subdivided twice (7,872 quads) and three times (31,488 quads), Catmull-C
 For each cage, level (2, 3) and scheme (bidegree classic degree 3 = what Subsurf computes, and
 bidegree's default averaging degree 4, both with the default *Limit Positions* as Subsurf's
 default *Use Limit Surface*; degree 4 without it, ``avg 4 refin``, and with *Limit Normals*,
-``avg 4 normal``), two operations are
-timed, each as the median of several repetitions, with everything Blender does included
-(handlers, mesh writes, both depsgraph passes, the evaluated mesh read back):
+``avg 4 normal``), two operations are timed, each as the median of several repetitions, with
+everything Blender does included (handlers, mesh writes, both depsgraph passes, the evaluated
+mesh read back):
 
 * **edit**: move one vertex of the cage (its shape keys' basis), ``view_layer.update()``, touch
   the evaluated mesh (as drawing or exporting would; it makes Subsurf's lazy wrapper subdivide);

@@ -100,7 +100,7 @@
 
 use std::borrow::Cow;
 use std::collections::HashMap;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 
 use glam::DVec3;
 
@@ -216,6 +216,16 @@ pub(crate) struct Stencils {
     fan_vertex: Vec<u32>,
     /// Data indices of each fan's points, counter-clockwise around its vertex.
     fan_items: Vec<u32>,
+    /// [`normals_split`]'s answer, made on its first call (the stencils' alone: an update of
+    /// the add-on asks it every frame).
+    normals_split: OnceLock<bool>,
+}
+
+impl Stencils {
+    /// The stages of the local extension, each past the one before, with their levels.
+    fn locals(&self) -> impl Iterator<Item = &(Box<Stencils>, LocalLevels)> {
+        std::iter::successors(self.local.as_ref(), |(local, _)| local.local.as_ref())
+    }
 }
 
 /// Which vertices and corners of a level [`build_stencils`] makes stencils for: stencil `i` is
@@ -678,6 +688,7 @@ fn build_stencils(
         fan_closed,
         fan_vertex,
         fan_items,
+        normals_split: OnceLock::new(),
     }))
 }
 
@@ -1390,21 +1401,22 @@ pub(crate) fn normals_split(refinement: &Refinement, cache: &LimitCache) -> Resu
         )),
         LimitMethod::Eigen => {
             let st = stencils(refinement, cache)?;
-            let mut stages = vec![&*st];
-            while let Some((local, _)) = &stages[stages.len() - 1].local {
-                stages.push(local);
-            }
-            let last = refinement.last_level();
-            // Every other vertex takes its stencil's normal at all of its corners.
-            let closed = |k: usize, f: u32| stages[k].fan_closed[f as usize];
-            Ok(st.local_vertices.iter().chain(&st.fan_vertex).any(|&v| {
-                let corners = last.corners_of_vertex(v as usize);
-                let source = |c: &u32| match corner_source(&stages, *c as usize, v) {
-                    (k, i, f) if f != NONE && closed(k, f) => (k, i, NONE - 1),
-                    other => other,
-                };
-                let first = corners.first().map(source);
-                corners.iter().any(|c| Some(source(c)) != first)
+            Ok(*st.normals_split.get_or_init(|| {
+                let stages: Vec<&Stencils> = std::iter::once(&*st)
+                    .chain(st.locals().map(|(local, _)| local.as_ref()))
+                    .collect();
+                let last = refinement.last_level();
+                // Every other vertex takes its stencil's normal at all of its corners.
+                let closed = |k: usize, f: u32| stages[k].fan_closed[f as usize];
+                st.local_vertices.iter().chain(&st.fan_vertex).any(|&v| {
+                    let corners = last.corners_of_vertex(v as usize);
+                    let source = |c: &u32| match corner_source(&stages, *c as usize, v) {
+                        (k, i, f) if f != NONE && closed(k, f) => (k, i, NONE - 1),
+                        other => other,
+                    };
+                    let first = corners.first().map(source);
+                    corners.iter().any(|c| Some(source(c)) != first)
+                })
             }))
         }
     }
@@ -1541,12 +1553,10 @@ impl Limit<'_> {
                 let kept = &self.cache.1;
                 let (positions, vertex_normals) = stencil_values(&st, &data, normals, kept)?;
                 // The local extension's stages, each past the one before.
-                let mut chain = Vec::new();
-                let mut at = &*st;
-                while let Some((local, levels)) = &at.local {
-                    chain.push((local.as_ref(), levels));
-                    at = local;
-                }
+                let chain: Vec<_> = st
+                    .locals()
+                    .map(|(local, levels)| (local.as_ref(), levels))
+                    .collect();
                 // The local extension is made at the plan's own last level.
                 let two_d = match r.options().degree % 2 {
                     0 => &data[..r.last_level().num_faces()],

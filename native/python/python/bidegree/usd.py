@@ -403,8 +403,8 @@ def _define_polymesh(
     """Define a plain polygon mesh (subdivisionScheme = none) at ``path``, its points in
     ``point_order`` (:data:`POINT_ORDERS`). ``normals``: an array (corners, 3) is written per
     point where every point's corners agree, else face-varying (limit normals); ``True``
-    computes vertex normals. ``uvs``: ``(values,
-    indices)``, an indexed ``primvars:st``, or ``(per-corner values, None)``."""
+    computes vertex normals. ``uvs``: ``(values, indices)``, an indexed ``primvars:st``, or
+    ``(per-corner values, None)``."""
     UsdGeom, Sdf = pxr.UsdGeom, pxr.Sdf
     order = _PointOrder(topo, point_order == "first-use")
     points = order.vertex(topo.points)

@@ -197,7 +197,6 @@ def plan_surface(
     vertex, :attr:`bidegree.Plan.limit_normals_split`) and Blender stores them so (5.0 on):
     a quarter of the corners' bytes, and Blender draws them without corner normals."""
     per_vertex = options.normals and mesh_io.point_normals() and not plan.limit_normals_split
-    domain = "POINT" if per_vertex else "CORNER"
     points, normals = options.evaluate(plan, cage.points, "vertex" if per_vertex else "corner")
     if normals is None and cage.attributes.custom_normals is not None:
         normals = attributes.custom_normals(plan, cage.attributes.custom_normals)
@@ -209,7 +208,7 @@ def plan_surface(
         corner_edges=plan.corner_edges,
         face_origin=plan.face_origin,
         normals=normals,
-        normals_domain=domain,
+        normals_domain="POINT" if per_vertex else "CORNER",
     )
     if with_attributes:
         surface.uv_maps = _plan_uv_maps(plan, cage, options)
