@@ -114,7 +114,7 @@ use crate::error::{Error, Result};
 use crate::evaluate::{in_groups_of_four, run, run_parts};
 use crate::memory;
 use crate::options::{NormalDomain, Options, OutputKind};
-use crate::parallel::{gather_hinted, gather_indexed, with_capacity_hinted, CHUNK};
+use crate::parallel::{gather_hinted, gather_indexed, with_capacity_hinted, Disjoint, CHUNK};
 use crate::refinement::Refinement;
 use crate::scalar::{add, mad, scale, zero, Scalar, Value};
 use crate::scheme::catmark::{
@@ -192,6 +192,9 @@ pub(crate) struct Stencils {
     /// The tiles that compute most regular vertices at the plan's own last level (their
     /// [`LimitMask::Tiled`] stencils have no items).
     tiles: Option<Tiles>,
+    /// The stencils that no tile computes (increasing): what [`stencil_values`] walks after
+    /// the tiles (a list, not a test per vertex: most vertices are tiled).
+    untiled: Vec<u32>,
     /// Offsets into `items` per output vertex.
     offsets: Vec<u32>,
     /// Indices into the data the stencils read (see `Limit::limit_data`).
@@ -669,6 +672,11 @@ fn build_stencils(
         fan_of_start.insert(start, id);
         *fan = id;
     }
+    let untiled = memory::collect(
+        (masks_of.iter().enumerate())
+            .filter(|(_, &mask)| mask != LimitMask::Tiled)
+            .map(|(i, _)| i as u32),
+    )?;
     Ok(Some(Stencils {
         extended: None,
         extra_levels: 0,
@@ -677,6 +685,7 @@ fn build_stencils(
         masks_of,
         composed,
         tiles,
+        untiled,
         offsets,
         items,
         masks,
@@ -1803,31 +1812,34 @@ fn stencil_values<T: Scalar, const N: usize>(
         }
         _ => (stencil_position(st, data, v), none),
     };
-    // The other stencils, in chunks of the output; the tiles' vertices are written already.
-    let tiled = |v: usize| st.masks_of[v] == LimitMask::Tiled;
-    match q {
-        Some(q) => (p.par_chunks_mut(CHUNK))
-            .zip(q.par_chunks_mut(CHUNK))
-            .enumerate()
-            .for_each(|(chunk, (p, q))| {
-                for (i, (p, q)) in p.iter_mut().zip(q).enumerate() {
-                    let v = chunk * CHUNK + i;
-                    if !tiled(v) {
-                        let (x, y) = value(v);
-                        p.write(x);
-                        q.write(y);
+    // The other stencils, in chunks of their list; the tiles' vertices are written already.
+    let untiled = &st.untiled;
+    let listed =
+        untiled.windows(2).all(|w| w[0] < w[1]) && untiled.last().is_none_or(|&v| (v as usize) < n);
+    if !listed {
+        return Err(Error::Internal(
+            "limit: the untiled stencils out of order".into(),
+        ));
+    }
+    let (p, q) = (Disjoint::new(p), q.map(Disjoint::new));
+    untiled.par_chunks(CHUNK).for_each(|vertices| {
+        for &v in vertices {
+            let v = v as usize;
+            match &q {
+                Some(q) => {
+                    let (x, y) = value(v);
+                    // SAFETY: `v` is below `n`, the length of both (checked above), and in
+                    // one chunk once (the list is strictly increasing).
+                    unsafe {
+                        p.write(v, x);
+                        q.write(v, y);
                     }
                 }
-            }),
-        None => p.par_chunks_mut(CHUNK).enumerate().for_each(|(chunk, p)| {
-            for (i, p) in p.iter_mut().enumerate() {
-                let v = chunk * CHUNK + i;
-                if !tiled(v) {
-                    p.write(stencil_position(st, data, v));
-                }
+                // SAFETY: as above.
+                None => unsafe { p.write(v, stencil_position(st, data, v)) },
             }
-        }),
-    }
+        }
+    });
     // SAFETY: every vertex is a tile's (written by `Tiles::write`, which returned `Ok` only
     // after writing each of its vertices) or was written above (a panic would have unwound
     // past here); the normals likewise when asked for.
