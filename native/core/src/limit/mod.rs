@@ -591,8 +591,11 @@ fn build_stencils(
             continue;
         };
         let fan = &mut corner_fan[c];
-        // Clockwise to the fan's start: across outgoing edges until a curve edge.
+        // Clockwise to the fan's start: across outgoing edges until a curve edge. A fan that
+        // closes on itself starts at its smallest corner, so that every corner of its vertex
+        // takes the one fan, summed in one order (bitwise one normal).
         let mut start = d;
+        let mut smallest = d;
         let mut closed = false;
         loop {
             let e = last.corner_edges()[start];
@@ -605,8 +608,10 @@ fn build_stencils(
             }
             if start == d {
                 closed = true;
+                start = smallest;
                 break;
             }
+            smallest = smallest.min(start);
         }
         if let Some(&id) = fan_of_start.get(&start) {
             *fan = id;
@@ -1397,10 +1402,8 @@ pub(crate) fn extra_levels(refinement: &Refinement, cache: &LimitCache) -> Resul
 
 /// Whether some output vertex has different limit normals at its corners (see
 /// [`crate::Plan::limit_normals_split`]): the corners of a vertex take the normal of one
-/// stage's stencil or of its fans ([`corner_source`]), and only fans differ among them. A
-/// closed fan goes all around its vertex, so the closed fans at one vertex (a valence-2
-/// vertex's, one per corner, each from its own corner) are one normal, summed in another
-/// order.
+/// stage's stencil or of its fans ([`corner_source`]), and only fans differ among them (a
+/// closed fan, as at a valence-2 vertex, is one for all of its vertex's corners).
 pub(crate) fn normals_split(refinement: &Refinement, cache: &LimitCache) -> Result<bool> {
     match check(refinement, true)? {
         // Each face's bilinear patch has its own normal at its corners.
@@ -1416,13 +1419,9 @@ pub(crate) fn normals_split(refinement: &Refinement, cache: &LimitCache) -> Resu
                     .collect();
                 let last = refinement.last_level();
                 // Every other vertex takes its stencil's normal at all of its corners.
-                let closed = |k: usize, f: u32| stages[k].fan_closed[f as usize];
                 st.local_vertices.iter().chain(&st.fan_vertex).any(|&v| {
                     let corners = last.corners_of_vertex(v as usize);
-                    let source = |c: &u32| match corner_source(&stages, *c as usize, v) {
-                        (k, i, f) if f != NONE && closed(k, f) => (k, i, NONE - 1),
-                        other => other,
-                    };
+                    let source = |c: &u32| corner_source(&stages, *c as usize, v);
                     let first = corners.first().map(source);
                     corners.iter().any(|c| Some(source(c)) != first)
                 })
