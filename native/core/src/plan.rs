@@ -347,9 +347,8 @@ impl Plan {
 
     /// Whether some output vertex has different limit normals at its corners: the two sides of
     /// a crease, the sectors of a corner (degree 1: every face its own). `false` means one
-    /// normal per vertex ([`NormalDomain::Vertex`]) is every corner's normal (bit for bit, or
-    /// to rounding at a valence-2 vertex, whose corners sum its one fan in different orders),
-    /// in a quarter of the bytes on a quad mesh (Blender's point custom normals, USD's `vertex`
+    /// normal per vertex ([`NormalDomain::Vertex`]) is every corner's normal, bit for bit, in
+    /// a quarter of the bytes on a quad mesh (Blender's point custom normals, USD's `vertex`
     /// interpolation); `true`, that per vertex the splits shade smoothly. Averaging rules only,
     /// as [`Plan::limit_surface`]; the limit's stencils are built on first use.
     pub fn limit_normals_split(&self) -> Result<bool> {

@@ -256,9 +256,9 @@ class Plan(_Output):
         """Whether some output vertex has different limit normals at its corners: the two
         sides of an infinitely sharp crease, the sectors of a corner (degree 1: every face its
         own; semi-sharp creases are smooth in the limit). ``False`` means
-        ``limit_surface(normals="vertex")`` gives every corner's normal (bit for bit, or to
-        rounding at a valence-2 vertex), in a quarter of the bytes (Blender's point custom
-        normals, USD's ``vertex`` normals); built on first use, with the limit's stencils.
+        ``limit_surface(normals="vertex")`` gives every corner's normal, bit for bit, in a
+        quarter of the bytes (Blender's point custom normals, USD's ``vertex`` normals); built
+        on first use, with the limit's stencils.
 
         Raises:
             InvalidInputError: dual output, classic rules (no limit normals).
