@@ -170,12 +170,14 @@ pub fn estimate(cage: &Cage, options: &Options) -> Result<Estimate> {
     // The averaging rules' regular windows (`step::regular`): per coarse face of a step from a
     // level of quads (every level after the cage, and a cage of quads), its net of at most 3 x
     // 3 (degrees 2-3), 4 x 4 (4-5) or 6 x 6 (6-9) ids, a mask and a share; degree 1 has none.
-    // Degree 3 adds its fused points (`step::fused`): a net of 4 x 4 ids and the points' bits
-    // per face, and at most its four fine vertices as the rest.
+    // Degrees 3 and 5 add their fused points (`step::fused`): a net of 4 x 4 ids and the
+    // points' bits per face, and at most its four fine vertices as the rest.
+    let fused = 4.0 * 16.0 + 2.0 + 4.0 * 4.0;
     let net = match options.degree {
         2 if options.rules == Rules::Averaging => 4.0 * 9.0 + 2.0,
-        3 if options.rules == Rules::Averaging => 4.0 * 9.0 + 2.0 + 4.0 * 16.0 + 2.0 + 4.0 * 4.0,
-        4..=5 if options.rules == Rules::Averaging => 4.0 * 16.0 + 2.0,
+        3 if options.rules == Rules::Averaging => 4.0 * 9.0 + 2.0 + fused,
+        4 if options.rules == Rules::Averaging => 4.0 * 16.0 + 2.0,
+        5 if options.rules == Rules::Averaging => 4.0 * 16.0 + 2.0 + fused,
         6..=9 if options.rules == Rules::Averaging => 4.0 * 36.0 + 2.0,
         _ => 0.0,
     };

@@ -1,22 +1,27 @@
-//! The whole step of degree 3 where the mesh is a grid, primal in and primal out: the fine
+//! The whole step of degree 3 or 5 where the mesh is a grid, primal in and primal out: the fine
 //! vertices straight from the coarse ones, with no children in between.
 //!
-//! A step of degree 3 is replication and three averages; on primal input the regular windows
-//! ([`super::regular`]) make the children (two averages: `(9, 3, 3, 1) / 16` of their parent's
-//! corners) and the last average (dual -> primal) takes each fine vertex as the mean of the
-//! children around it. Where a fine vertex has four children around it and the kernel makes all
-//! four, that mean is a fixed sum of the coarse vertices (the cubic B-spline's masks): an old
-//! vertex `(36 v + 6 E + D) / 64` (`E` its four edge neighbours, `D` its four diagonal ones), an
-//! edge point `(6 A + S) / 16` (`A` its edge's ends, `S` the four other corners of its two
-//! faces), a face point the mean of its four corners. Each coarse face writes the points of its
-//! closure that it owns (its face point; the edge point of an edge whose smaller corner is its;
-//! the old vertex of a grid vertex whose first corner in the level's vertex table is its) from a
-//! 4 x 4 net of coarse vertices around it (walked once per plan over the regular windows' corner
-//! tables, four corners at once in vectors), and the last average makes only the other fine
-//! vertices, from the children the kernel and the passes still make for them.
+//! A step of odd degree n is replication and n averages; on primal input the regular windows
+//! ([`super::regular`]) make the children (n - 1 averages: at degree 3 `(9, 3, 3, 1) / 16` of
+//! their parent's corners) and the last average (dual -> primal) takes each fine vertex as the
+//! mean of the children around it. Where a fine vertex has four children around it and the
+//! kernel makes all four, that mean is a fixed sum of the coarse vertices (the B-spline's
+//! masks). At degree 3: an old vertex `(36 v + 6 E + D) / 64` (`E` its four edge neighbours, `D`
+//! its four diagonal ones), an edge point `(6 A + S) / 16` (`A` its edge's ends, `S` the four
+//! other corners of its two faces), a face point the mean of its four corners. At degree 5 the
+//! tensor products of `(3, 10, 3) / 16` (at a vertex) and `(1, 15, 15, 1) / 32` (at a midpoint):
+//! an old vertex `(100 v + 30 E + 9 D) / 256`, an edge point reaching one vertex further along
+//! its line on either side, a face point the sixteen vertices of its 4 x 4 net. Each coarse face
+//! writes the points of its closure that it owns (its face point; the edge point of an edge
+//! whose smaller corner is its; the old vertex of a grid vertex whose first corner in the
+//! level's vertex table is its) from a 4 x 4 net of coarse vertices around it (walked once per
+//! plan over the regular windows' corner tables, four corners at once in vectors), and the last
+//! average makes only the other fine vertices, from the children the kernel and the passes still
+//! make for them.
 //!
 //! The sums pair each point with its mirror image (`E` as (left + right) + (below + above), `D`
-//! as the two diagonals' pairs, `S` as the two sides' pairs) and add pairs in the same way
+//! as the two diagonals' pairs, `S` as the two sides' pairs; degree 5's rings of eight as pairs
+//! through the point, grouped by the orbits of its quarter turns) and add pairs in the same way
 //! whichever face's frame they are read in, so a point's bits do not depend on which face owns
 //! it: a partial level (limits, adaptive) that makes a point from another face, or in a face of
 //! another rotation, gets the same bits as the full level, and the decision (four kernel children
@@ -27,7 +32,6 @@
 //! -> 81.82M (the nets and owners, made once per plan), then 71.84M with the owners decided point
 //! by point and the nets walked in vectors ([`Owners::of`], [`nets`]);
 //! `docs/research/fused-primal-kernel.md`.
-
 use std::mem::MaybeUninit;
 
 use rayon::prelude::*;
@@ -122,14 +126,60 @@ const EDGE: [[u8; 6]; 4] = {
     t
 };
 
+/// Degree 5, per edge `k` (from corner `k`, at `a`, to corner `k + 1`, at `b`; `u = b - a`,
+/// `o` the step across it): the net indices of the points on its line beyond its ends (`a - u`,
+/// `b + u`), then those beside them across it (`a - u + o`, `b + u + o`) and on the face's side
+/// (`a - u - o`, `b + u - o`): mirrored pairs, as [`EDGE`]'s.
+const EDGE_OUTER: [[u8; 6]; 4] = {
+    let mut t = [[0; 6]; 4];
+    let mut k = 0;
+    while k < 4 {
+        let (ax, ay) = CORNERS[k];
+        let (bx, by) = CORNERS[(k + 1) % 4];
+        let (ux, uy) = (bx - ax, by - ay);
+        let (ox, oy) = (by - ay, ax - bx);
+        t[k] = [
+            at(ax - ux, ay - uy),
+            at(bx + ux, by + uy),
+            at(ax - ux + ox, ay - uy + oy),
+            at(bx + ux + ox, by + uy + oy),
+            at(ax - ux - ox, ay - uy - oy),
+            at(bx + ux - ox, by + uy - oy),
+        ];
+        k += 1;
+    }
+    t
+};
+
+/// Degree 5: the net indices of the eight points beside the face's edges (the ring outside its
+/// corners, `(-1, 0)` and so on), as pairs mirrored through the face's centre, the first two
+/// pairs one orbit of its quarter turns and the last two the other, so that the sum is the same
+/// in every frame of the face.
+const RING: [u8; 8] = [
+    at(-1, 0),
+    at(2, 1),
+    at(1, -1),
+    at(0, 2),
+    at(-1, 1),
+    at(2, 0),
+    at(0, -1),
+    at(1, 2),
+];
+
+/// Degree 5: the net indices of the four far corners, as [`OLD`]'s face corners: pairs through
+/// the face's centre.
+const FAR: [u8; 4] = [at(-1, -1), at(2, 2), at(2, -1), at(-1, 2)];
+
 /// Bit of [`Fused::owned`] for the old vertex at corner `k`; `EDGE_BIT << k` for the edge
 /// point of edge `k`, [`FACE_BIT`] for the face point.
 const EDGE_BIT: u16 = 1 << 4;
 const FACE_BIT: u16 = 1 << 8;
 
-/// The fused last average of a step of degree 3 on primal input (module documentation).
+/// The fused last average of a step of degree 3 or 5 on primal input (module documentation).
 #[derive(Debug)]
 pub(super) struct Fused {
+    /// The step's degree: 3 or 5 (the masks of the sums).
+    degree: u32,
     /// Per coarse face, the fine vertices of its closure that it writes: bit `k` the old
     /// vertex at its corner `k`, bit `4 + k` the edge point of its edge `k`, bit 8 its face
     /// point.
@@ -170,7 +220,8 @@ impl<T: Scalar, const N: usize> Sums for Value<T, N> {
     }
 }
 
-/// The weights of the sums: 36, 6, 1/64, 1/16 and 1/4, exact in either scalar type.
+/// The weights of the sums, exact in either scalar type: degree 3's `(1, 6, 1) / 8` and `(1, 1) /
+/// 2` in each direction, degree 5's `(3, 10, 3) / 16` and `(1, 15, 15, 1) / 32`, as products.
 #[derive(Clone, Copy)]
 pub(super) struct Weights<W> {
     w36: W,
@@ -178,6 +229,21 @@ pub(super) struct Weights<W> {
     w64: W,
     w16: W,
     w4: W,
+    /// Degree 5: an old vertex's 100, 30, 9 and 1/256.
+    w100: W,
+    w30: W,
+    w9: W,
+    w256: W,
+    /// Degree 5: an edge point's 150, 45, 10, 3 and 1/512.
+    w150: W,
+    w45: W,
+    w10: W,
+    w3: W,
+    w512: W,
+    /// Degree 5: a face point's 225, 15 and 1/1024.
+    w225: W,
+    w15: W,
+    w1024: W,
 }
 
 impl<W: Copy> Weights<W> {
@@ -189,14 +255,26 @@ impl<W: Copy> Weights<W> {
             w64: of(1.0 / 64.0),
             w16: of(1.0 / 16.0),
             w4: of(0.25),
+            w100: of(100.0),
+            w30: of(30.0),
+            w9: of(9.0),
+            w256: of(1.0 / 256.0),
+            w150: of(150.0),
+            w45: of(45.0),
+            w10: of(10.0),
+            w3: of(3.0),
+            w512: of(1.0 / 512.0),
+            w225: of(225.0),
+            w15: of(15.0),
+            w1024: of(1.0 / 1024.0),
         }
     }
 }
 
 /// Calls `write(bit, value)` for each point of `owned` (bits of [`Fused::owned`]) from the net
-/// `p` of its face.
+/// `p` of its face, with the masks of `DEGREE` (3 or 5).
 #[inline(always)]
-pub(super) fn closure_points<S: Sums>(
+pub(super) fn closure_points<S: Sums, const DEGREE: u32>(
     owned: u16,
     p: &[S; NET],
     w: Weights<S::Weight>,
@@ -207,56 +285,88 @@ pub(super) fn closure_points<S: Sums>(
         if owned & (1 << k) != 0 {
             let edges = pair(t[1], t[2]).plus(pair(t[3], t[4]));
             let diagonals = pair(t[5], t[6]).plus(pair(t[7], t[8]));
-            let value = (p[t[0] as usize].times(w.w36))
-                .plus(edges.times(w.w6))
-                .plus(diagonals)
-                .times(w.w64);
+            let value = match DEGREE {
+                3 => (p[t[0] as usize].times(w.w36))
+                    .plus(edges.times(w.w6))
+                    .plus(diagonals)
+                    .times(w.w64),
+                _ => (p[t[0] as usize].times(w.w100))
+                    .plus(edges.times(w.w30))
+                    .plus(diagonals.times(w.w9))
+                    .times(w.w256),
+            };
             write(1 << k, value);
         }
     }
     for (k, t) in EDGE.iter().enumerate() {
         if owned & (EDGE_BIT << k) != 0 {
             let sides = pair(t[2], t[3]).plus(pair(t[4], t[5]));
-            let value = (pair(t[0], t[1]).times(w.w6)).plus(sides).times(w.w16);
+            let value = match DEGREE {
+                3 => (pair(t[0], t[1]).times(w.w6)).plus(sides).times(w.w16),
+                _ => {
+                    let o = &EDGE_OUTER[k];
+                    let outer_sides = pair(o[2], o[3]).plus(pair(o[4], o[5]));
+                    let ends = (pair(t[0], t[1]).times(w.w150)).plus(sides.times(w.w45));
+                    let outer = (pair(o[0], o[1]).times(w.w10)).plus(outer_sides.times(w.w3));
+                    ends.plus(outer).times(w.w512)
+                }
+            };
             write(EDGE_BIT << k, value);
         }
     }
     if owned & FACE_BIT != 0 {
         let [c0, c1, c2, c3] = OLD.map(|t| t[0]);
-        write(FACE_BIT, pair(c0, c2).plus(pair(c1, c3)).times(w.w4));
+        let corners = pair(c0, c2).plus(pair(c1, c3));
+        let value = match DEGREE {
+            3 => corners.times(w.w4),
+            _ => {
+                let [a, b, c, d, e, f, g, h] = RING;
+                let ring = (pair(a, b).plus(pair(c, d))).plus(pair(e, f).plus(pair(g, h)));
+                let [i, j, k, l] = FAR;
+                let far = pair(i, j).plus(pair(k, l));
+                (corners.times(w.w225))
+                    .plus(ring.times(w.w15))
+                    .plus(far)
+                    .times(w.w1024)
+            }
+        };
+        write(FACE_BIT, value);
     }
 }
 
 impl Fused {
-    /// The fused points of the step from `coarse` whose kernel writes the children of `masks`
-    /// (all four of a clean face, none of another, for two averages on primal input), with the
-    /// level's corner tables as the regular windows' walk reads them (`corners`: each corner's
-    /// twin, across its outgoing edge and at its end, and vertex, with a dead face after the
-    /// level's faces for a missing twin; whether each face is clean and each vertex can be
-    /// inside a grid); `None` when no point is fused.
+    /// The fused points of the step of `degree` (3 or 5) from `coarse` whose kernel writes the
+    /// children of `masks` (for two averages on primal input, degree 3's, all four of a clean
+    /// face and none of another), with the level's corner tables as the regular windows' walk
+    /// reads them (`corners`: each corner's twin, across its outgoing edge and at its end, and
+    /// vertex, with a dead face after the level's faces for a missing twin; whether each vertex
+    /// can be inside a grid); `None` when no point is fused.
     pub(super) fn new(
         coarse: &Level,
+        degree: u32,
         masks: &[u8],
         corners: CornerTables,
     ) -> Result<Option<Fused>> {
         let ids = ClosureIds::of(coarse)?;
         let [nv, ne, nf] = ids.sizes();
-        if masks.len() != nf {
+        if masks.len() != nf || !matches!(degree, 3 | 5) {
             return Err(Error::Internal(
-                "fused points: masks not the level's".into(),
+                "fused points: masks not the level's, or no sums for the degree".into(),
             ));
         }
         // Two averages of primal input read a face's own corners alone: the kernel makes all
         // four children of a clean face (no curve vertex born from it) and none of another.
         debug_assert!(
-            (0..nf).all(|f| masks[f] == if corners.clean(4 * f as u32) { 0xf } else { 0 })
+            degree != 3
+                || (0..nf).all(|f| masks[f] == if corners.clean(4 * f as u32) { 0xf } else { 0 })
         );
-        let owners = Owners::of(coarse, ids, corners)?;
+        let owners = Owners::of(coarse, ids, masks, corners)?;
         if owners.rest.len() == nv + ne + nf {
             return Ok(None);
         }
         let nets = nets(corners, nf, true)?;
         Ok(Some(Fused {
+            degree,
             owned: owners.owned,
             nets,
             rest: owners.rest,
@@ -299,6 +409,7 @@ impl Fused {
                 .filter(|&w| wanted.contains(w as usize)),
         )?;
         Ok(Fused {
+            degree: self.degree,
             owned,
             nets: self.nets,
             rest,
@@ -345,6 +456,20 @@ impl Fused {
         if super::wide::fused_points(self, x, ids, &out) {
             return Ok(());
         }
+        match self.degree {
+            3 => self.apply_loop::<T, N, 3>(x, ids, &out),
+            _ => self.apply_loop::<T, N, 5>(x, ids, &out),
+        }
+        Ok(())
+    }
+
+    /// [`Fused::apply`] without vectors, with the masks of `DEGREE`.
+    fn apply_loop<T: Scalar, const N: usize, const DEGREE: u32>(
+        &self,
+        x: &[Value<T, N>],
+        ids: ClosureIds,
+        out: &Disjoint<Value<T, N>>,
+    ) {
         let w = Weights::new(T::from_f64);
         self.owned
             .par_chunks(CHUNK)
@@ -357,15 +482,19 @@ impl Fused {
                     }
                     let net = &self.nets[NET * f..NET * f + NET];
                     let p: [Value<T, N>; NET] = std::array::from_fn(|i| x[net[i] as usize]);
-                    closure_points(bits, &p, w, |bit, value| {
+                    closure_points::<_, DEGREE>(bits, &p, w, |bit, value| {
                         let v = ids.fine_vertex(bit, f);
-                        // SAFETY: below `nv + ne + nf` (checked above), and written by this
-                        // face alone: each fine vertex has one owner (`Owners::of`).
+                        // SAFETY: below `nv + ne + nf` (checked by `apply`), and written by
+                        // this face alone: each fine vertex has one owner (`Owners::of`).
                         unsafe { out.write(v, value) };
                     });
                 }
             });
-        Ok(())
+    }
+
+    /// The step's degree (3 or 5).
+    pub(super) fn degree(&self) -> u32 {
+        self.degree
     }
 
     /// Per coarse face, the points it writes.
@@ -424,22 +553,24 @@ struct Owners {
 }
 
 impl Owners {
-    /// The owners on `coarse` (its closure ids `ids`, its corner tables as the walk reads
-    /// them): a fine vertex is fused when the kernel makes the four children around it (its
-    /// coarse faces clean; an old vertex one that can be inside a grid, an edge one with two
+    /// The owners on `coarse` (its closure ids `ids`, the kernel's children `masks`, its corner
+    /// tables as the walk reads them): a fine vertex is fused when the kernel makes the four
+    /// children around it (an old vertex one that can be inside a grid, an edge one with two
     /// faces), and it is written by its face point's face, by the face of the smaller of its
     /// edge's two corners, or by the face of its vertex's first corner.
     ///
     /// Point by point, so that each gets one owner by construction; each owner's bit is
     /// checked to name its point again ([`ClosureIds::fine_vertex`]), which is what lets the
     /// sums write unchecked and in parallel.
-    fn of(coarse: &Level, ids: ClosureIds, corners: CornerTables) -> Result<Owners> {
+    fn of(coarse: &Level, ids: ClosureIds, masks: &[u8], corners: CornerTables) -> Result<Owners> {
         let [nv, ne, nf] = ids.sizes();
         let dead = 4 * nf as u32;
         let broken = || Error::Internal("fused points: a level's tables out of range".into());
-        let mut owned = memory::collect((0..nf).map(|f| match corners.clean(4 * f as u32) {
-            true => FACE_BIT,
-            false => 0,
+        // Whether the kernel makes the child at corner `c` (below `dead`).
+        let child = |c: u32| masks[(c >> 2) as usize] & (1 << (c & 3)) != 0;
+        let mut owned = memory::collect(masks.iter().map(|&m| match m {
+            0xf => FACE_BIT,
+            _ => 0,
         }))?;
         let mut rest: Vec<u32> = Vec::new();
         let own = |owned: &mut [u16], corner: u32, bit: u16, point: usize| {
@@ -461,7 +592,7 @@ impl Owners {
             if around.iter().any(|&c| c >= dead) {
                 return Err(broken());
             }
-            match corners.grid(v as u32) && around.iter().all(|&c| corners.clean(c)) {
+            match corners.grid(v as u32) && around.iter().all(|&c| child(c)) {
                 true => own(&mut owned, around[0], 1, v)?,
                 false => leave(&mut rest, v)?,
             }
@@ -472,7 +603,13 @@ impl Owners {
                 c if c < dead => corners.twin(c),
                 _ => return Err(broken()),
             };
-            match c != NONE && corners.clean(c) && corners.clean(twin) {
+            // The four children at the edge's midpoint: at its corners in either face.
+            let fused = c != NONE
+                && twin < dead
+                && [c, after(c, 1), twin, after(twin, 1)]
+                    .iter()
+                    .all(|&c| child(c));
+            match fused {
                 true => own(&mut owned, c.min(twin), EDGE_BIT, nv + e)?,
                 false => leave(&mut rest, nv + e)?,
             }
@@ -570,12 +707,16 @@ mod tests {
     /// Every bit of [`Fused::owned`].
     const ALL: u16 = 0x1ff;
 
-    /// The nine points of a face's closure from its net `p`, by bit.
-    fn closure<T: Scalar>(p: &[[T; 3]; NET]) -> [Option<[T; 3]>; 9] {
+    /// The nine points of a face's closure from its net `p`, by bit, with the masks of
+    /// `degree` (3 or 5).
+    fn closure<T: Scalar>(degree: u32, p: &[[T; 3]; NET]) -> [Option<[T; 3]>; 9] {
         let mut points = [None; 9];
-        closure_points(ALL, p, Weights::new(T::from_f64), |bit, value| {
-            points[bit.trailing_zeros() as usize] = Some(value);
-        });
+        let mut write = |bit: u16, value| points[bit.trailing_zeros() as usize] = Some(value);
+        let w = Weights::new(T::from_f64);
+        match degree {
+            3 => closure_points::<_, 3>(ALL, p, w, &mut write),
+            _ => closure_points::<_, 5>(ALL, p, w, &mut write),
+        }
         points
     }
 
@@ -618,12 +759,12 @@ mod tests {
     /// of an edge see each other when the other face's corner 0 is at the edge). A partial
     /// level may give a point another owner, and the adaptive points must stay the uniform
     /// ones bit for bit.
-    fn same_bits_in_every_frame<T: Scalar + PartialEq>() {
+    fn same_bits_in_every_frame<T: Scalar + PartialEq>(degree: u32) {
         for seed in 0..50 {
             let p: [[T; 3]; NET] = net(seed);
-            let points = closure(&p);
+            let points = closure(degree, &p);
             // A quarter turn about the face's centre: (x, y) -> (1 - y, x).
-            let turned = closure(&moved(&p, &p, |x, y| (1 - y, x)));
+            let turned = closure(degree, &moved(&p, &p, |x, y| (1 - y, x)));
             for k in 0..4 {
                 let next = (k + 1) % 4;
                 assert_eq!(points[k], turned[next], "corner {k}, seed {seed}");
@@ -632,7 +773,23 @@ mod tests {
             assert_eq!(points[8], turned[8], "face point, seed {seed}");
             // The face across edge 0 with its corner 0 at this face's corner 1: (x, y) -> (1 -
             // x, -y); its own far row is other values.
-            let across = closure(&moved(&p, &net(seed + 1000), |x, y| (1 - x, -y)));
+            let across = closure(degree, &moved(&p, &net(seed + 1000), |x, y| (1 - x, -y)));
+            // Mirrored (a level whose faces turn the other way): (x, y) -> (y, x), corner k
+            // at corner 4 - k, edge k the mirror's edge 3 - k.
+            let mirrored = closure(degree, &moved(&p, &p, |x, y| (y, x)));
+            for k in 0..4 {
+                assert_eq!(
+                    points[k],
+                    mirrored[(4 - k) % 4],
+                    "mirror, corner {k}, seed {seed}"
+                );
+                assert_eq!(
+                    points[4 + k],
+                    mirrored[4 + 3 - k],
+                    "mirror, edge {k}, seed {seed}"
+                );
+            }
+            assert_eq!(points[8], mirrored[8], "mirror, face point, seed {seed}");
             assert_eq!(points[0], across[1], "corner 0 across edge 0, seed {seed}");
             assert_eq!(points[1], across[0], "corner 1 across edge 0, seed {seed}");
             assert_eq!(points[4], across[4], "edge 0 from across, seed {seed}");
@@ -641,48 +798,85 @@ mod tests {
 
     #[test]
     fn a_point_has_the_same_bits_in_every_frame() {
-        same_bits_in_every_frame::<f32>();
-        same_bits_in_every_frame::<f64>();
-    }
-
-    /// The sums are the cubic B-spline's masks (`(1, 6, 1) / 8` at an old vertex, `(1, 1) / 2`
-    /// at a midpoint, in each direction), written out, to rounding.
-    #[test]
-    fn the_sums_are_the_cubic_masks() {
-        let p: [[f64; 3]; NET] = net(7);
-        let points = closure(&p);
-        let value = |x: i32, y: i32| p[at(x, y) as usize][0];
-        let vertex = |x: i32, y: i32| {
-            let w = [1.0, 6.0, 1.0];
-            (0..3)
-                .flat_map(|j| (0..3).map(move |i| (i, j)))
-                .map(|(i, j)| w[i] * w[j] * value(x + i as i32 - 1, y + j as i32 - 1))
-                .sum::<f64>()
-                / 64.0
-        };
-        for (k, &(x, y)) in CORNERS.iter().enumerate() {
-            let got = points[k].unwrap()[0];
-            assert!((got - vertex(x, y)).abs() <= 1e-12 * vertex(x, y).abs().max(1.0));
+        for degree in [3, 5] {
+            same_bits_in_every_frame::<f32>(degree);
+            same_bits_in_every_frame::<f64>(degree);
         }
-        // Edge 0, from (0, 0) to (1, 0): (1, 1) / 2 along it, (1, 6, 1) / 8 across.
-        let edge = (0..3)
-            .map(|j| [1.0, 6.0, 1.0][j] * (value(0, j as i32 - 1) + value(1, j as i32 - 1)))
-            .sum::<f64>()
-            / 16.0;
-        assert!((points[4].unwrap()[0] - edge).abs() <= 1e-12 * edge.abs().max(1.0));
-        let face = (value(0, 0) + value(1, 0) + value(1, 1) + value(0, 1)) / 4.0;
-        assert!((points[8].unwrap()[0] - face).abs() <= 1e-12 * face.abs().max(1.0));
     }
 
-    /// Calls `check(j, step, fused, last)` for each step `j` with fused points of degree 3 and
+    /// The sums are the B-spline's masks, written out as the tensor products of the 1-D
+    /// masks, to rounding: degree 3's `(1, 6, 1) / 8` at an old vertex and `(1, 1) / 2` at a
+    /// midpoint, degree 5's `(3, 10, 3) / 16` and `(1, 15, 15, 1) / 32` (the binomial step
+    /// `binom(n + 1, k) / 2^n` split at the coarse vertices and midpoints), on every point of
+    /// the closure and both degrees.
+    #[test]
+    fn the_sums_are_the_b_spline_masks() {
+        let p: [[f64; 3]; NET] = net(7);
+        let value = |x: i32, y: i32| p[at(x, y) as usize][0];
+        for (degree, at_vertex, at_midpoint) in [
+            (
+                3,
+                vec![(-1, 1.0), (0, 6.0), (1, 1.0)],
+                vec![(0, 4.0), (1, 4.0)],
+            ),
+            (
+                5,
+                vec![(-1, 6.0), (0, 20.0), (1, 6.0)],
+                vec![(-1, 1.0), (0, 15.0), (1, 15.0), (2, 1.0)],
+            ),
+        ] {
+            let points = closure(degree, &p);
+            let scale = 8f64.powi(2) * if degree == 3 { 1.0 } else { 16.0 };
+            // The 1-D mask at frame coordinate `x` (an integer: a vertex; else a midpoint).
+            let mask = |twice: i32| match twice % 2 {
+                0 => at_vertex
+                    .iter()
+                    .map(|&(d, w)| (twice / 2 + d, w))
+                    .collect::<Vec<_>>(),
+                _ => at_midpoint
+                    .iter()
+                    .map(|&(d, w)| ((twice - 1) / 2 + d, w))
+                    .collect(),
+            };
+            // Twice the frame coordinates of the points by bit: corners, midpoints, centre.
+            let spots = [
+                (0, 0),
+                (2, 0),
+                (2, 2),
+                (0, 2),
+                (1, 0),
+                (2, 1),
+                (1, 2),
+                (0, 1),
+                (1, 1),
+            ];
+            for (bit, &(tx, ty)) in spots.iter().enumerate() {
+                let mut want = 0.0;
+                for &(x, wx) in &mask(tx) {
+                    for &(y, wy) in &mask(ty) {
+                        want += wx * wy * value(x, y);
+                    }
+                }
+                want /= scale;
+                let got = points[bit].unwrap()[0];
+                assert!(
+                    (got - want).abs() <= 1e-12 * want.abs().max(1.0),
+                    "degree {degree}, point {bit}: {got} against {want}"
+                );
+            }
+        }
+    }
+
+    /// Calls `check(j, step, fused, last)` for each step `j` with fused points of `degree` and
     /// `levels` levels on a cube of grids and on an open grid with a crease (`last`: the
     /// run's last step); returns how many there were.
     fn each_fused_step(
+        degree: u32,
         levels: u32,
         mut check: impl FnMut(usize, &crate::step::Step, &Fused, bool),
     ) -> usize {
         let options = Options {
-            degree: 3,
+            degree,
             levels,
             rules: Rules::Averaging,
             ..Options::default()
@@ -707,7 +901,7 @@ mod tests {
     /// Without AVX2 both are the loop's.
     #[test]
     fn nets_in_vectors_are_the_loops() {
-        let steps = each_fused_step(2, |j, step, _, _| {
+        let steps = each_fused_step(3, 2, |j, step, _, _| {
             let flags = super::super::regular::Flags::of(step.coarse, step.curves).unwrap();
             let nf = step.coarse.num_faces();
             let wide = nets(flags.tables(), nf, true).unwrap();
@@ -717,13 +911,20 @@ mod tests {
         assert_eq!(steps, 3, "the steps with fused points");
     }
 
-    /// Every fine vertex of every step of degree 3 is made once, by the face that owns it or
-    /// by the last average; most of a mostly regular mesh's are fused, and none is where
+    /// Every fine vertex of every step of degrees 3 and 5 is made once, by the face that owns
+    /// it or by the last average; most of a mostly regular mesh's are fused, and none is where
     /// its children are not the tensor product's: curve vertices (the open grid's boundary
     /// and crease) and old vertices of another valence than 4 (the cube's corners).
     #[test]
     fn every_fine_vertex_is_made_once() {
-        let steps = each_fused_step(3, |j, step, fused, last| {
+        for degree in [3, 5] {
+            every_fine_vertex_is_made_once_at(degree);
+        }
+    }
+
+    fn every_fine_vertex_is_made_once_at(degree: u32) {
+        let steps = each_fused_step(degree, 3, |j, step, fused, last| {
+            assert_eq!(fused.degree(), degree);
             let ids = ClosureIds::of(step.coarse).unwrap();
             let n = step.fine.num_vertices;
             let mut made = vec![0u8; n];
@@ -766,6 +967,9 @@ mod tests {
                 }
             }
         });
-        assert!(steps >= 4, "{steps} steps with fused points");
+        assert!(
+            steps >= 4,
+            "degree {degree}: {steps} steps with fused points"
+        );
     }
 }

@@ -497,13 +497,17 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         let fused = windows.fused();
         // The kernel's output: every child written once, by the kernel or by the last pass;
         // with fused points, only the children the other fine vertices read, into a kept
-        // buffer (the zone's, which has no passes then).
+        // buffer (the zone's when it has no passes, else one more).
         let mut out = match fused {
-            Some(_) => {
-                debug_assert!(first_is_last, "fused points end a step of two averages");
+            Some(_) if first_is_last => {
                 initialised(&mut faces, n_faces);
                 let out = std::mem::take(&mut faces);
                 faces = self.fresh();
+                out
+            }
+            Some(_) => {
+                let mut out = self.partial([None, None], n_faces);
+                initialised(&mut out, n_faces);
                 out
             }
             None => {
@@ -531,23 +535,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
             // child ([`regular`]'s `put`), which the pass then writes.
             scatter_uninit(children_out, &zone.first, |f| children.of(f))?;
         }
-        if let Some(fused) = fused {
-            // Of points made for every item, each fine vertex is written once, by the fused
-            // sums or by the last average below; of some, a kept buffer holds the others.
-            match fused.whole() {
-                true => vertices.clear(),
-                false => initialised(&mut vertices, n_vertices),
-            }
-            if vertices.capacity() < n_vertices {
-                vertices = hinted_or_abort(n_vertices);
-            }
-            fused.apply(x, coarse, slots(&mut vertices, n_vertices))?;
-        }
         self.curve = CurveData::Dual(curve_to_dual(curves, &curve));
-        // The coarse data's buffer is free now.
-        if let (Cow::Owned(data), Some((scratch, _))) = (data, self.scratch) {
-            scratch.give(data);
-        }
         let quarter = T::from_f64(0.25);
         for (pass, items) in zone.passes.iter().enumerate() {
             if pass % 2 == 0 {
@@ -564,7 +552,9 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
                 let v: &[Value<T, N>] = &vertices[..n_vertices];
                 let (quads, _) = fine.corner_verts.as_chunks::<4>();
                 let value = |g: usize| [corner_centroid(v, &quads[g], quarter)];
-                if pass + 3 == averages {
+                if pass + 3 == averages && fused.is_some() {
+                    scatter(&mut out[..n_faces], items, value)?;
+                } else if pass + 3 == averages {
                     scatter_uninit(&mut out.spare_capacity_mut()[..n_faces], items, value)?;
                 } else {
                     scatter(&mut faces[..n_faces], items, value)?;
@@ -575,11 +565,27 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
                 self.curve = CurveData::Dual(curve_to_dual(curves, curve));
             }
         }
-        if fused.is_none() {
+        if let Some(fused) = fused {
+            // After the passes, whose primal averages use the fine vertices' buffer: of points
+            // made for every item, each fine vertex is written once, by the fused sums or by
+            // the last average below; of some, a kept buffer holds the others.
+            match fused.whole() {
+                true => vertices.clear(),
+                false => initialised(&mut vertices, n_vertices),
+            }
+            if vertices.capacity() < n_vertices {
+                vertices = hinted_or_abort(n_vertices);
+            }
+            fused.apply(x, coarse, slots(&mut vertices, n_vertices))?;
+        } else {
             // SAFETY: the kernel wrote its children and the last pass every other one (the
             // zone's last list is the complement of the kernel's children; a panic would have
             // unwound past here).
             unsafe { out.set_len(n_faces) };
+        }
+        // The coarse data's buffer is free now.
+        if let (Cow::Owned(data), Some((scratch, _))) = (data, self.scratch) {
+            scratch.give(data);
         }
         self.faces = Cow::Owned(out);
         self.spare = faces;

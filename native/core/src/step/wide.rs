@@ -13,8 +13,8 @@
 //! averaging 5 and 7 34.6M -> 28.9M, 9 48.9M -> 43.2M; the rest of an odd-degree evaluation is
 //! the regular windows' kernel ([`super::regular`]).
 //!
-//! Degree 3's fused points ([`super::fused`]) have their sums and their nets' walk here too: the
-//! same operations as the portable code, four lanes at a time.
+//! The fused points of degrees 3 and 5 ([`super::fused`]) have their sums and their nets' walk
+//! here too: the same operations as the portable code, four lanes at a time.
 
 use std::mem::MaybeUninit;
 
@@ -312,22 +312,27 @@ mod avx2 {
     ) {
         let weights = Weights::new(W::from_f64);
         let nets = fused.nets();
+        let degree = fused.degree();
         fused
             .owned()
             .par_chunks(CHUNK)
             .enumerate()
             // SAFETY: the caller's promise.
             .for_each(|(chunk, owned)| unsafe {
-                fused_chunk(owned, nets, chunk * CHUNK, x, ids, out, weights)
+                let start = chunk * CHUNK;
+                match degree {
+                    3 => fused_chunk::<W, N, 3>(owned, nets, start, x, ids, out, weights),
+                    _ => fused_chunk::<W, N, 5>(owned, nets, start, x, ids, out, weights),
+                }
             });
     }
 
-    /// The fused points of faces `start..start + owned.len()`.
+    /// The fused points of faces `start..start + owned.len()`, with the masks of `DEGREE`.
     ///
     /// # Safety
     /// As [`fused`].
     #[target_feature(enable = "avx2")]
-    unsafe fn fused_chunk<W: Lanes, const N: usize>(
+    unsafe fn fused_chunk<W: Lanes, const N: usize, const DEGREE: u32>(
         owned: &[u16],
         nets: &[u32],
         start: usize,
@@ -350,7 +355,7 @@ mod avx2 {
                 let net = nets.get_unchecked(NET * f..NET * f + NET);
                 let p: [Reg<W>; NET] =
                     std::array::from_fn(|k| Reg(W::load(base.add(*net.get_unchecked(k) as usize))));
-                closure_points(bits, &p, weights, |bit, value: Reg<W>| {
+                closure_points::<_, DEGREE>(bits, &p, weights, |bit, value: Reg<W>| {
                     W::store(out.slot(ids.fine_vertex(bit, f)), value.0)
                 });
             }
