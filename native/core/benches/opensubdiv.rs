@@ -474,6 +474,7 @@ fn main() {
                 ("classic 3", Rules::Classic, 3),
                 ("averaging 3", Rules::Averaging, 3),
                 ("averaging 4", Rules::Averaging, 4),
+                ("averaging 5", Rules::Averaging, 5),
                 ("averaging 9", Rules::Averaging, 9),
             ];
             for (label, rules, degree) in schemes {
