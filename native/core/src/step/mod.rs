@@ -50,7 +50,7 @@ use std::sync::Mutex;
 use rayon::prelude::*;
 
 use crate::curves::{CurveNetwork, CurveVertex, LevelSharpness};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::parallel::{
     as_uninit, fill_zip, gather_sections, gather_zip, hinted_or_abort, scatter, scatter_uninit,
     with_capacity_hinted, CHUNK,
@@ -495,9 +495,12 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         let old = self.take_own_vertices();
         let mut vertices = self.partial([old, None], n_vertices);
         let fused = windows.fused();
+        // With fused points and passes, the kernel's children go to the first pass's buffer
+        // once the first dual -> primal pass has read it, before the last pass (below).
+        let deferred = fused.is_some() && !first_is_last;
         // The kernel's output: every child written once, by the kernel or by the last pass;
         // with fused points, only the children the other fine vertices read, into a kept
-        // buffer (the zone's when it has no passes, else one more).
+        // buffer (the zone's).
         let mut out = match fused {
             Some(_) if first_is_last => {
                 initialised(&mut faces, n_faces);
@@ -505,11 +508,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
                 faces = self.fresh();
                 out
             }
-            Some(_) => {
-                let mut out = self.partial([None, None], n_faces);
-                initialised(&mut out, n_faces);
-                out
-            }
+            Some(_) => Vec::new(),
             None => {
                 let mut out = self.fresh();
                 out.clear();
@@ -523,17 +522,19 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
                 out
             }
         };
-        let children_out = match fused {
-            // SAFETY: the kernel writes only values.
-            Some(_) => unsafe { as_uninit(&mut out[..n_faces]) },
-            None => &mut out.spare_capacity_mut()[..n_faces],
-        };
         debug_assert_eq!(windows.primal(), primal);
-        windows.apply(x, children_out)?;
-        if first_is_last {
-            // Every child of these faces, after the kernel: its writes spill into the next
-            // child ([`regular`]'s `put`), which the pass then writes.
-            scatter_uninit(children_out, &zone.first, |f| children.of(f))?;
+        if !deferred {
+            let children_out = match fused {
+                // SAFETY: the kernel writes only values.
+                Some(_) => unsafe { as_uninit(&mut out[..n_faces]) },
+                None => &mut out.spare_capacity_mut()[..n_faces],
+            };
+            windows.apply(x, children_out)?;
+            if first_is_last {
+                // Every child of these faces, after the kernel: its writes spill into the next
+                // child ([`regular`]'s `put`), which the pass then writes.
+                scatter_uninit(children_out, &zone.first, |f| children.of(f))?;
+            }
         }
         self.curve = CurveData::Dual(curve_to_dual(curves, &curve));
         let quarter = T::from_f64(0.25);
@@ -552,8 +553,13 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
                 let v: &[Value<T, N>] = &vertices[..n_vertices];
                 let (quads, _) = fine.corner_verts.as_chunks::<4>();
                 let value = |g: usize| [corner_centroid(v, &quads[g], quarter)];
-                if pass + 3 == averages && fused.is_some() {
-                    scatter(&mut out[..n_faces], items, value)?;
+                if pass + 3 == averages && deferred {
+                    // The first pass's children are read: the kernel's go there, then the last
+                    // pass's (after the kernel, whose writes spill into the next child).
+                    // SAFETY: the kernel writes only values.
+                    windows.apply(x, unsafe { as_uninit(&mut faces[..n_faces]) })?;
+                    scatter(&mut faces[..n_faces], items, value)?;
+                    out = std::mem::take(&mut faces);
                 } else if pass + 3 == averages {
                     scatter_uninit(&mut out.spare_capacity_mut()[..n_faces], items, value)?;
                 } else {
@@ -565,10 +571,22 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
                 self.curve = CurveData::Dual(curve_to_dual(curves, curve));
             }
         }
+        if deferred && out.len() < n_faces {
+            return Err(Error::Internal(
+                "fused points: no last pass for the kernel's children".into(),
+            ));
+        }
+        let mut intermediate = None;
         if let Some(fused) = fused {
-            // After the passes, whose primal averages use the fine vertices' buffer: of points
-            // made for every item, each fine vertex is written once, by the fused sums or by
-            // the last average below; of some, a kept buffer holds the others.
+            if deferred {
+                // The passes' primal data keeps its buffer (a kept one, as long as the level:
+                // the spare below), and the fine vertices get their own.
+                let points = self.fresh();
+                intermediate = Some(std::mem::replace(&mut vertices, points));
+            }
+            // After the passes: of points made for every item, each fine vertex is written
+            // once, by the fused sums or by the last average below; of some, a kept buffer
+            // holds the others.
             match fused.whole() {
                 true => vertices.clear(),
                 false => initialised(&mut vertices, n_vertices),
@@ -588,7 +606,8 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
             scratch.give(data);
         }
         self.faces = Cow::Owned(out);
-        self.spare = faces;
+        // With the kernel's children in the first pass's buffer, that one is the output.
+        self.spare = intermediate.unwrap_or(faces);
         self.primal = false;
         if let Some(fused) = fused {
             // The other fine vertices from the children around them.
