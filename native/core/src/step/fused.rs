@@ -30,8 +30,10 @@
 //! Measured (2026-12-06, callgrind driver, 3,840-quad sphere, level 3, one thread): a cached
 //! evaluation of averaging 3 17.08M -> 9.77M instructions, a new plan and its evaluation 55.87M
 //! -> 81.82M (the nets and owners, made once per plan), then 71.84M with the owners decided point
-//! by point and the nets walked in vectors ([`Owners::of`], [`nets`]);
-//! `docs/research/fused-primal-kernel.md`.
+//! by point and the nets walked in vectors ([`Owners::of`], [`nets`]). Degree 5 (2026-12-07,
+//! same driver): a cached evaluation of averaging 5 24.44M -> 14.29M, a new plan 83.63M ->
+//! 92.02M; degree 9 the same way did not pay (its masks' 25 to 36 taps a point cost what the
+//! kernel saves); `docs/research/fused-primal-kernel.md`.
 use std::mem::MaybeUninit;
 
 use rayon::prelude::*;

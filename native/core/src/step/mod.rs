@@ -11,8 +11,8 @@
 //! ([`doo_sabin`]), classic Catmull-Clark is one pass of OpenSubdiv's masks ([`catmark`]).
 //! On a quad level (from 2 averages on), the fine faces whose support is a grid come from the
 //! tensor B-spline of the whole step ([`regular`]: the regular windows), and the passes run only
-//! over the zone around the others; at degree 3 the fine vertices of a grid come straight from
-//! the coarse ones, with no children in between ([`fused`]).
+//! over the zone around the others; at degrees 3 and 5 the fine vertices of a grid come straight
+//! from the coarse ones, with no children in between ([`fused`]).
 //! Every pass is a parallel gather in a fixed order, so the output is bitwise the same whatever
 //! the number of threads, and the same on a partial level as on the full one wherever the
 //! inputs of a value are present.

@@ -8,7 +8,7 @@
 //! valence 4 and interior, no curve of the step born there) is therefore computed here by one
 //! separable filter of the coarse faces, rows then columns, instead of m passes through the fine
 //! level. A step of odd degree n takes the kernel for its first n - 1 averages and finishes with
-//! its last dual -> primal average over every vertex; at degree 3 most fine vertices come
+//! its last dual -> primal average over every vertex; at degrees 3 and 5 most fine vertices come
 //! straight from the coarse ones instead ([`super::fused`]), and the kernel makes only the
 //! children that the others read.
 //!
