@@ -1331,7 +1331,7 @@ impl LocalLevels {
             held = held.saturating_add(bytes);
             let near = rings.div_ceil(1 << (extra as usize - k));
             seeds = children(&near_targets(&part, &seeds, targets, near)?)?;
-            let (mut step, next) = refine_topology(&ctx, t, &part, Keep::Around(&seeds))?;
+            let (mut step, next) = refine_topology(&ctx, t, &part, Keep::Around(&seeds), false)?;
             // Of each step's output only the items the next part keeps are read (and the
             // stencils read only the last part's): the step makes those alone.
             if let Scheme::Averaging { degree } = ctx.scheme {
@@ -1529,15 +1529,20 @@ fn refine_part<T: Scalar>(
     coarse: &Part<T>,
     keep: Keep,
 ) -> Result<Part<T>> {
-    let (step, mut next) = refine_topology(ctx, t, coarse, keep)?;
     let odd = ctx.degree % 2 == 1;
+    // Even degrees draw every level: the windows hold the fused drawing points.
+    let (step, mut next) = refine_topology(ctx, t, coarse, keep, !odd)?;
     let scratch = Scratch::default();
     let data = (t > 0).then(|| (&coarse.data[..], coarse.curve.clone()));
     let run = step.advance(ctx.scheme, odd, &coarse.level, &ctx.cage, data, &scratch)?;
-    // The drawing points: the primal data, or one more dual -> primal average.
+    // The drawing points: the primal data, or one more dual -> primal average (fused from the
+    // coarse data where the uniform plan's drawn step fuses them).
     let drawing = match odd {
         true => None,
-        false => Some(run.drawing_points(&step.step(ctx.scheme, &coarse.level))?),
+        false => {
+            let step = step.step(ctx.scheme, &coarse.level);
+            Some(run.drawing_points(&step, (t > 0).then_some(&coarse.data[..]))?)
+        }
     };
     let (data, curve) = run.into_parts();
     if step.whole {
@@ -1567,6 +1572,7 @@ fn refine_topology<T: Sync, U>(
     t: usize,
     coarse: &Part<T>,
     keep: Keep,
+    draw: bool,
 ) -> Result<(PartStep, Part<T>)> {
     let c = &coarse.level;
     let [nv, ne, nf, ncorners] = coarse.counts;
@@ -1654,7 +1660,7 @@ fn refine_topology<T: Sync, U>(
     let scheme = ctx.scheme;
     let (windows, ids) = rayon::join(
         || match scheme {
-            Scheme::Averaging { degree } => Windows::of_step(c, &fine, &network, degree, t),
+            Scheme::Averaging { degree } => Windows::of_step(c, &fine, &network, degree, t, draw),
             _ => Ok(None),
         },
         || match keep {

@@ -24,7 +24,9 @@ pub(crate) fn run<T: Scalar, const N: usize>(
     cage: &[Value<T, N>],
     want_dual: bool,
 ) -> Result<Final<T, N>> {
-    let data = steps(refinement, scratch, cage)?;
+    // The drawing mesh of degrees 2 and 4: the last step ends in its drawing points.
+    let drawn = (!want_dual).then(|| refinement.drawn_step()).flatten();
+    let data = steps(refinement, scratch, cage, drawn.as_ref())?;
     let steps = refinement.curve_networks().len();
     let last = steps.checked_sub(1).map(|j| refinement.step(j));
     Ok(data.finish(last.as_ref(), want_dual))
@@ -38,14 +40,16 @@ pub(crate) fn run_parts<T: Scalar, const N: usize>(
     scratch: &Scratch,
     cage: &[Value<T, N>],
 ) -> Result<Parts<T, N>> {
-    Ok(steps(refinement, scratch, cage)?.finish_parts())
+    Ok(steps(refinement, scratch, cage, None)?.finish_parts())
 }
 
-/// Every step of `refinement` on `cage` (see [`run`]).
+/// Every step of `refinement` on `cage` (see [`run`]), the last one replaced by `last` when
+/// given ([`Refinement::drawn_step`]).
 fn steps<'a, T: Scalar, const N: usize>(
     refinement: &Refinement,
     scratch: &'a Scratch,
     cage: &'a [Value<T, N>],
+    last: Option<&crate::step::Step>,
 ) -> Result<LevelData<'a, T, N>> {
     let steps = refinement.curve_networks().len();
     let mut data = LevelData::new(cage);
@@ -55,7 +59,10 @@ fn steps<'a, T: Scalar, const N: usize>(
         data = data.with_scratch(scratch, capacity);
     }
     for j in 0..steps {
-        data.step(&refinement.step(j))?;
+        match last {
+            Some(last) if j + 1 == steps => data.step(last)?,
+            _ => data.step(&refinement.step(j))?,
+        }
     }
     Ok(data)
 }

@@ -171,8 +171,14 @@ pub fn estimate(cage: &Cage, options: &Options) -> Result<Estimate> {
     // level of quads (every level after the cage, and a cage of quads), its net of at most 3 x
     // 3 (degrees 2-3), 4 x 4 (4-5) or 6 x 6 (6-9) ids, a mask and a share; degree 1 has none.
     // Degrees 3 and 5 add their fused points (`step::fused`): a net of 4 x 4 ids and the
-    // points' bits per face, and at most its four fine vertices as the rest.
+    // points' bits per face, and at most its four fine vertices as the rest. Degrees 2 and 4
+    // drawn as the primal mesh add, for the last step, its windows again (ending in the
+    // drawing points) and the fused drawing points: per coarse vertex (about one per face) a
+    // net of 4 x 4 faces, its four corners and its points' bits.
     let fused = 4.0 * 16.0 + 2.0 + 4.0 * 4.0;
+    let drawn = matches!(options.degree, 2 | 4)
+        && options.rules == Rules::Averaging
+        && options.output != OutputKind::Dual;
     let net = match options.degree {
         2 if options.rules == Rules::Averaging => 4.0 * 9.0 + 2.0,
         3 if options.rules == Rules::Averaging => 4.0 * 9.0 + 2.0 + fused,
@@ -185,6 +191,9 @@ pub fn estimate(cage: &Cage, options: &Options) -> Result<Estimate> {
     for step in 0..options.levels {
         if step > 0 || cage.all_quads() {
             bytes += net * f;
+            if drawn && step + 1 == options.levels {
+                bytes += (net + fused + 4.0 * 4.0) * f;
+            }
         }
         (v, e, f, c) = (v + e + f, 2.0 * e + c, c, 4.0 * c);
         bytes += level_bytes(v, e, c);

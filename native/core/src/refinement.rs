@@ -37,6 +37,10 @@ pub(crate) struct Refinement {
     /// The averaging rules: the regular windows of each step (`None` where the kernel has
     /// nothing to do).
     windows: Vec<Option<Windows>>,
+    /// Degrees 2 and 4 drawn as the primal mesh: the last step's windows ending in the fused
+    /// drawing points ([`Windows::drawn`]), which a run that wants primal data takes for that
+    /// step (`None` when no point is fused).
+    drawn: Option<Windows>,
 }
 
 impl Refinement {
@@ -124,11 +128,21 @@ impl Refinement {
         } else {
             Vec::new()
         };
-        let windows = match scheme {
-            Scheme::Averaging { degree } => (0..networks.len())
-                .map(|j| Windows::of_step(&levels[j], &levels[j + 1], &networks[j], degree, j))
+        // The drawing mesh of an even degree: the last step's windows with its drawing points.
+        let steps = networks.len();
+        let draw = |j: usize| j + 1 == steps && options.output != OutputKind::Dual;
+        let mut windows = match scheme {
+            Scheme::Averaging { degree } => (0..steps)
+                .map(|j| {
+                    let (coarse, fine) = (&levels[j], &levels[j + 1]);
+                    Windows::of_step(coarse, fine, &networks[j], degree, j, draw(j))
+                })
                 .collect::<Result<Vec<_>>>()?,
             _ => Vec::new(),
+        };
+        let drawn = match windows.last_mut() {
+            Some(Some(w)) => w.drawn(&levels[steps - 1], &levels[steps])?,
+            _ => None,
         };
         Ok(Refinement {
             options: *options,
@@ -142,6 +156,7 @@ impl Refinement {
             networks,
             sharpness,
             windows,
+            drawn,
         })
     }
 
@@ -252,6 +267,17 @@ impl Refinement {
                 .then(|| (&self.sharpness[j], &self.sharpness[j + 1])),
             windows: self.windows.get(j).and_then(Option::as_ref),
         }
+    }
+
+    /// The last step ending in its drawing points ([`Refinement::drawn`]), when a run that
+    /// wants primal data takes one: it leaves primal data, which no step reads.
+    pub(crate) fn drawn_step(&self) -> Option<Step<'_>> {
+        let drawn = self.drawn.as_ref()?;
+        let last = self.networks.len().checked_sub(1)?;
+        Some(Step {
+            windows: Some(drawn),
+            ..self.step(last)
+        })
     }
 
     /// Sharpness and rules of level `j` (classic Catmull-Clark only).

@@ -1,5 +1,6 @@
 //! The whole step of degree 3 or 5 where the mesh is a grid, primal in and primal out: the fine
-//! vertices straight from the coarse ones, with no children in between.
+//! vertices straight from the coarse ones, with no children in between; and the same sums for
+//! the drawing points of a step of degree 2 or 4 (dual in, primal out).
 //!
 //! A step of odd degree n is replication and n averages; on primal input the regular windows
 //! ([`super::regular`]) make the children (n - 1 averages: at degree 3 `(9, 3, 3, 1) / 16` of
@@ -27,13 +28,30 @@
 //! another rotation, gets the same bits as the full level, and the decision (four kernel children
 //! around the point) is the same on both wherever the point is exact.
 //!
+//! Drawing points. An even degree's step leaves dual data (per fine face), and its drawing mesh
+//! is one more dual -> primal average. On a grid, one more average of dual input gives the 1-D
+//! masks of the next odd degree with vertex and midpoint swapped (degree 4: `(1, 15, 15, 1) /
+//! 32` at a coarse vertex, `(3, 10, 3) / 16` at a face centre), so the drawing points are that
+//! degree's sums over the dual grid: its vertices the coarse faces, its faces the coarse
+//! vertices, each with a net of the sixteen coarse faces around it (walked from the vertex's
+//! four corners, in vectors where the processor has AVX2). A coarse vertex owns its own point,
+//! the edge points of the edges whose first corner is its, the face points of the faces whose
+//! corner 0 is its ([`Fused::drawing`]). A plan's last step takes these windows when the output
+//! is the drawing mesh ([`super::regular::Windows::drawn`]: the kernel and the zone then make
+//! only the children the other points read), and the adaptive levels make the same points with
+//! the same sums from their coarse data ([`super::LevelData::drawing_points`]), so that their
+//! bits are the uniform ones.
+//!
 //! Measured (2026-12-06, callgrind driver, 3,840-quad sphere, level 3, one thread): a cached
 //! evaluation of averaging 3 17.08M -> 9.77M instructions, a new plan and its evaluation 55.87M
 //! -> 81.82M (the nets and owners, made once per plan), then 71.84M with the owners decided point
 //! by point and the nets walked in vectors ([`Owners::of`], [`nets`]). Degree 5 (2026-12-07,
 //! same driver): a cached evaluation of averaging 5 24.44M -> 14.29M, a new plan 83.63M ->
 //! 92.02M; degree 9 the same way did not pay (its masks' 25 to 36 taps a point cost what the
-//! kernel saves); `docs/research/fused-primal-kernel.md`.
+//! kernel saves); `docs/research/fused-primal-kernel.md`. Drawing points (2026-12-07, same
+//! driver): a cached evaluation of averaging 4 21.41M -> 14.66M, of averaging 2 19.57M ->
+//! 11.90M; a new plan of averaging 4 and its evaluation 77.62M -> 110.18M (the dual grid's walk
+//! and owners, about 400 instructions a coarse vertex, not made cheaper yet).
 use std::mem::MaybeUninit;
 
 use rayon::prelude::*;
@@ -73,11 +91,40 @@ const fn walked(k: usize, j: usize) -> (i32, i32) {
     }
 }
 
-/// The net index of frame point `(x, y)` (`x` and `y` in `-1..=2`).
-const fn at(x: i32, y: i32) -> u8 {
+/// The frame point of the `j`-th coarse face the walk of a dual face (a coarse vertex, whose
+/// corner `k` is the coarse face at [`CORNERS`]`[k]`) names from its corner `k`: the corner's
+/// face, the face across its edge after the coarse vertex's corner (`A`), the face across the
+/// edge after that (`B`), and the face across `A`'s edge before the corner it shares with
+/// `B`'s face (the diagonal), each pointing away from the dual face. For corner 0 these are
+/// `(0, 0)`, `(0, -1)`, `(-1, 0)` and `(-1, -1)`: the coarse vertex's corner in face `(0, 0)`
+/// has its outgoing edge towards face `(1, 0)` (the next corner of the dual face) and its
+/// incoming edge towards `(0, 1)`. Over the four corners, the sixteen faces of the net.
+const fn walked_dual(k: usize, j: usize) -> (i32, i32) {
+    let cells = [(0, 0), (0, -1), (-1, 0), (-1, -1)];
+    turned(cells[j].0, cells[j].1, k)
+}
+
+/// A frame point turned `k` quarter turns about the centre of the face `(0, 0)..(1, 1)`,
+/// which takes corner `k` of [`CORNERS`] to corner `k + 1`.
+const fn turned(x: i32, y: i32, k: usize) -> (i32, i32) {
+    match k % 4 {
+        0 => (x, y),
+        _ => {
+            let (x, y) = turned(x, y, k - 1);
+            (1 - y, x)
+        }
+    }
+}
+
+/// The net index of frame point `(x, y)` (`x` and `y` in `-1..=2`) in the order of the
+/// primal walk ([`walked`]) or of the dual one ([`walked_dual`]).
+const fn at_in(x: i32, y: i32, dual: bool) -> u8 {
     let mut i = 0;
     while i < NET {
-        let (u, v) = walked(i % 4, i / 4);
+        let (u, v) = match dual {
+            true => walked_dual(i % 4, i / 4),
+            false => walked(i % 4, i / 4),
+        };
         if u == x && v == y {
             return i as u8;
         }
@@ -86,108 +133,130 @@ const fn at(x: i32, y: i32) -> u8 {
     panic!("a point outside the net")
 }
 
-/// Per corner `k`: the net indices of its vertex, its edge neighbours as two mirrored pairs
-/// (left, right, below, above) and its diagonal neighbours as two mirrored pairs.
-const OLD: [[u8; 9]; 4] = {
-    let mut t = [[0; 9]; 4];
+/// The net index of frame point `(x, y)` in the order of the primal walk.
+#[cfg(test)]
+const fn at(x: i32, y: i32) -> u8 {
+    at_in(x, y, false)
+}
+
+/// The net indices the sums read, in one order of a net's ids (the primal or the dual walk's).
+struct Layout {
+    /// Per corner `k`: the net indices of its vertex, its edge neighbours as two mirrored pairs
+    /// (left, right, below, above) and its diagonal neighbours as two mirrored pairs.
+    old: [[u8; 9]; 4],
+    /// Per edge `k` (from corner `k`, at `a`, to corner `k + 1`, at `b`; `o` the step across
+    /// it, away from the face): the net indices of its two ends, then of the two points beside
+    /// them across it (`a + o`, `b + o`), then on the face's side (the face's corners `k + 3`
+    /// and `k + 2`).
+    edge: [[u8; 6]; 4],
+    /// Degree 5, per edge `k` (`u = b - a`): the net indices of the points on its line beyond
+    /// its ends (`a - u`, `b + u`), then those beside them across it (`a - u + o`, `b + u +
+    /// o`) and on the face's side (`a - u - o`, `b + u - o`): mirrored pairs, as `edge`'s.
+    edge_outer: [[u8; 6]; 4],
+    /// Degree 5: the net indices of the eight points beside the face's edges (the ring outside
+    /// its corners, `(-1, 0)` and so on), as pairs mirrored through the face's centre, the
+    /// first two pairs one orbit of its quarter turns and the last two the other, so that the
+    /// sum is the same in every frame of the face.
+    ring: [u8; 8],
+    /// Degree 5: the net indices of the four far corners, as `old`'s face corners: pairs
+    /// through the face's centre.
+    far: [u8; 4],
+}
+
+/// The [`Layout`] of the primal walk's order (`dual` false) or the dual one's.
+const fn layout(dual: bool) -> Layout {
+    let mut old = [[0; 9]; 4];
+    let mut edge = [[0; 6]; 4];
+    let mut edge_outer = [[0; 6]; 4];
     let mut k = 0;
     while k < 4 {
         let (x, y) = CORNERS[k];
-        t[k] = [
-            at(x, y),
-            at(x - 1, y),
-            at(x + 1, y),
-            at(x, y - 1),
-            at(x, y + 1),
-            at(x - 1, y - 1),
-            at(x + 1, y + 1),
-            at(x + 1, y - 1),
-            at(x - 1, y + 1),
+        old[k] = [
+            at_in(x, y, dual),
+            at_in(x - 1, y, dual),
+            at_in(x + 1, y, dual),
+            at_in(x, y - 1, dual),
+            at_in(x, y + 1, dual),
+            at_in(x - 1, y - 1, dual),
+            at_in(x + 1, y + 1, dual),
+            at_in(x + 1, y - 1, dual),
+            at_in(x - 1, y + 1, dual),
         ];
-        k += 1;
-    }
-    t
-};
-
-/// Per edge `k` (from corner `k` to corner `k + 1`): the net indices of its two ends, then of
-/// the two other corners on one side of it (across it, the walk's second and third from corner
-/// `k`), then on the other (the face's own corners `k + 3` and `k + 2`).
-const EDGE: [[u8; 6]; 4] = {
-    let mut t = [[0; 6]; 4];
-    let mut k = 0;
-    while k < 4 {
-        let (a, b, c, d) = (
-            k as u8,
-            (k as u8 + 1) % 4,
-            (k as u8 + 2) % 4,
-            (k as u8 + 3) % 4,
-        );
-        t[k] = [a, b, 4 + a, 8 + a, d, c];
-        k += 1;
-    }
-    t
-};
-
-/// Degree 5, per edge `k` (from corner `k`, at `a`, to corner `k + 1`, at `b`; `u = b - a`,
-/// `o` the step across it): the net indices of the points on its line beyond its ends (`a - u`,
-/// `b + u`), then those beside them across it (`a - u + o`, `b + u + o`) and on the face's side
-/// (`a - u - o`, `b + u - o`): mirrored pairs, as [`EDGE`]'s.
-const EDGE_OUTER: [[u8; 6]; 4] = {
-    let mut t = [[0; 6]; 4];
-    let mut k = 0;
-    while k < 4 {
         let (ax, ay) = CORNERS[k];
         let (bx, by) = CORNERS[(k + 1) % 4];
         let (ux, uy) = (bx - ax, by - ay);
         let (ox, oy) = (by - ay, ax - bx);
-        t[k] = [
-            at(ax - ux, ay - uy),
-            at(bx + ux, by + uy),
-            at(ax - ux + ox, ay - uy + oy),
-            at(bx + ux + ox, by + uy + oy),
-            at(ax - ux - ox, ay - uy - oy),
-            at(bx + ux - ox, by + uy - oy),
+        edge[k] = [
+            at_in(ax, ay, dual),
+            at_in(bx, by, dual),
+            at_in(ax + ox, ay + oy, dual),
+            at_in(bx + ox, by + oy, dual),
+            at_in(ax - ox, ay - oy, dual),
+            at_in(bx - ox, by - oy, dual),
+        ];
+        edge_outer[k] = [
+            at_in(ax - ux, ay - uy, dual),
+            at_in(bx + ux, by + uy, dual),
+            at_in(ax - ux + ox, ay - uy + oy, dual),
+            at_in(bx + ux + ox, by + uy + oy, dual),
+            at_in(ax - ux - ox, ay - uy - oy, dual),
+            at_in(bx + ux - ox, by + uy - oy, dual),
         ];
         k += 1;
     }
-    t
-};
+    Layout {
+        old,
+        edge,
+        edge_outer,
+        ring: [
+            at_in(-1, 0, dual),
+            at_in(2, 1, dual),
+            at_in(1, -1, dual),
+            at_in(0, 2, dual),
+            at_in(-1, 1, dual),
+            at_in(2, 0, dual),
+            at_in(0, -1, dual),
+            at_in(1, 2, dual),
+        ],
+        far: [
+            at_in(-1, -1, dual),
+            at_in(2, 2, dual),
+            at_in(2, -1, dual),
+            at_in(-1, 2, dual),
+        ],
+    }
+}
 
-/// Degree 5: the net indices of the eight points beside the face's edges (the ring outside its
-/// corners, `(-1, 0)` and so on), as pairs mirrored through the face's centre, the first two
-/// pairs one orbit of its quarter turns and the last two the other, so that the sum is the same
-/// in every frame of the face.
-const RING: [u8; 8] = [
-    at(-1, 0),
-    at(2, 1),
-    at(1, -1),
-    at(0, 2),
-    at(-1, 1),
-    at(2, 0),
-    at(0, -1),
-    at(1, 2),
-];
-
-/// Degree 5: the net indices of the four far corners, as [`OLD`]'s face corners: pairs through
-/// the face's centre.
-const FAR: [u8; 4] = [at(-1, -1), at(2, 2), at(2, -1), at(-1, 2)];
+/// The layouts of the primal walk's nets and of the dual one's, by `dual as usize`.
+const LAYOUTS: [Layout; 2] = [layout(false), layout(true)];
 
 /// Bit of [`Fused::owned`] for the old vertex at corner `k`; `EDGE_BIT << k` for the edge
 /// point of edge `k`, [`FACE_BIT`] for the face point.
 const EDGE_BIT: u16 = 1 << 4;
 const FACE_BIT: u16 = 1 << 8;
 
-/// The fused last average of a step of degree 3 or 5 on primal input (module documentation).
+/// The fused last average of a step of degree 3 or 5 on primal input, or the fused drawing
+/// step of a step of degree 2 or 4 on dual input (module documentation).
 #[derive(Debug)]
 pub(super) struct Fused {
-    /// The step's degree: 3 or 5 (the masks of the sums).
+    /// The degree of the sums: 3 or 5 (the step's degree, or one more for a drawing step).
     degree: u32,
-    /// Per coarse face, the fine vertices of its closure that it writes: bit `k` the old
-    /// vertex at its corner `k`, bit `4 + k` the edge point of its edge `k`, bit 8 its face
-    /// point.
+    /// Whether the points are a drawing step's: the cells are then the coarse vertices (the
+    /// faces of the dual grid), their nets coarse faces.
+    dual: bool,
+    /// Per cell (coarse face, or coarse vertex when `dual`), the fine vertices of its closure
+    /// that it writes: bit `k` the old vertex at its corner `k`, bit `4 + k` the edge point of
+    /// its edge `k`, bit 8 its face point (in the dual grid: the face point of the coarse face
+    /// at its corner `k`, the edge point of the coarse edge between its corners `k` and `k +
+    /// 1`, the coarse vertex's own point).
     owned: Vec<u16>,
-    /// Per coarse face, [`NET`] coarse vertices (read only for faces that own a point).
+    /// Per cell, [`NET`] coarse vertices (or faces when `dual`; read only for cells that own a
+    /// point).
     nets: Vec<u32>,
+    /// When `dual`, per coarse vertex, its four corners in the order of its dual face's corners
+    /// (each in the face across the previous one's outgoing edge), or four zeros for a vertex
+    /// that cannot be inside a grid; empty otherwise.
+    cycles: Vec<u32>,
     /// The fine vertices the fused sums do not make, increasing: the last average makes them
     /// from the children.
     rest: Vec<u32>,
@@ -274,16 +343,18 @@ impl<W: Copy> Weights<W> {
 }
 
 /// Calls `write(bit, value)` for each point of `owned` (bits of [`Fused::owned`]) from the net
-/// `p` of its face, with the masks of `DEGREE` (3 or 5).
+/// `p` of its cell, in the order of the dual walk (`DUAL`) or the primal one, with the masks
+/// of `DEGREE` (3 or 5).
 #[inline(always)]
-pub(super) fn closure_points<S: Sums, const DEGREE: u32>(
+pub(super) fn closure_points<S: Sums, const DEGREE: u32, const DUAL: bool>(
     owned: u16,
     p: &[S; NET],
     w: Weights<S::Weight>,
     mut write: impl FnMut(u16, S),
 ) {
     let pair = |a: u8, b: u8| p[a as usize].plus(p[b as usize]);
-    for (k, t) in OLD.iter().enumerate() {
+    let layout = &LAYOUTS[DUAL as usize];
+    for (k, t) in layout.old.iter().enumerate() {
         if owned & (1 << k) != 0 {
             let edges = pair(t[1], t[2]).plus(pair(t[3], t[4]));
             let diagonals = pair(t[5], t[6]).plus(pair(t[7], t[8]));
@@ -300,13 +371,13 @@ pub(super) fn closure_points<S: Sums, const DEGREE: u32>(
             write(1 << k, value);
         }
     }
-    for (k, t) in EDGE.iter().enumerate() {
+    for (k, t) in layout.edge.iter().enumerate() {
         if owned & (EDGE_BIT << k) != 0 {
             let sides = pair(t[2], t[3]).plus(pair(t[4], t[5]));
             let value = match DEGREE {
                 3 => (pair(t[0], t[1]).times(w.w6)).plus(sides).times(w.w16),
                 _ => {
-                    let o = &EDGE_OUTER[k];
+                    let o = &layout.edge_outer[k];
                     let outer_sides = pair(o[2], o[3]).plus(pair(o[4], o[5]));
                     let ends = (pair(t[0], t[1]).times(w.w150)).plus(sides.times(w.w45));
                     let outer = (pair(o[0], o[1]).times(w.w10)).plus(outer_sides.times(w.w3));
@@ -317,14 +388,14 @@ pub(super) fn closure_points<S: Sums, const DEGREE: u32>(
         }
     }
     if owned & FACE_BIT != 0 {
-        let [c0, c1, c2, c3] = OLD.map(|t| t[0]);
+        let [c0, c1, c2, c3] = layout.old.map(|t| t[0]);
         let corners = pair(c0, c2).plus(pair(c1, c3));
         let value = match DEGREE {
             3 => corners.times(w.w4),
             _ => {
-                let [a, b, c, d, e, f, g, h] = RING;
+                let [a, b, c, d, e, f, g, h] = layout.ring;
                 let ring = (pair(a, b).plus(pair(c, d))).plus(pair(e, f).plus(pair(g, h)));
-                let [i, j, k, l] = FAR;
+                let [i, j, k, l] = layout.far;
                 let far = pair(i, j).plus(pair(k, l));
                 (corners.times(w.w225))
                     .plus(ring.times(w.w15))
@@ -369,9 +440,49 @@ impl Fused {
         let nets = nets(corners, nf, true)?;
         Ok(Some(Fused {
             degree,
+            dual: false,
             owned: owners.owned,
             nets,
+            cycles: Vec::new(),
             rest: owners.rest,
+            ids: [nv, ne, nf],
+            whole: true,
+        }))
+    }
+
+    /// The fused drawing points of the step of `degree` (2 or 4) from dual data on `coarse`
+    /// whose kernel writes the children of `masks`, with the level's corner tables as the
+    /// regular windows' walk reads them: the fine vertices as one more dual -> primal average
+    /// of those children would make them, straight from the coarse faces' data where the
+    /// kernel makes the four children around a point. One more average of dual input gives the
+    /// 1-D masks of the next odd degree with the roles of vertex and midpoint swapped, so the
+    /// sums are that degree's over the dual grid (coarse faces as its vertices, coarse vertices
+    /// as its faces); `None` when no point is fused.
+    pub(super) fn drawing(
+        coarse: &Level,
+        degree: u32,
+        masks: &[u8],
+        corners: CornerTables,
+    ) -> Result<Option<Fused>> {
+        let [nv, ne, nf] = ClosureIds::of(coarse)?.sizes();
+        if masks.len() != nf || !matches!(degree, 2 | 4) {
+            return Err(Error::Internal(
+                "fused drawing points: masks not the level's, or no sums for the degree".into(),
+            ));
+        }
+        let grid = DualGrid::of(coarse, masks, corners)?;
+        let ids = ClosureIds::of(coarse)?.with_cycles(&grid.cycles)?;
+        let rest = grid.rest(ids)?;
+        if rest.len() == nv + ne + nf {
+            return Ok(None);
+        }
+        Ok(Some(Fused {
+            degree: degree + 1,
+            dual: true,
+            owned: grid.owned,
+            nets: grid.nets,
+            cycles: grid.cycles,
+            rest,
             ids: [nv, ne, nf],
             whole: true,
         }))
@@ -381,8 +492,8 @@ impl Fused {
     /// level: a face writes only the needed points it owns, and the last average makes the
     /// needed others.
     pub(super) fn for_items(self, coarse: &Level, needed: &[u32]) -> Result<Fused> {
-        let ids = ClosureIds::of(coarse)?;
-        if self.owned.len() != coarse.num_faces() {
+        let ids = ClosureIds::of(coarse)?.with_cycles_of_fused(&self.cycles)?;
+        if self.owned.len() != self.cells(coarse) {
             return Err(Error::Internal(
                 "fused points: made for another level".into(),
             ));
@@ -412,12 +523,22 @@ impl Fused {
         )?;
         Ok(Fused {
             degree: self.degree,
+            dual: self.dual,
             owned,
             nets: self.nets,
+            cycles: self.cycles,
             rest,
             ids: self.ids,
             whole: false,
         })
+    }
+
+    /// The cells of `coarse` the points are owned by: its faces, or its vertices when `dual`.
+    fn cells(&self, coarse: &Level) -> usize {
+        match self.dual {
+            true => coarse.num_vertices,
+            false => coarse.num_faces(),
+        }
     }
 
     /// Whether the fused points and [`Fused::rest`] are every fine vertex, each once.
@@ -430,24 +551,30 @@ impl Fused {
         &self.rest
     }
 
-    /// Writes the fused points into `out` (per fine vertex) from the coarse vertices' data `x`
-    /// of `coarse`, the level the points were made for; the other fine vertices are left as
-    /// they are. An [`Error::Internal`] when `x` or `out` is too short or the level's tables
-    /// are not the points' (the buffers and levels come from the crate).
+    /// Writes the fused points into `out` (per fine vertex) from the coarse data `x` (per vertex,
+    /// or per face for a drawing step) of `coarse`, the level the points were made for; the
+    /// other fine vertices are left as they are. An [`Error::Internal`] when `x` or `out` is
+    /// too short or the level's tables are not the points' (the buffers and levels come from
+    /// the crate).
     pub(super) fn apply<T: Scalar, const N: usize>(
         &self,
         x: &[Value<T, N>],
         coarse: &Level,
         out: &mut [MaybeUninit<Value<T, N>>],
     ) -> Result<()> {
-        let ids = ClosureIds::again(coarse, self.ids)?;
+        let ids = ClosureIds::again(coarse, self.ids)?.with_cycles_of_fused(&self.cycles)?;
         let [nv, ne, nf] = self.ids;
         // What lets the sums read and write unchecked: the nets' ids are vertices of the level
-        // (the walk writes no other: [`super::regular`]), and each written id is below `nv +
-        // ne + nf` ([`Owners::of`] checked it of every owned point).
-        let fits = self.owned.len() == nf
-            && self.nets.len() == NET * nf
-            && x.len() >= nv
+        // (the walk writes no other: [`super::regular`]) or, for a drawing step, its faces
+        // ([`DualGrid::of`]), and each written id is below `nv + ne + nf` ([`Owners::of`] and
+        // [`DualGrid::of`] checked it of every owned point).
+        let (cells, reach) = match self.dual {
+            true => (nv, nf),
+            false => (nf, nv),
+        };
+        let fits = self.owned.len() == cells
+            && self.nets.len() == NET * cells
+            && x.len() >= reach
             && out.len() >= nv + ne + nf;
         if !fits {
             return Err(Error::Internal(
@@ -458,15 +585,18 @@ impl Fused {
         if super::wide::fused_points(self, x, ids, &out) {
             return Ok(());
         }
-        match self.degree {
-            3 => self.apply_loop::<T, N, 3>(x, ids, &out),
-            _ => self.apply_loop::<T, N, 5>(x, ids, &out),
+        match (self.degree, self.dual) {
+            (3, false) => self.apply_loop::<T, N, 3, false>(x, ids, &out),
+            (3, true) => self.apply_loop::<T, N, 3, true>(x, ids, &out),
+            (_, false) => self.apply_loop::<T, N, 5, false>(x, ids, &out),
+            (_, true) => self.apply_loop::<T, N, 5, true>(x, ids, &out),
         }
         Ok(())
     }
 
-    /// [`Fused::apply`] without vectors, with the masks of `DEGREE`.
-    fn apply_loop<T: Scalar, const N: usize, const DEGREE: u32>(
+    /// [`Fused::apply`] without vectors, with the masks of `DEGREE`, on the cells of the dual
+    /// grid (`DUAL`) or on faces.
+    fn apply_loop<T: Scalar, const N: usize, const DEGREE: u32, const DUAL: bool>(
         &self,
         x: &[Value<T, N>],
         ids: ClosureIds,
@@ -484,8 +614,8 @@ impl Fused {
                     }
                     let net = &self.nets[NET * f..NET * f + NET];
                     let p: [Value<T, N>; NET] = std::array::from_fn(|i| x[net[i] as usize]);
-                    closure_points::<_, DEGREE>(bits, &p, w, |bit, value| {
-                        let v = ids.fine_vertex(bit, f);
+                    closure_points::<_, DEGREE, DUAL>(bits, &p, w, |bit, value| {
+                        let v = ids.fine_vertex_of::<DUAL>(bit, f);
                         // SAFETY: below `nv + ne + nf` (checked by `apply`), and written by
                         // this face alone: each fine vertex has one owner (`Owners::of`).
                         unsafe { out.write(v, value) };
@@ -494,17 +624,22 @@ impl Fused {
             });
     }
 
-    /// The step's degree (3 or 5).
+    /// The degree of the sums (3 or 5).
     pub(super) fn degree(&self) -> u32 {
         self.degree
     }
 
-    /// Per coarse face, the points it writes.
+    /// Whether the cells are the dual grid's (a drawing step's points).
+    pub(super) fn dual(&self) -> bool {
+        self.dual
+    }
+
+    /// Per cell, the points it writes.
     pub(super) fn owned(&self) -> &[u16] {
         &self.owned
     }
 
-    /// Per coarse face, its net.
+    /// Per cell, its net.
     pub(super) fn nets(&self) -> &[u32] {
         &self.nets
     }
@@ -544,6 +679,181 @@ fn nets(corners: CornerTables, nf: usize, wide: bool) -> Result<Vec<u32>> {
     // the vectors or the loop (a panic would have unwound past here).
     unsafe { nets.set_len(NET * nf) };
     Ok(nets)
+}
+
+/// The dual grid of a drawing step on `coarse`, whose kernel makes the children of `masks`.
+struct DualGrid {
+    /// Per vertex that can be inside a grid, its corners in the order of its dual face's
+    /// corners: from its first corner in the level's vertex table, each the corner at the
+    /// vertex in the face across the previous one's outgoing edge (`after(twin(c), 1)`),
+    /// checked to close after four, every one a corner of the level; four zeros (a corner of
+    /// the level, read by no sum) for any other vertex.
+    cycles: Vec<u32>,
+    /// Per vertex, its net of [`NET`] coarse faces ([`walked_dual`]; 0 where the walk leaves the
+    /// level, and for a vertex without a cycle: read by no sum).
+    nets: Vec<u32>,
+    /// Per vertex, the points it owns ([`Fused::owned`]): a fine vertex is fused when the kernel
+    /// makes the four children around it, and its owner is a vertex with a cycle: a vertex's
+    /// own point, an edge's at the vertex of the edge's first corner, a face's at the vertex
+    /// of its corner 0 (else the point is left to the average).
+    owned: Vec<u16>,
+}
+
+impl DualGrid {
+    /// The dual grid, one pass over the vertices (the level's corner tables as the regular
+    /// windows' walk reads them).
+    fn of(coarse: &Level, masks: &[u8], corners: CornerTables) -> Result<DualGrid> {
+        let (nv, ne, nf) = (coarse.num_vertices, coarse.num_edges(), coarse.num_faces());
+        let dead = 4 * nf as u32;
+        let (offsets, vertex_corners) = coarse.vertex_corner_table();
+        let (corner_edges, edge_corners) = (coarse.corner_edges(), coarse.edge_corners());
+        let fits = offsets.len() == nv + 1
+            && corners.corner_tables().0.len() == 4 * nf + 4
+            && masks.len() == nf
+            && corner_edges.len() == 4 * nf
+            && edge_corners.len() == ne;
+        if !fits {
+            return Err(Error::Internal(
+                "fused drawing points: a level's tables out of range".into(),
+            ));
+        }
+        // The corners of vertex `v` as a cycle, and the twin of each.
+        let cycle = |v: usize| -> Option<([u32; 4], [u32; 4])> {
+            let first = *vertex_corners.get(*offsets.get(v)? as usize)?;
+            if first >= dead || !corners.grid(v as u32) {
+                return None;
+            }
+            let (mut cycle, mut twins) = ([first; 4], [0; 4]);
+            for k in 0..4 {
+                // Below `dead`: the vertex's corners have twins (`grid`).
+                twins[k] = corners.twin(cycle[k]);
+                let next = after(twins[k], 1);
+                match k {
+                    3 if next != first => return None,
+                    3 => {}
+                    _ if corners.vertex(next) != v as u32 => return None,
+                    _ => cycle[k + 1] = next,
+                }
+            }
+            Some((cycle, twins))
+        };
+        let face = |c: u32| if c < dead { c >> 2 } else { 0 };
+        let mut cycles: Vec<u32> = memory::with_capacity(4 * nv)?;
+        let mut nets: Vec<u32> = memory::with_capacity(NET * nv)?;
+        let mut owners: Vec<u16> = memory::with_capacity(nv)?;
+        (cycles.spare_capacity_mut()[..4 * nv].par_chunks_mut(4 * CHUNK))
+            .zip(nets.spare_capacity_mut()[..NET * nv].par_chunks_mut(NET * CHUNK))
+            .zip(owners.spare_capacity_mut()[..nv].par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(chunk, ((cycles, nets), owners))| {
+                let rows = (cycles.chunks_exact_mut(4).zip(nets.chunks_exact_mut(NET))).zip(owners);
+                for (i, ((out, net), bits)) in rows.enumerate() {
+                    let Some((cycle, twins)) = cycle(chunk * CHUNK + i) else {
+                        out.fill(MaybeUninit::new(0));
+                        net.fill(MaybeUninit::new(0));
+                        bits.write(0);
+                        continue;
+                    };
+                    // Corners of the level (the cycle's are below `dead`), or of the dead face
+                    // where a twin is missing: all within the walk's tables.
+                    let net: &mut [MaybeUninit<u32>; NET] = net.try_into().expect("a net");
+                    if !super::wide::dual_net(corners, cycle, net) {
+                        for k in 0..4 {
+                            let c = cycle[k];
+                            let a = corners.twin(after(c, 1));
+                            let b = corners.twin(after(c, 2));
+                            let d = corners.twin(after(a, 3));
+                            // In the dual walk's order ([`walked_dual`]).
+                            net[k].write(c >> 2);
+                            net[4 + k].write(face(a));
+                            net[8 + k].write(face(b));
+                            net[12 + k].write(face(d));
+                        }
+                    }
+                    for (slot, c) in out.iter_mut().zip(cycle) {
+                        slot.write(c);
+                    }
+                    bits.write(owned_points(
+                        cycle,
+                        twins,
+                        masks,
+                        corner_edges,
+                        edge_corners,
+                    ));
+                }
+            });
+        // SAFETY: every vertex's corners, net and points were written above, whole (a panic
+        // would have unwound past here).
+        unsafe {
+            cycles.set_len(4 * nv);
+            nets.set_len(NET * nv);
+            owners.set_len(nv);
+        }
+        Ok(DualGrid {
+            cycles,
+            nets,
+            owned: owners,
+        })
+    }
+}
+
+/// The points a coarse vertex with corners `cycle` (each corner's twin in `twins`: the vertex
+/// is inside a grid) owns in a drawing step ([`DualGrid::owned`]) whose kernel makes the
+/// children of `masks`.
+#[inline(always)]
+fn owned_points(
+    cycle: [u32; 4],
+    twins: [u32; 4],
+    masks: &[u8],
+    corner_edges: &[u32],
+    edge_corners: &[[u32; 2]],
+) -> u16 {
+    let child = |mask: u8, c: u32| mask & (1 << (c & 3)) != 0;
+    // The kernel's children of the four faces (`twins[k]` is a corner of the face of corner
+    // `k + 1`).
+    let m = cycle.map(|c| masks[(c >> 2) as usize]);
+    let mut owned = 0;
+    let mut inside = true;
+    for k in 0..4 {
+        let (c, mk, next) = (cycle[k], m[k], m[(k + 1) % 4]);
+        // The four children around a point: the vertex's at its corners; an edge's at the
+        // ends of its corner in both faces (`after(twin, 1)` is the next corner of the cycle).
+        let here = child(mk, c);
+        inside &= here;
+        let e = corner_edges[c as usize] as usize;
+        let first = edge_corners.get(e).is_some_and(|ends| ends[0] == c);
+        let around = here
+            && child(mk, after(c, 1))
+            && child(next, twins[k])
+            && child(next, cycle[(k + 1) % 4]);
+        if first && around {
+            owned |= EDGE_BIT << k;
+        }
+        if c & 3 == 0 && mk == 0xf {
+            owned |= 1 << k;
+        }
+    }
+    match inside {
+        true => owned | FACE_BIT,
+        false => owned,
+    }
+}
+
+impl DualGrid {
+    /// The fine vertices no vertex owns, increasing (`ids` named with the cycles).
+    fn rest(&self, ids: ClosureIds) -> Result<Vec<u32>> {
+        let [nv, ne, nf] = ids.sizes();
+        let mut made = Bits::new(nv + ne + nf)?;
+        for (v, &bits) in self.owned.iter().enumerate() {
+            let mut left = bits;
+            while left != 0 {
+                let bit = left & left.wrapping_neg();
+                made.set(ids.fine_vertex_of::<true>(bit, v));
+                left &= !bit;
+            }
+        }
+        made.missing(nv + ne + nf)
+    }
 }
 
 /// Which face writes each fused point, and the fine vertices left to the last average.
@@ -625,11 +935,15 @@ impl Owners {
     }
 }
 
-/// The tables of a quad level that name a face's fine vertices, checked once.
+/// The tables of a quad level that name a cell's fine vertices, checked once: a face's, or a
+/// vertex's in the dual grid of a drawing step (with its corners' `cycles`).
 #[derive(Clone, Copy)]
 pub(super) struct ClosureIds<'a> {
     corner_verts: &'a [u32],
     corner_edges: &'a [u32],
+    /// A drawing step's four corners per coarse vertex ([`Fused::cycles`]), each below `4 nf`;
+    /// empty for primal cells.
+    cycles: &'a [u32],
     nv: usize,
     ne: usize,
 }
@@ -649,6 +963,7 @@ impl<'a> ClosureIds<'a> {
         Ok(ClosureIds {
             corner_verts,
             corner_edges,
+            cycles: &[],
             nv,
             ne,
         })
@@ -668,9 +983,36 @@ impl<'a> ClosureIds<'a> {
         Ok(ClosureIds {
             corner_verts,
             corner_edges,
+            cycles: &[],
             nv,
             ne,
         })
+    }
+
+    /// The same tables naming the cells of the dual grid by `cycles` ([`Fused::cycles`]; none
+    /// when empty), checked: four corners per vertex, each a corner of the level.
+    fn with_cycles(self, cycles: &'a [u32]) -> Result<Self> {
+        let corners = self.corner_verts.len() as u32;
+        let fits = self.with_cycles_of_fused(cycles).is_ok()
+            && cycles.iter().fold(0, |m, &c| m.max(c)) < corners;
+        if !fits {
+            return Err(Error::Internal(
+                "fused drawing points: corners of the dual grid out of range".into(),
+            ));
+        }
+        Ok(ClosureIds { cycles, ..self })
+    }
+
+    /// [`ClosureIds::with_cycles`] for the cycles of a [`Fused`], whose entries were checked
+    /// when it was made (they do not change): only their number is checked again.
+    fn with_cycles_of_fused(self, cycles: &'a [u32]) -> Result<Self> {
+        let fits = cycles.is_empty() || cycles.len() == 4 * self.nv;
+        if !fits {
+            return Err(Error::Internal(
+                "fused drawing points: corners of the dual grid out of range".into(),
+            ));
+        }
+        Ok(ClosureIds { cycles, ..self })
     }
 
     /// The level's vertices, edges and faces.
@@ -678,12 +1020,39 @@ impl<'a> ClosureIds<'a> {
         [self.nv, self.ne, self.corner_verts.len() / 4]
     }
 
-    /// The fine vertex of bit `bit` of face `f`'s closure ([`Fused::owned`]): the old vertex
-    /// at corner `k`, `nv` plus the edge of corner `k`, or `nv + ne + f`; `f` a face of the
-    /// level.
+    /// The fine vertex of bit `bit` of cell `f`'s closure ([`Fused::owned`]): of a face, the
+    /// old vertex at corner `k`, `nv` plus the edge of corner `k`, or `nv + ne + f`; of a
+    /// vertex of the dual grid, with `c` its corner `k`, `nv + ne` plus the face of `c`, `nv`
+    /// plus the edge of `c`, or `f` itself. `f` a face of the level (a vertex with cycles).
     #[inline(always)]
     pub(super) fn fine_vertex(self, bit: u16, f: usize) -> usize {
+        match self.cycles.is_empty() {
+            true => self.fine_vertex_of::<false>(bit, f),
+            false => self.fine_vertex_of::<true>(bit, f),
+        }
+    }
+
+    /// [`ClosureIds::fine_vertex`] of cells of the dual grid (`DUAL`, the ids made with cycles)
+    /// or of faces, known where the sums are compiled.
+    #[inline(always)]
+    pub(super) fn fine_vertex_of<const DUAL: bool>(self, bit: u16, f: usize) -> usize {
         let k = (bit.trailing_zeros() % 4) as usize;
+        if DUAL {
+            debug_assert!(4 * f + k < self.cycles.len());
+            // SAFETY: `f` is a vertex of the level, the cycles hold four corners a vertex, each
+            // a corner of the level (`ClosureIds::with_cycles`), and the edge table holds one
+            // per corner (`ClosureIds::of`).
+            return unsafe {
+                let c = *self.cycles.get_unchecked(4 * f + k) as usize;
+                if bit < EDGE_BIT {
+                    self.nv + self.ne + (c >> 2)
+                } else if bit < FACE_BIT {
+                    self.nv + *self.corner_edges.get_unchecked(c) as usize
+                } else {
+                    f
+                }
+            };
+        }
         debug_assert!(4 * f + k < self.corner_verts.len());
         // SAFETY: `4 f + k` is a corner of a face of the level, and both tables hold four
         // corners a face (`ClosureIds::of`).
@@ -716,8 +1085,8 @@ mod tests {
         let mut write = |bit: u16, value| points[bit.trailing_zeros() as usize] = Some(value);
         let w = Weights::new(T::from_f64);
         match degree {
-            3 => closure_points::<_, 3>(ALL, p, w, &mut write),
-            _ => closure_points::<_, 5>(ALL, p, w, &mut write),
+            3 => closure_points::<_, 3, false>(ALL, p, w, &mut write),
+            _ => closure_points::<_, 5, false>(ALL, p, w, &mut write),
         }
         points
     }
@@ -973,5 +1342,60 @@ mod tests {
             steps >= 4,
             "degree {degree}: {steps} steps with fused points"
         );
+    }
+
+    /// Every fine vertex of the drawn last step of degrees 2 and 4 ([`Fused::drawing`]) is
+    /// made once, by the coarse vertex that owns it or by the average; most of the cube's are
+    /// fused, and none where the children around it are not the tensor product's: curve
+    /// vertices (the open grid's boundary and crease) and old vertices of another valence.
+    #[test]
+    fn every_drawing_point_is_made_once() {
+        for degree in [2, 4] {
+            let options = Options {
+                degree,
+                levels: 3,
+                rules: Rules::Averaging,
+                ..Options::default()
+            };
+            for (i, (cage, _)) in [cube_grid(3), open_grid(7, 6, 10.0)].iter().enumerate() {
+                let refinement = Refinement::new(cage, &options).unwrap();
+                let step = refinement.drawn_step().expect("a drawn last step");
+                let fused = step.windows.and_then(|w| w.fused()).unwrap();
+                assert!(fused.dual() && fused.degree() == degree + 1);
+                let ids = ClosureIds::of(step.coarse)
+                    .unwrap()
+                    .with_cycles(&fused.cycles)
+                    .unwrap();
+                let n = step.fine.num_vertices;
+                let mut made = vec![0u8; n];
+                for (v, &bits) in fused.owned.iter().enumerate() {
+                    for b in 0..9 {
+                        if bits & (1 << b) != 0 {
+                            made[ids.fine_vertex(1 << b, v)] += 1;
+                        }
+                    }
+                }
+                for &w in &fused.rest {
+                    made[w as usize] += 1;
+                }
+                assert!(
+                    made.iter().all(|&m| m == 1),
+                    "degree {degree}, cage {i}: a vertex made twice or never"
+                );
+                if i == 0 {
+                    let rest = fused.rest.len();
+                    assert!(rest < n / 10, "degree {degree}: {rest} of {n} not fused");
+                }
+                let rest = |w: u32| fused.rest.binary_search(&w).is_ok();
+                for cv in step.curves.vertices() {
+                    assert!(rest(cv.vertex), "degree {degree}: curve vertex fused");
+                }
+                for v in 0..step.coarse.num_vertices {
+                    if step.coarse.corners_of_vertex(v).len() != 4 {
+                        assert!(rest(v as u32), "degree {degree}: vertex {v} fused");
+                    }
+                }
+            }
+        }
     }
 }

@@ -12,7 +12,8 @@
 //! On a quad level (from 2 averages on), the fine faces whose support is a grid come from the
 //! tensor B-spline of the whole step ([`regular`]: the regular windows), and the passes run only
 //! over the zone around the others; at degrees 3 and 5 the fine vertices of a grid come straight
-//! from the coarse ones, with no children in between ([`fused`]).
+//! from the coarse ones, with no children in between, and at degrees 2 and 4 the drawing points
+//! of a plan's last step and of the adaptive levels from the coarse faces ([`fused`]).
 //! Every pass is a parallel gather in a fixed order, so the output is bitwise the same whatever
 //! the number of threads, and the same on a partial level as on the full one wherever the
 //! inputs of a value are present.
@@ -407,7 +408,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         let windows = match step.windows {
             Some(w) if w.primal() != self.primal => {
                 let (coarse, fine, curves) = (step.coarse, step.fine, step.curves);
-                built = Windows::build(coarse, fine, curves, degree, self.primal)?;
+                built = Windows::build(coarse, fine, curves, degree, self.primal, false)?;
                 built.as_ref()
             }
             kept => kept,
@@ -683,10 +684,37 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
     }
 
     /// The drawing points of dual data (one more dual -> primal average with the 1-D values),
-    /// leaving the data as it is.
-    pub(crate) fn drawing_points(&self, step: &Step) -> Result<Vec<Value<T, N>>> {
-        let mut out = with_capacity_hinted(step.fine.num_vertices)?;
-        self.gather_primal(step, &mut out);
+    /// leaving the data as it is. Given `coarse`, the data of the step's coarse level that
+    /// `step` made this data from, the points that the step's drawn windows fuse
+    /// ([`Windows::drawn`]) come from it by the same sums, with the bits of a plan's drawn
+    /// last step (the adaptive levels' points are the uniform ones).
+    pub(crate) fn drawing_points(
+        &self,
+        step: &Step,
+        coarse: Option<&[Value<T, N>]>,
+    ) -> Result<Vec<Value<T, N>>> {
+        let n = step.fine.num_vertices;
+        let mut out = with_capacity_hinted(n)?;
+        let fused = match (coarse, step.windows) {
+            (Some(x), Some(w)) => w.drawing().map(|f| (f, x)),
+            _ => None,
+        };
+        match fused {
+            Some((fused, x)) => {
+                fused.apply(x, step.coarse, &mut out.spare_capacity_mut()[..n])?;
+                let t = Tables::of(step.coarse);
+                let f: &[Value<T, N>] = &self.faces;
+                scatter_uninit(&mut out.spare_capacity_mut()[..n], fused.rest(), |w| {
+                    [primal_item(&t, f, w)]
+                })?;
+                // SAFETY: every fine vertex is written, once, by the fused sums or the scatter
+                // (the drawing points of a whole step: `Fused::whole`; a panic would have
+                // unwound past here).
+                debug_assert!(fused.whole());
+                unsafe { out.set_len(n) };
+            }
+            None => self.gather_primal(step, &mut out),
+        }
         self.blend_curves(step.curves, &mut out);
         Ok(out)
     }

@@ -148,9 +148,14 @@ pub(crate) struct Windows {
     partial: bool,
     /// With an odd degree made for some items, the fine vertices its last average makes.
     last_vertices: Option<Vec<u32>>,
-    /// Degrees 3 and 5 on primal input: the fine vertices made straight from the coarse ones
-    /// ([`Fused`]); the kernel and the zone then make only the children the others read.
+    /// Degrees 3 and 5 on primal input: the fine vertices made straight from the coarse ones;
+    /// degrees 2 and 4 on dual input, in the windows of a drawn step ([`Windows::drawn`]):
+    /// the drawing points made straight from the coarse faces ([`Fused`]). The kernel and the
+    /// zone then make only the children the others read, and the step's output is primal.
     fused: Option<Fused>,
+    /// Degrees 2 and 4 on dual input, made to be drawn ([`Windows::build`]'s `draw`): the
+    /// fused drawing points of the step, which [`Windows::drawn`] takes.
+    drawing: Option<Fused>,
 }
 
 /// The items the passes of a step still compute, in increasing order: the coarse faces whose
@@ -214,20 +219,23 @@ impl Windows {
         curves: &CurveNetwork,
         degree: u32,
         j: usize,
+        draw: bool,
     ) -> Result<Option<Windows>> {
-        Windows::build(coarse, fine, curves, degree, primal_input(degree, j))
+        Windows::build(coarse, fine, curves, degree, primal_input(degree, j), draw)
     }
 
     /// The windows of a step of the averaging rules of `degree` from `coarse` to `fine` with
     /// the step's `curves`, for `primal` (per coarse vertex) or dual input; `None` when the
     /// kernel has nothing to do (a level with other faces than quads, a degree without a
-    /// kernel, or no regular child).
+    /// kernel, or no regular child). With `draw`, windows of degree 2 or 4 on dual input
+    /// also hold the step's fused drawing points ([`Windows::drawing`], [`Windows::drawn`]).
     pub(crate) fn build(
         coarse: &Level,
         fine: &Level,
         curves: &CurveNetwork,
         degree: u32,
         primal: bool,
+        draw: bool,
     ) -> Result<Option<Windows>> {
         let averages = degree - degree % 2;
         if !(MIN_AVERAGES..=MAX_AVERAGES).contains(&averages)
@@ -270,6 +278,10 @@ impl Windows {
             (3 | 5, true) => Fused::new(coarse, degree, &masks, flags.tables())?,
             _ => None,
         };
+        let drawing = match (degree, primal) {
+            (2 | 4, false) if draw => Fused::drawing(coarse, degree, &masks, flags.tables())?,
+            _ => None,
+        };
         // With fused points, the children that the other fine vertices read alone.
         let read = (fused.as_ref())
             .map(|fused| faces_read(coarse, fine, fused.rest()))
@@ -295,6 +307,7 @@ impl Windows {
             partial: false,
             last_vertices: None,
             fused,
+            drawing,
         }))
     }
 
@@ -370,7 +383,52 @@ impl Windows {
                 _ => None,
             },
             fused,
+            drawing: None,
         }))
+    }
+
+    /// The windows of the same step ending in its drawing points (one more dual -> primal
+    /// average: the drawing mesh of an even degree), for windows of degree 2 or 4 on dual
+    /// input made to be drawn, which give up their drawing points to them: the fused drawing
+    /// points ([`Fused::drawing`]) where the
+    /// kernel makes the four children around a point, the kernel and the zone making only the
+    /// children that the other points read. `None` for other windows or when no point is
+    /// fused. The step run with them ([`super::LevelData::step`]) leaves primal data, each
+    /// point with the bits of the drawing points of the whole step
+    /// ([`super::LevelData::drawing_points`] with the coarse data).
+    pub(crate) fn drawn(&mut self, coarse: &Level, fine: &Level) -> Result<Option<Windows>> {
+        let Some(fused) = self.drawing.take() else {
+            return Ok(None);
+        };
+        let read = faces_read(coarse, fine, fused.rest())?;
+        let masks =
+            memory::collect((self.masks.iter().enumerate()).map(|(f, &m)| m & read.quad(f)))?;
+        let zone = Zone::of(coarse, fine, self.averages, &masks, Some(&read))?;
+        let nets = memory::collect(self.nets.iter().copied())?;
+        let shares = shares(&masks, &nets, self.side)?;
+        Ok(Some(Windows {
+            degree: self.degree,
+            averages: self.averages,
+            primal: false,
+            lo: self.lo,
+            side: self.side,
+            masks,
+            nets,
+            reach: self.reach,
+            shares,
+            zone,
+            partial: false,
+            last_vertices: None,
+            fused: Some(fused),
+            drawing: None,
+        }))
+    }
+
+    /// The fused drawing points of windows of degree 2 or 4 on dual input made to be drawn
+    /// ([`Windows::build`]), until [`Windows::drawn`] takes them; `None` for other windows or
+    /// when no point is fused.
+    pub(super) fn drawing(&self) -> Option<&Fused> {
+        self.drawing.as_ref()
     }
 
     /// Whether the kernel and the zone make only some of the step's items
@@ -385,7 +443,8 @@ impl Windows {
         self.last_vertices.as_deref()
     }
 
-    /// The fused points of a step of degree 3 or 5, if any ([`Fused`]).
+    /// The fused points of a step of degree 3 or 5, or of a drawn step of degree 2 or 4, if
+    /// any ([`Fused`]).
     pub(super) fn fused(&self) -> Option<&Fused> {
         self.fused.as_ref()
     }
@@ -1551,6 +1610,25 @@ impl Bits {
         }
         Ok(list)
     }
+
+    /// The items below `n` (the set's size) that are not in the set, increasing.
+    pub(super) fn missing(&self, n: usize) -> Result<Vec<u32>> {
+        let within = |i: usize| match (64 * i + 64).saturating_sub(n) {
+            0 => u64::MAX,
+            over => u64::MAX.checked_shr(over as u32).unwrap_or(0),
+        };
+        let words = self.0.iter().enumerate().map(|(i, &w)| !w & within(i));
+        let count = words.clone().map(|w| w.count_ones() as usize).sum();
+        let mut list = memory::with_capacity(count)?;
+        for (i, word) in words.enumerate() {
+            let mut word = word;
+            while word != 0 {
+                list.push(64 * i as u32 + word.trailing_zeros());
+                word &= word - 1;
+            }
+        }
+        Ok(list)
+    }
 }
 
 #[cfg(test)]
@@ -1880,9 +1958,15 @@ pub(super) mod tests {
                 let step = refinement.step(j);
                 for degree in 4..=9 {
                     for primal in [true, false] {
-                        let built =
-                            Windows::build(step.coarse, step.fine, step.curves, degree, primal)
-                                .unwrap();
+                        let built = Windows::build(
+                            step.coarse,
+                            step.fine,
+                            step.curves,
+                            degree,
+                            primal,
+                            false,
+                        )
+                        .unwrap();
                         if !step.coarse.all_quads() {
                             assert!(built.is_none(), "no kernel on a level with other faces");
                             continue;
@@ -2047,7 +2131,7 @@ pub(super) mod tests {
                         (0..outputs as u32).filter(|_| next() % 4 == 0).collect();
                     let own = step
                         .windows
-                        .map(|w| Windows::build(coarse, fine, step.curves, degree, w.primal))
+                        .map(|w| Windows::build(coarse, fine, step.curves, degree, w.primal, false))
                         .transpose()
                         .unwrap()
                         .flatten();
@@ -2100,7 +2184,7 @@ pub(super) mod tests {
             for degree in 2..=9 {
                 for primal in [true, false] {
                     let Some(w) =
-                        Windows::build(step.coarse, step.fine, step.curves, degree, primal)
+                        Windows::build(step.coarse, step.fine, step.curves, degree, primal, false)
                             .unwrap()
                     else {
                         continue;
@@ -2145,7 +2229,8 @@ pub(super) mod tests {
             let step = refinement.step(j);
             for degree in [4, 5, 7, 9] {
                 let Some(w) =
-                    Windows::build(step.coarse, step.fine, step.curves, degree, true).unwrap()
+                    Windows::build(step.coarse, step.fine, step.curves, degree, true, false)
+                        .unwrap()
                 else {
                     continue;
                 };
@@ -2223,5 +2308,68 @@ pub(super) mod tests {
                 assert!(with.iter().flatten().all(|x| x.is_finite()));
             }
         }
+    }
+
+    /// A drawn last step (degrees 2 and 4: the drawing points fused where the kernel makes the
+    /// four children around them, [`Windows::drawn`]) gives the drawing points of the passes
+    /// alone (f64, to 1e-12 of the cage's size) on the cages of `kernel_matches_the_passes`,
+    /// at one to three levels; most of the cube's points are fused.
+    #[test]
+    fn drawn_steps_match_the_passes() {
+        use crate::step::Final;
+        let cages = [cube_grid(3), open_grid(7, 6, 10.0), open_grid(6, 7, 1.5)];
+        let mut drawn_steps = 0;
+        for (i, (cage, points)) in cages.iter().enumerate() {
+            for degree in [2, 4] {
+                for levels in 1..=3 {
+                    let options = Options {
+                        levels,
+                        ..averaging(degree)
+                    };
+                    let refinement = Refinement::new(cage, &options).unwrap();
+                    let n = refinement.curve_networks().len();
+                    let Some(drawn) = refinement.drawn_step() else {
+                        // The first step reads primal data: no drawn windows (and the open
+                        // grid's first steps have no point to fuse).
+                        assert!(levels == 1 || i > 0, "degree {degree}: no drawn step");
+                        continue;
+                    };
+                    drawn_steps += 1;
+                    let fused = drawn.windows.and_then(|w| w.fused()).unwrap();
+                    if i == 0 && levels == 3 {
+                        let rest = fused.rest().len();
+                        let all = drawn.fine.num_vertices;
+                        assert!(
+                            rest < all / 10,
+                            "degree {degree}: {rest} of {all} not fused"
+                        );
+                    }
+                    let mut data = LevelData::new(points);
+                    for j in 0..n - 1 {
+                        data.step(&refinement.step(j)).unwrap();
+                    }
+                    data.step(&drawn).unwrap();
+                    let with = data.finish_parts().0;
+                    let mut passes = LevelData::new(points);
+                    for j in 0..n {
+                        passes.average_by_passes(&refinement.step(j), degree);
+                    }
+                    let Final::Primal(without) =
+                        passes.finish(Some(&refinement.step(n - 1)), false)
+                    else {
+                        panic!("degree {degree}: the drawing mesh is primal");
+                    };
+                    assert_eq!(with.len(), without.len());
+                    let worst = (with.iter().zip(&without))
+                        .flat_map(|(a, b)| (0..3).map(move |k| (a[k] - b[k]).abs()))
+                        .fold(0.0, f64::max);
+                    assert!(
+                        worst <= 1e-12 * 10.0,
+                        "cage {i}, degree {degree}, {levels} levels: drawn off by {worst:e}"
+                    );
+                }
+            }
+        }
+        assert!(drawn_steps >= 8, "{drawn_steps} drawn steps");
     }
 }

@@ -123,6 +123,34 @@ pub(super) fn fused_nets(
     false
 }
 
+/// Writes the net of the dual face of a coarse vertex with corners `cycle` (a drawing step's,
+/// [`super::fused`]) from the walk's corner tables when the processor has AVX2; returns false,
+/// having written nothing, otherwise. The same ids as the loop: the four corners' faces, then
+/// the faces across the twins of the corners after them, two after them, and before the first
+/// twins, in one gather of four each.
+pub(super) fn dual_net(
+    corners: super::regular::Tables,
+    cycle: [u32; 4],
+    net: &mut [MaybeUninit<u32>; fused::NET],
+) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let (twin, _) = corners.corner_tables();
+        // The gathers index by `i32`; the cycle's corners are the level's.
+        let fits = twin.len() <= i32::MAX as usize
+            && twin.len() >= 4
+            && cycle.iter().all(|&c| (c as usize) < twin.len() - 4);
+        if std::arch::is_x86_feature_detected!("avx2") && fits {
+            // SAFETY: AVX2 is there; the corners are the tables' (above), whose twins are
+            // within them (`Tables::corner_tables`).
+            unsafe { avx2::dual_net(twin, cycle, net) };
+            return true;
+        }
+    }
+    let _ = (corners, cycle, net);
+    false
+}
+
 /// `out` writing values of `[U; N]`.
 ///
 /// # Safety
@@ -312,7 +340,7 @@ mod avx2 {
     ) {
         let weights = Weights::new(W::from_f64);
         let nets = fused.nets();
-        let degree = fused.degree();
+        let (degree, dual) = (fused.degree(), fused.dual());
         fused
             .owned()
             .par_chunks(CHUNK)
@@ -320,19 +348,23 @@ mod avx2 {
             // SAFETY: the caller's promise.
             .for_each(|(chunk, owned)| unsafe {
                 let start = chunk * CHUNK;
-                match degree {
-                    3 => fused_chunk::<W, N, 3>(owned, nets, start, x, ids, out, weights),
-                    _ => fused_chunk::<W, N, 5>(owned, nets, start, x, ids, out, weights),
+                let (o, n, s, w) = (owned, nets, start, weights);
+                match (degree, dual) {
+                    (3, false) => fused_chunk::<W, N, 3, false>(o, n, s, x, ids, out, w),
+                    (3, true) => fused_chunk::<W, N, 3, true>(o, n, s, x, ids, out, w),
+                    (_, false) => fused_chunk::<W, N, 5, false>(o, n, s, x, ids, out, w),
+                    (_, true) => fused_chunk::<W, N, 5, true>(o, n, s, x, ids, out, w),
                 }
             });
     }
 
-    /// The fused points of faces `start..start + owned.len()`, with the masks of `DEGREE`.
+    /// The fused points of cells `start..start + owned.len()` (faces, or the dual grid's
+    /// vertices when `DUAL`), with the masks of `DEGREE`.
     ///
     /// # Safety
     /// As [`fused`].
     #[target_feature(enable = "avx2")]
-    unsafe fn fused_chunk<W: Lanes, const N: usize, const DEGREE: u32>(
+    unsafe fn fused_chunk<W: Lanes, const N: usize, const DEGREE: u32, const DUAL: bool>(
         owned: &[u16],
         nets: &[u32],
         start: usize,
@@ -355,8 +387,8 @@ mod avx2 {
                 let net = nets.get_unchecked(NET * f..NET * f + NET);
                 let p: [Reg<W>; NET] =
                     std::array::from_fn(|k| Reg(W::load(base.add(*net.get_unchecked(k) as usize))));
-                closure_points::<_, DEGREE>(bits, &p, weights, |bit, value: Reg<W>| {
-                    W::store(out.slot(ids.fine_vertex(bit, f)), value.0)
+                closure_points::<_, DEGREE, DUAL>(bits, &p, weights, |bit, value: Reg<W>| {
+                    W::store(out.slot(ids.fine_vertex_of::<DUAL>(bit, f)), value.0)
                 });
             }
         }
@@ -402,6 +434,45 @@ mod avx2 {
                 let diagonal = _mm_i32gather_epi32::<4>(vertices, _mm_xor_si128(d, two));
                 _mm_storeu_si128(out.add(3), diagonal);
             }
+        }
+    }
+
+    /// [`super::dual_net`]: the corners after each of `cycle`'s and two after, their twins `a`
+    /// and `b`, and the twins `d` of the corners before each `a`; the faces of the four
+    /// vectors (0 for the dead face, `twin.len() - 4`).
+    ///
+    /// # Safety
+    /// The processor must have AVX2; `cycle` corners of the level (below `twin.len() - 4`),
+    /// `twin` at most `i32::MAX` entries, every twin below `twin.len()`.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn dual_net(
+        twin: &[u32],
+        cycle: [u32; 4],
+        net: &mut [MaybeUninit<u32>; NET],
+    ) {
+        let twins = twin.as_ptr().cast::<i32>();
+        let dead = _mm_set1_epi32((twin.len() - 4) as i32);
+        let (quad, corner) = (_mm_set1_epi32(!3), _mm_set1_epi32(3));
+        let after = |c: __m128i, k: i32| {
+            _mm_or_si128(
+                _mm_and_si128(c, quad),
+                _mm_and_si128(_mm_add_epi32(c, _mm_set1_epi32(k)), corner),
+            )
+        };
+        // The face of each corner, 0 for the dead face's.
+        let face = |c: __m128i| _mm_and_si128(_mm_srli_epi32::<2>(c), _mm_cmpgt_epi32(dead, c));
+        // SAFETY: every index is a corner of the level or of the dead face, below `twin.len()`
+        // (the caller's promise): the cycle's, twins, and the other corners of their quads.
+        unsafe {
+            let c = _mm_loadu_si128(cycle.as_ptr().cast());
+            let a = _mm_i32gather_epi32::<4>(twins, after(c, 1));
+            let b = _mm_i32gather_epi32::<4>(twins, _mm_xor_si128(c, _mm_set1_epi32(2)));
+            let d = _mm_i32gather_epi32::<4>(twins, after(a, 3));
+            let out = net.as_mut_ptr().cast::<__m128i>();
+            _mm_storeu_si128(out, _mm_srli_epi32::<2>(c));
+            _mm_storeu_si128(out.add(1), face(a));
+            _mm_storeu_si128(out.add(2), face(b));
+            _mm_storeu_si128(out.add(3), face(d));
         }
     }
 
