@@ -50,8 +50,9 @@
 //! 92.02M; degree 9 the same way did not pay (its masks' 25 to 36 taps a point cost what the
 //! kernel saves); `docs/research/fused-primal-kernel.md`. Drawing points (2026-12-07, same
 //! driver): a cached evaluation of averaging 4 21.41M -> 14.66M, of averaging 2 19.57M ->
-//! 11.90M; a new plan of averaging 4 and its evaluation 77.62M -> 110.18M (the dual grid's walk
-//! and owners, about 400 instructions a coarse vertex, not made cheaper yet).
+//! 11.90M; a new plan of averaging 4 and its evaluation 77.62M -> 103.17M (the dual grid: its
+//! walk in parallel, about 220 instructions a coarse vertex, and the edges' and faces' owners in
+//! serial passes, 27.0M in all at level 3).
 use std::mem::MaybeUninit;
 
 use rayon::prelude::*;
@@ -471,8 +472,10 @@ impl Fused {
             ));
         }
         let grid = DualGrid::of(coarse, masks, corners)?;
-        let ids = ClosureIds::of(coarse)?.with_cycles(&grid.cycles)?;
-        let rest = grid.rest(ids)?;
+        // Each owned bit names its point ([`ClosureIds::fine_vertex`]): a vertex's own point,
+        // the edge of a corner whose outgoing edge it is, the face of a corner of the face.
+        ClosureIds::of(coarse)?.with_cycles(&grid.cycles)?;
+        let rest = grid.rest;
         if rest.len() == nv + ne + nf {
             return Ok(None);
         }
@@ -689,27 +692,32 @@ struct DualGrid {
     /// checked to close after four, every one a corner of the level; four zeros (a corner of
     /// the level, read by no sum) for any other vertex.
     cycles: Vec<u32>,
-    /// Per vertex, its net of [`NET`] coarse faces ([`walked_dual`]; 0 where the walk leaves the
-    /// level, and for a vertex without a cycle: read by no sum).
+    /// Per vertex, its net of [`NET`] coarse faces in the dual walk's order ([`walked_dual`]; 0
+    /// where the walk leaves the level, and for a vertex without a cycle: read by no sum).
     nets: Vec<u32>,
     /// Per vertex, the points it owns ([`Fused::owned`]): a fine vertex is fused when the kernel
     /// makes the four children around it, and its owner is a vertex with a cycle: a vertex's
     /// own point, an edge's at the vertex of the edge's first corner, a face's at the vertex
     /// of its corner 0 (else the point is left to the average).
     owned: Vec<u16>,
+    /// The fine vertices no vertex owns, increasing.
+    rest: Vec<u32>,
 }
 
 impl DualGrid {
-    /// The dual grid, one pass over the vertices (the level's corner tables as the regular
-    /// windows' walk reads them).
+    /// The dual grid: the cycles, nets and own points in one parallel pass over the vertices
+    /// (the level's corner tables as the regular windows' walk reads them), the edge and face
+    /// points' owners in one pass over the edges and one over the faces.
     fn of(coarse: &Level, masks: &[u8], corners: CornerTables) -> Result<DualGrid> {
         let (nv, ne, nf) = (coarse.num_vertices, coarse.num_edges(), coarse.num_faces());
         let dead = 4 * nf as u32;
         let (offsets, vertex_corners) = coarse.vertex_corner_table();
-        let (corner_edges, edge_corners) = (coarse.corner_edges(), coarse.edge_corners());
+        let (corner_verts, edge_corners) = (&coarse.corner_verts, coarse.edge_corners());
+        let corner_edges = coarse.corner_edges();
         let fits = offsets.len() == nv + 1
             && corners.corner_tables().0.len() == 4 * nf + 4
             && masks.len() == nf
+            && corner_verts.len() == 4 * nf
             && corner_edges.len() == 4 * nf
             && edge_corners.len() == ne;
         if !fits {
@@ -717,17 +725,16 @@ impl DualGrid {
                 "fused drawing points: a level's tables out of range".into(),
             ));
         }
-        // The corners of vertex `v` as a cycle, and the twin of each.
-        let cycle = |v: usize| -> Option<([u32; 4], [u32; 4])> {
+        // The corners of vertex `v` as a cycle.
+        let cycle = |v: usize| -> Option<[u32; 4]> {
             let first = *vertex_corners.get(*offsets.get(v)? as usize)?;
             if first >= dead || !corners.grid(v as u32) {
                 return None;
             }
-            let (mut cycle, mut twins) = ([first; 4], [0; 4]);
+            let mut cycle = [first; 4];
             for k in 0..4 {
                 // Below `dead`: the vertex's corners have twins (`grid`).
-                twins[k] = corners.twin(cycle[k]);
-                let next = after(twins[k], 1);
+                let next = after(corners.twin(cycle[k]), 1);
                 match k {
                     3 if next != first => return None,
                     3 => {}
@@ -735,35 +742,35 @@ impl DualGrid {
                     _ => cycle[k + 1] = next,
                 }
             }
-            Some((cycle, twins))
+            Some(cycle)
         };
         let face = |c: u32| if c < dead { c >> 2 } else { 0 };
+        // Whether the kernel makes the child at corner `c` (below `dead`).
+        let child = |c: u32| masks[(c >> 2) as usize] & (1 << (c & 3)) != 0;
         let mut cycles: Vec<u32> = memory::with_capacity(4 * nv)?;
         let mut nets: Vec<u32> = memory::with_capacity(NET * nv)?;
-        let mut owners: Vec<u16> = memory::with_capacity(nv)?;
+        let mut owned: Vec<u16> = memory::with_capacity(nv)?;
         (cycles.spare_capacity_mut()[..4 * nv].par_chunks_mut(4 * CHUNK))
             .zip(nets.spare_capacity_mut()[..NET * nv].par_chunks_mut(NET * CHUNK))
-            .zip(owners.spare_capacity_mut()[..nv].par_chunks_mut(CHUNK))
+            .zip(owned.spare_capacity_mut()[..nv].par_chunks_mut(CHUNK))
             .enumerate()
-            .for_each(|(chunk, ((cycles, nets), owners))| {
-                let rows = (cycles.chunks_exact_mut(4).zip(nets.chunks_exact_mut(NET))).zip(owners);
+            .for_each(|(chunk, ((cycles, nets), owned))| {
+                let rows = (cycles.chunks_exact_mut(4).zip(nets.chunks_exact_mut(NET))).zip(owned);
                 for (i, ((out, net), bits)) in rows.enumerate() {
-                    let Some((cycle, twins)) = cycle(chunk * CHUNK + i) else {
+                    let net: &mut [MaybeUninit<u32>; NET] = net.try_into().expect("a net");
+                    let Some(cycle) = cycle(chunk * CHUNK + i) else {
                         out.fill(MaybeUninit::new(0));
                         net.fill(MaybeUninit::new(0));
                         bits.write(0);
                         continue;
                     };
-                    // Corners of the level (the cycle's are below `dead`), or of the dead face
-                    // where a twin is missing: all within the walk's tables.
-                    let net: &mut [MaybeUninit<u32>; NET] = net.try_into().expect("a net");
                     if !super::wide::dual_net(corners, cycle, net) {
-                        for k in 0..4 {
-                            let c = cycle[k];
+                        for (k, &c) in cycle.iter().enumerate() {
+                            // Corners of the level (the cycle's are below `dead`), or of the
+                            // dead face where a twin is missing: all within the walk's tables.
                             let a = corners.twin(after(c, 1));
                             let b = corners.twin(after(c, 2));
                             let d = corners.twin(after(a, 3));
-                            // In the dual walk's order ([`walked_dual`]).
                             net[k].write(c >> 2);
                             net[4 + k].write(face(a));
                             net[8 + k].write(face(b));
@@ -773,86 +780,71 @@ impl DualGrid {
                     for (slot, c) in out.iter_mut().zip(cycle) {
                         slot.write(c);
                     }
-                    bits.write(owned_points(
-                        cycle,
-                        twins,
-                        masks,
-                        corner_edges,
-                        edge_corners,
-                    ));
+                    // Its own point: the kernel makes the children at its four corners.
+                    bits.write(match cycle.iter().all(|&c| child(c)) {
+                        true => FACE_BIT,
+                        false => 0,
+                    });
                 }
             });
-        // SAFETY: every vertex's corners, net and points were written above, whole (a panic
+        // SAFETY: every vertex's corners, net and own point were written above, whole (a panic
         // would have unwound past here).
         unsafe {
             cycles.set_len(4 * nv);
             nets.set_len(NET * nv);
-            owners.set_len(nv);
+            owned.set_len(nv);
+        }
+        // The place of corner `c` (of the level) in the cycle of its vertex, if it has one.
+        let place = |c: u32| {
+            let v = corner_verts[c as usize] as usize;
+            let cycle = cycles.get(4 * v..4 * v + 4)?;
+            let k = cycle.iter().position(|&x| x == c)?;
+            (cycle[0] != cycle[1]).then_some((v, k as u16))
+        };
+        let mut rest: Vec<u32> = Vec::new();
+        let leave = |rest: &mut Vec<u32>, point: usize| {
+            memory::grow(rest, 1)?;
+            rest.push(point as u32);
+            Ok::<_, Error>(())
+        };
+        for (v, &bits) in owned.iter().enumerate() {
+            if bits == 0 {
+                leave(&mut rest, v)?;
+            }
+        }
+        // An edge's point: the four children around its midpoint, at its first corner and the
+        // next in either face; owned by the vertex of its first corner (whose outgoing edge it
+        // is: edge `k` of that vertex's dual face).
+        for (e, &[c, _]) in edge_corners.iter().enumerate() {
+            let twin = match c {
+                c if c < dead => corners.twin(c),
+                _ => dead,
+            };
+            // Checked to name the edge: each fine vertex gets one owner, whose writes are
+            // unchecked and in parallel.
+            let fused = twin < dead
+                && corner_edges[c as usize] as usize == e
+                && [c, after(c, 1), twin, after(twin, 1)]
+                    .iter()
+                    .all(|&c| child(c));
+            match fused.then(|| place(c)).flatten() {
+                Some((v, k)) => owned[v] |= EDGE_BIT << k,
+                None => leave(&mut rest, nv + e)?,
+            }
+        }
+        // A face's point: its four children; owned by the vertex of its corner 0.
+        for (f, &mask) in masks.iter().enumerate() {
+            match (mask == 0xf).then(|| place(4 * f as u32)).flatten() {
+                Some((v, k)) => owned[v] |= 1 << k,
+                None => leave(&mut rest, nv + ne + f)?,
+            }
         }
         Ok(DualGrid {
             cycles,
             nets,
-            owned: owners,
+            owned,
+            rest,
         })
-    }
-}
-
-/// The points a coarse vertex with corners `cycle` (each corner's twin in `twins`: the vertex
-/// is inside a grid) owns in a drawing step ([`DualGrid::owned`]) whose kernel makes the
-/// children of `masks`.
-#[inline(always)]
-fn owned_points(
-    cycle: [u32; 4],
-    twins: [u32; 4],
-    masks: &[u8],
-    corner_edges: &[u32],
-    edge_corners: &[[u32; 2]],
-) -> u16 {
-    let child = |mask: u8, c: u32| mask & (1 << (c & 3)) != 0;
-    // The kernel's children of the four faces (`twins[k]` is a corner of the face of corner
-    // `k + 1`).
-    let m = cycle.map(|c| masks[(c >> 2) as usize]);
-    let mut owned = 0;
-    let mut inside = true;
-    for k in 0..4 {
-        let (c, mk, next) = (cycle[k], m[k], m[(k + 1) % 4]);
-        // The four children around a point: the vertex's at its corners; an edge's at the
-        // ends of its corner in both faces (`after(twin, 1)` is the next corner of the cycle).
-        let here = child(mk, c);
-        inside &= here;
-        let e = corner_edges[c as usize] as usize;
-        let first = edge_corners.get(e).is_some_and(|ends| ends[0] == c);
-        let around = here
-            && child(mk, after(c, 1))
-            && child(next, twins[k])
-            && child(next, cycle[(k + 1) % 4]);
-        if first && around {
-            owned |= EDGE_BIT << k;
-        }
-        if c & 3 == 0 && mk == 0xf {
-            owned |= 1 << k;
-        }
-    }
-    match inside {
-        true => owned | FACE_BIT,
-        false => owned,
-    }
-}
-
-impl DualGrid {
-    /// The fine vertices no vertex owns, increasing (`ids` named with the cycles).
-    fn rest(&self, ids: ClosureIds) -> Result<Vec<u32>> {
-        let [nv, ne, nf] = ids.sizes();
-        let mut made = Bits::new(nv + ne + nf)?;
-        for (v, &bits) in self.owned.iter().enumerate() {
-            let mut left = bits;
-            while left != 0 {
-                let bit = left & left.wrapping_neg();
-                made.set(ids.fine_vertex_of::<true>(bit, v));
-                left &= !bit;
-            }
-        }
-        made.missing(nv + ne + nf)
     }
 }
 

@@ -1610,25 +1610,6 @@ impl Bits {
         }
         Ok(list)
     }
-
-    /// The items below `n` (the set's size) that are not in the set, increasing.
-    pub(super) fn missing(&self, n: usize) -> Result<Vec<u32>> {
-        let within = |i: usize| match (64 * i + 64).saturating_sub(n) {
-            0 => u64::MAX,
-            over => u64::MAX.checked_shr(over as u32).unwrap_or(0),
-        };
-        let words = self.0.iter().enumerate().map(|(i, &w)| !w & within(i));
-        let count = words.clone().map(|w| w.count_ones() as usize).sum();
-        let mut list = memory::with_capacity(count)?;
-        for (i, word) in words.enumerate() {
-            let mut word = word;
-            while word != 0 {
-                list.push(64 * i as u32 + word.trailing_zeros());
-                word &= word - 1;
-            }
-        }
-        Ok(list)
-    }
 }
 
 #[cfg(test)]
