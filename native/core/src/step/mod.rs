@@ -700,6 +700,11 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
             _ => None,
         };
         match fused {
+            Some((fused, _)) if !fused.whole() => {
+                return Err(Error::Internal(
+                    "drawing points: fused points made for some items".into(),
+                ))
+            }
             Some((fused, x)) => {
                 fused.apply(x, step.coarse, &mut out.spare_capacity_mut()[..n])?;
                 let t = Tables::of(step.coarse);
@@ -708,9 +713,8 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
                     [primal_item(&t, f, w)]
                 })?;
                 // SAFETY: every fine vertex is written, once, by the fused sums or the scatter
-                // (the drawing points of a whole step: `Fused::whole`; a panic would have
-                // unwound past here).
-                debug_assert!(fused.whole());
+                // (the drawing points of a whole step, `Fused::whole`, checked above; a panic
+                // would have unwound past here).
                 unsafe { out.set_len(n) };
             }
             None => self.gather_primal(step, &mut out),

@@ -390,12 +390,11 @@ impl Windows {
     /// The windows of the same step ending in its drawing points (one more dual -> primal
     /// average: the drawing mesh of an even degree), for windows of degree 2 or 4 on dual
     /// input made to be drawn, which give up their drawing points to them: the fused drawing
-    /// points ([`Fused::drawing`]) where the
-    /// kernel makes the four children around a point, the kernel and the zone making only the
-    /// children that the other points read. `None` for other windows or when no point is
-    /// fused. The step run with them ([`super::LevelData::step`]) leaves primal data, each
-    /// point with the bits of the drawing points of the whole step
-    /// ([`super::LevelData::drawing_points`] with the coarse data).
+    /// points ([`Fused::drawing`]) where the kernel makes the four children around a point, the
+    /// kernel and the zone making only the children that the other points read. `None` for
+    /// other windows or when no point is fused. The step run with them
+    /// ([`super::LevelData::step`]) leaves primal data, each point with the bits of the drawing
+    /// points of the whole step ([`super::LevelData::drawing_points`] with the coarse data).
     pub(crate) fn drawn(&mut self, coarse: &Level, fine: &Level) -> Result<Option<Windows>> {
         let Some(fused) = self.drawing.take() else {
             return Ok(None);
