@@ -1274,6 +1274,23 @@ mod tests {
         assert_eq!(steps, 3, "the steps with fused points");
     }
 
+    /// How many times each of the `n` fine vertices is made: by the cells that own it (named
+    /// by `ids`) and by the average (`fused.rest`).
+    fn times_made(fused: &Fused, ids: ClosureIds, n: usize) -> Vec<u8> {
+        let mut made = vec![0u8; n];
+        for (cell, &bits) in fused.owned.iter().enumerate() {
+            for b in 0..9 {
+                if bits & (1 << b) != 0 {
+                    made[ids.fine_vertex(1 << b, cell)] += 1;
+                }
+            }
+        }
+        for &w in &fused.rest {
+            made[w as usize] += 1;
+        }
+        made
+    }
+
     /// Every fine vertex of every step of degrees 3 and 5 is made once, by the face that owns
     /// it or by the last average; most of a mostly regular mesh's are fused, and none is where
     /// its children are not the tensor product's: curve vertices (the open grid's boundary
@@ -1290,17 +1307,7 @@ mod tests {
             assert_eq!(fused.degree(), degree);
             let ids = ClosureIds::of(step.coarse).unwrap();
             let n = step.fine.num_vertices;
-            let mut made = vec![0u8; n];
-            for (f, &bits) in fused.owned.iter().enumerate() {
-                for b in 0..9 {
-                    if bits & (1 << b) != 0 {
-                        made[ids.fine_vertex(1 << b, f)] += 1;
-                    }
-                }
-            }
-            for &w in &fused.rest {
-                made[w as usize] += 1;
-            }
+            let made = times_made(fused, ids, n);
             assert!(
                 made.iter().all(|&m| m == 1),
                 "step {j}: a vertex made twice or never"
@@ -1359,17 +1366,7 @@ mod tests {
                     .with_cycles(&fused.cycles)
                     .unwrap();
                 let n = step.fine.num_vertices;
-                let mut made = vec![0u8; n];
-                for (v, &bits) in fused.owned.iter().enumerate() {
-                    for b in 0..9 {
-                        if bits & (1 << b) != 0 {
-                            made[ids.fine_vertex(1 << b, v)] += 1;
-                        }
-                    }
-                }
-                for &w in &fused.rest {
-                    made[w as usize] += 1;
-                }
+                let made = times_made(fused, ids, n);
                 assert!(
                     made.iter().all(|&m| m == 1),
                     "degree {degree}, cage {i}: a vertex made twice or never"

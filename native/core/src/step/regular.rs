@@ -2255,6 +2255,14 @@ pub(super) mod tests {
         data.finish_parts().0
     }
 
+    /// The largest difference of a coordinate between two runs' points (as many in each).
+    fn largest_difference(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+        assert_eq!(a.len(), b.len());
+        (a.iter().zip(b))
+            .flat_map(|(a, b)| (0..3).map(move |k| (a[k] - b[k]).abs()))
+            .fold(0.0, f64::max)
+    }
+
     /// The kernel computes what the passes compute (f64, to 1e-12 of the cage's size) on
     /// closed and open cages, with irregular vertices, creases (sharp and semi-sharp), corners
     /// and non-quad faces, for every degree (those from 2 on do have kernel children, on
@@ -2277,10 +2285,7 @@ pub(super) mod tests {
                 );
                 let with = run(&refinement, points, degree, true);
                 let without = run(&refinement, points, degree, false);
-                assert_eq!(with.len(), without.len());
-                let worst = (with.iter().zip(&without))
-                    .flat_map(|(a, b)| (0..3).map(move |k| (a[k] - b[k]).abs()))
-                    .fold(0.0, f64::max);
+                let worst = largest_difference(&with, &without);
                 assert!(
                     worst <= 1e-12 * 10.0,
                     "degree {degree}: kernel off by {worst:e}"
@@ -2339,10 +2344,7 @@ pub(super) mod tests {
                     else {
                         panic!("degree {degree}: the drawing mesh is primal");
                     };
-                    assert_eq!(with.len(), without.len());
-                    let worst = (with.iter().zip(&without))
-                        .flat_map(|(a, b)| (0..3).map(move |k| (a[k] - b[k]).abs()))
-                        .fold(0.0, f64::max);
+                    let worst = largest_difference(&with, &without);
                     assert!(
                         worst <= 1e-12 * 10.0,
                         "cage {i}, degree {degree}, {levels} levels: drawn off by {worst:e}"
