@@ -242,9 +242,6 @@ const FACE_BIT: u16 = 1 << 8;
 pub(super) struct Fused {
     /// The degree of the sums: 3 or 5 (the step's degree, or one more for a drawing step).
     degree: u32,
-    /// Whether the points are a drawing step's: the cells are then the coarse vertices (the
-    /// faces of the dual grid), their nets coarse faces.
-    dual: bool,
     /// Per cell (coarse face, or coarse vertex when `dual`), the fine vertices of its closure
     /// that it writes: bit `k` the old vertex at its corner `k`, bit `4 + k` the edge point of
     /// its edge `k`, bit 8 its face point (in the dual grid: the face point of the coarse face
@@ -441,7 +438,6 @@ impl Fused {
         let nets = nets(corners, nf, true)?;
         Ok(Some(Fused {
             degree,
-            dual: false,
             owned: owners.owned,
             nets,
             cycles: Vec::new(),
@@ -465,7 +461,8 @@ impl Fused {
         masks: &[u8],
         corners: CornerTables,
     ) -> Result<Option<Fused>> {
-        let [nv, ne, nf] = ClosureIds::of(coarse)?.sizes();
+        let ids = ClosureIds::of(coarse)?;
+        let [nv, ne, nf] = ids.sizes();
         if masks.len() != nf || !matches!(degree, 2 | 4) {
             return Err(Error::Internal(
                 "fused drawing points: masks not the level's, or no sums for the degree".into(),
@@ -474,14 +471,13 @@ impl Fused {
         let grid = DualGrid::of(coarse, masks, corners)?;
         // Each owned bit names its point ([`ClosureIds::fine_vertex`]): a vertex's own point,
         // the edge of a corner whose outgoing edge it is, the face of a corner of the face.
-        ClosureIds::of(coarse)?.with_cycles(&grid.cycles)?;
+        ids.with_cycles(&grid.cycles)?;
         let rest = grid.rest;
         if rest.len() == nv + ne + nf {
             return Ok(None);
         }
         Ok(Some(Fused {
             degree: degree + 1,
-            dual: true,
             owned: grid.owned,
             nets: grid.nets,
             cycles: grid.cycles,
@@ -526,7 +522,6 @@ impl Fused {
         )?;
         Ok(Fused {
             degree: self.degree,
-            dual: self.dual,
             owned,
             nets: self.nets,
             cycles: self.cycles,
@@ -538,7 +533,7 @@ impl Fused {
 
     /// The cells of `coarse` the points are owned by: its faces, or its vertices when `dual`.
     fn cells(&self, coarse: &Level) -> usize {
-        match self.dual {
+        match self.dual() {
             true => coarse.num_vertices,
             false => coarse.num_faces(),
         }
@@ -571,7 +566,7 @@ impl Fused {
         // (the walk writes no other: [`super::regular`]) or, for a drawing step, its faces
         // ([`DualGrid::of`]), and each written id is below `nv + ne + nf` ([`Owners::of`] and
         // [`DualGrid::of`] checked it of every owned point).
-        let (cells, reach) = match self.dual {
+        let (cells, reach) = match self.dual() {
             true => (nv, nf),
             false => (nf, nv),
         };
@@ -588,7 +583,7 @@ impl Fused {
         if super::wide::fused_points(self, x, ids, &out) {
             return Ok(());
         }
-        match (self.degree, self.dual) {
+        match (self.degree, self.dual()) {
             (3, false) => self.apply_loop::<T, N, 3, false>(x, ids, &out),
             (3, true) => self.apply_loop::<T, N, 3, true>(x, ids, &out),
             (_, false) => self.apply_loop::<T, N, 5, false>(x, ids, &out),
@@ -632,9 +627,10 @@ impl Fused {
         self.degree
     }
 
-    /// Whether the cells are the dual grid's (a drawing step's points).
+    /// Whether the points are a drawing step's: the cells are then the coarse vertices (the
+    /// faces of the dual grid, with their cycles of corners), their nets coarse faces.
     pub(super) fn dual(&self) -> bool {
-        self.dual
+        !self.cycles.is_empty()
     }
 
     /// Per cell, the points it writes.
@@ -682,6 +678,25 @@ fn nets(corners: CornerTables, nf: usize, wide: bool) -> Result<Vec<u32>> {
     // the vectors or the loop (a panic would have unwound past here).
     unsafe { nets.set_len(NET * nf) };
     Ok(nets)
+}
+
+/// The net of the dual face of a coarse vertex with corners `cycle` (a cycle of the level's
+/// corners, [`DualGrid::cycles`]) in the dual walk's order ([`walked_dual`]), from the walk's
+/// corner tables; 0 for the dead face. What [`super::wide::dual_net`] does in vectors.
+fn dual_net(corners: CornerTables, cycle: [u32; 4], net: &mut [MaybeUninit<u32>; NET]) {
+    let dead = (corners.corner_tables().0.len() - 4) as u32;
+    let face = |c: u32| if c < dead { c >> 2 } else { 0 };
+    for (k, &c) in cycle.iter().enumerate() {
+        // Corners of the level (the cycle's are below `dead`), or of the dead face where a
+        // twin is missing: all within the walk's tables.
+        let a = corners.twin(after(c, 1));
+        let b = corners.twin(after(c, 2));
+        let d = corners.twin(after(a, 3));
+        net[k].write(c >> 2);
+        net[4 + k].write(face(a));
+        net[8 + k].write(face(b));
+        net[12 + k].write(face(d));
+    }
 }
 
 /// The dual grid of a drawing step on `coarse`, whose kernel makes the children of `masks`.
@@ -744,7 +759,6 @@ impl DualGrid {
             }
             Some(cycle)
         };
-        let face = |c: u32| if c < dead { c >> 2 } else { 0 };
         // Whether the kernel makes the child at corner `c` (below `dead`).
         let child = |c: u32| masks[(c >> 2) as usize] & (1 << (c & 3)) != 0;
         let mut cycles: Vec<u32> = memory::with_capacity(4 * nv)?;
@@ -765,17 +779,7 @@ impl DualGrid {
                         continue;
                     };
                     if !super::wide::dual_net(corners, cycle, net) {
-                        for (k, &c) in cycle.iter().enumerate() {
-                            // Corners of the level (the cycle's are below `dead`), or of the
-                            // dead face where a twin is missing: all within the walk's tables.
-                            let a = corners.twin(after(c, 1));
-                            let b = corners.twin(after(c, 2));
-                            let d = corners.twin(after(a, 3));
-                            net[k].write(c >> 2);
-                            net[4 + k].write(face(a));
-                            net[8 + k].write(face(b));
-                            net[12 + k].write(face(d));
-                        }
+                        dual_net(corners, cycle, net);
                     }
                     for (slot, c) in out.iter_mut().zip(cycle) {
                         slot.write(c);
@@ -1289,6 +1293,42 @@ mod tests {
             made[w as usize] += 1;
         }
         made
+    }
+
+    /// The dual nets of the vectors are the loop's, id for id, on the drawn steps of degrees 2
+    /// and 4 of a cube of grids and an open grid with a crease (boundaries: twins at the dead
+    /// face). Without AVX2 both are the loop's.
+    #[test]
+    fn dual_nets_in_vectors_are_the_loops() {
+        let mut nets = 0;
+        for degree in [2, 4] {
+            let options = Options {
+                degree,
+                levels: 3,
+                rules: Rules::Averaging,
+                ..Options::default()
+            };
+            for (cage, _) in [cube_grid(3), open_grid(7, 6, 10.0)] {
+                let refinement = Refinement::new(&cage, &options).unwrap();
+                let step = refinement.drawn_step().expect("a drawn last step");
+                let fused = step.windows.and_then(|w| w.fused()).unwrap();
+                let flags = super::super::regular::Flags::of(step.coarse, step.curves).unwrap();
+                for cycle in fused.cycles.chunks_exact(4).filter(|c| c[0] != c[1]) {
+                    let cycle: [u32; 4] = cycle.try_into().unwrap();
+                    let mut wide = [MaybeUninit::new(u32::MAX); NET];
+                    let mut scalar = [MaybeUninit::new(u32::MAX); NET];
+                    if !super::super::wide::dual_net(flags.tables(), cycle, &mut wide) {
+                        dual_net(flags.tables(), cycle, &mut wide);
+                    }
+                    dual_net(flags.tables(), cycle, &mut scalar);
+                    // SAFETY: both were initialised above.
+                    let read = |n: [MaybeUninit<u32>; NET]| n.map(|x| unsafe { x.assume_init() });
+                    assert_eq!(read(wide), read(scalar), "degree {degree}, cycle {cycle:?}");
+                    nets += 1;
+                }
+            }
+        }
+        assert!(nets > 1000, "{nets} dual nets");
     }
 
     /// Every fine vertex of every step of degrees 3 and 5 is made once, by the face that owns
