@@ -135,7 +135,7 @@ use crate::parallel::{
 use crate::refinement::Refinement;
 use crate::scalar::{reciprocal, Scalar};
 use crate::scheme::{decrement, Scheme};
-use crate::step::{primal_input, LevelData, Parts, Scratch, Step, Windows};
+use crate::step::{primal_input, Drawing, LevelData, Parts, Scratch, Step, Windows};
 use crate::topology::{Edges, Level, NONE};
 
 /// Hasher of uniform ids (u64 keys): one multiply and a fold, plenty for ids that are spread
@@ -1660,7 +1660,10 @@ fn refine_topology<T: Sync, U>(
     let scheme = ctx.scheme;
     let (windows, ids) = rayon::join(
         || match scheme {
-            Scheme::Averaging { degree } => Windows::of_step(c, &fine, &network, degree, t, draw),
+            Scheme::Averaging { degree } => {
+                let draw = if draw { Drawing::Now } else { Drawing::Skip };
+                Windows::of_step(c, &fine, &network, degree, t, draw)
+            }
             _ => Ok(None),
         },
         || match keep {

@@ -25,7 +25,10 @@ pub(crate) fn run<T: Scalar, const N: usize>(
     want_dual: bool,
 ) -> Result<Final<T, N>> {
     // The drawing mesh of degrees 2 and 4: the last step ends in its drawing points.
-    let drawn = (!want_dual).then(|| refinement.drawn_step()).flatten();
+    let drawn = match want_dual {
+        true => None,
+        false => refinement.drawn_step()?,
+    };
     let data = steps(refinement, scratch, cage, drawn.as_ref())?;
     let steps = refinement.curve_networks().len();
     let last = steps.checked_sub(1).map(|j| refinement.step(j));

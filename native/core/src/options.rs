@@ -174,7 +174,9 @@ pub fn estimate(cage: &Cage, options: &Options) -> Result<Estimate> {
     // points' bits per face, and at most its four fine vertices as the rest. Degrees 2 and 4
     // drawn as the primal mesh add, for the last step, its windows again (ending in the
     // drawing points) and the fused drawing points: per coarse vertex (about one per face) a
-    // net of 4 x 4 faces, its four corners and its points' bits.
+    // net of 4 x 4 faces, its four corners and its points' bits; and the tables the whole
+    // windows keep to make them (`Drawing::Later`: per face four twins and four vertices, a
+    // flag per face and per vertex).
     let fused = 4.0 * 16.0 + 2.0 + 4.0 * 4.0;
     let drawn = matches!(options.degree, 2 | 4)
         && options.rules == Rules::Averaging
@@ -192,7 +194,7 @@ pub fn estimate(cage: &Cage, options: &Options) -> Result<Estimate> {
         if step > 0 || cage.all_quads() {
             bytes += net * f;
             if drawn && step + 1 == options.levels {
-                bytes += (net + fused + 4.0 * 4.0) * f;
+                bytes += (net + fused + 4.0 * 4.0 + 34.0) * f;
             }
         }
         (v, e, f, c) = (v + e + f, 2.0 * e + c, c, 4.0 * c);

@@ -7,6 +7,7 @@
 //! top of it (so that nothing here needs those layers).
 
 use std::borrow::Cow;
+use std::sync::OnceLock;
 
 use crate::curves::{CageFeatures, CurveNetwork, LevelSharpness};
 use crate::error::{Error, Result};
@@ -15,7 +16,7 @@ use crate::mesh::Cage;
 use crate::options::{estimate, Options, OutputKind};
 use crate::parallel::in_pool;
 use crate::scheme::Scheme;
-use crate::step::{Step, Windows};
+use crate::step::{Drawing, Step, Windows};
 use crate::topology::{Level, NONE};
 
 /// The refined topology of a cage for one scheme; see the module documentation.
@@ -39,8 +40,11 @@ pub(crate) struct Refinement {
     windows: Vec<Option<Windows>>,
     /// Degrees 2 and 4 drawn as the primal mesh: the last step's windows ending in the fused
     /// drawing points ([`Windows::drawn`]), which a run that wants primal data takes for that
-    /// step (`None` when no point is fused).
-    drawn: Option<Windows>,
+    /// step (`None` when no point is fused). Made on the first such run: the limits and the
+    /// dual mesh read the whole step, and a plan used for them alone (the add-on's default,
+    /// limit positions) never pays for them (2026-12-07, callgrind driver, 3,840-quad sphere at
+    /// level 3, one thread: a new plan of averaging 4, 88M instructions, was 27M of dual grid).
+    drawn: OnceLock<Option<Windows>>,
 }
 
 impl Refinement {
@@ -128,10 +132,14 @@ impl Refinement {
         } else {
             Vec::new()
         };
-        // The drawing mesh of an even degree: the last step's windows with its drawing points.
+        // The drawing mesh of an even degree: the last step's windows keep what makes its
+        // drawing points.
         let steps = networks.len();
-        let draw = |j: usize| j + 1 == steps && options.output != OutputKind::Dual;
-        let mut windows = match scheme {
+        let draw = |j: usize| match j + 1 == steps && options.output != OutputKind::Dual {
+            true => Drawing::Later,
+            false => Drawing::Skip,
+        };
+        let windows = match scheme {
             Scheme::Averaging { degree } => (0..steps)
                 .map(|j| {
                     let (coarse, fine) = (&levels[j], &levels[j + 1]);
@@ -139,10 +147,6 @@ impl Refinement {
                 })
                 .collect::<Result<Vec<_>>>()?,
             _ => Vec::new(),
-        };
-        let drawn = match windows.last_mut() {
-            Some(Some(w)) => w.drawn(&levels[steps - 1], &levels[steps])?,
-            _ => None,
         };
         Ok(Refinement {
             options: *options,
@@ -156,7 +160,7 @@ impl Refinement {
             networks,
             sharpness,
             windows,
-            drawn,
+            drawn: OnceLock::new(),
         })
     }
 
@@ -269,15 +273,36 @@ impl Refinement {
         }
     }
 
-    /// The last step ending in its drawing points ([`Refinement::drawn`]), when a run that
-    /// wants primal data takes one: it leaves primal data, which no step reads.
-    pub(crate) fn drawn_step(&self) -> Option<Step<'_>> {
-        let drawn = self.drawn.as_ref()?;
-        let last = self.networks.len().checked_sub(1)?;
-        Some(Step {
+    /// The last step ending in its drawing points ([`Refinement::drawn`], made on the first
+    /// call), when a run that wants primal data takes one: it leaves primal data, which no
+    /// step reads. `None` for the dual output, other schemes and degrees, or when no point is
+    /// fused.
+    pub(crate) fn drawn_step(&self) -> Result<Option<Step<'_>>> {
+        let Some(last) = self.networks.len().checked_sub(1) else {
+            return Ok(None);
+        };
+        let drawn = match self.drawn.get() {
+            Some(drawn) => drawn,
+            None => {
+                let made = match self.windows.get(last) {
+                    Some(Some(w)) => w.drawn(&self.levels[last], &self.levels[last + 1])?,
+                    _ => None,
+                };
+                // Another run may have made them first: the same windows.
+                self.drawn.get_or_init(|| made)
+            }
+        };
+        Ok(drawn.as_ref().map(|drawn| Step {
             windows: Some(drawn),
             ..self.step(last)
-        })
+        }))
+    }
+
+    /// Whether the drawn last step's windows have been made (tests: on the first run that
+    /// draws the primal mesh, where some point is fused).
+    #[cfg(test)]
+    pub(crate) fn drawn_made(&self) -> bool {
+        matches!(self.drawn.get(), Some(Some(_)))
     }
 
     /// Sharpness and rules of level `j` (classic Catmull-Clark only).

@@ -39,7 +39,7 @@ mod fused;
 mod regular;
 mod wide;
 
-pub(crate) use regular::{primal_input, Windows};
+pub(crate) use regular::{primal_input, Drawing, Windows};
 
 use std::any::Any;
 use std::borrow::Cow;
@@ -408,7 +408,7 @@ impl<'a, T: Scalar, const N: usize> LevelData<'a, T, N> {
         let windows = match step.windows {
             Some(w) if w.primal() != self.primal => {
                 let (coarse, fine, curves) = (step.coarse, step.fine, step.curves);
-                built = Windows::build(coarse, fine, curves, degree, self.primal, false)?;
+                built = Windows::build(coarse, fine, curves, degree, self.primal, Drawing::Skip)?;
                 built.as_ref()
             }
             kept => kept,

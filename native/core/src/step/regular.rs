@@ -153,9 +153,12 @@ pub(crate) struct Windows {
     /// the drawing points made straight from the coarse faces ([`Fused`]). The kernel and the
     /// zone then make only the children the others read, and the step's output is primal.
     fused: Option<Fused>,
-    /// Degrees 2 and 4 on dual input, made to be drawn ([`Windows::build`]'s `draw`): the
-    /// fused drawing points of the step, which [`Windows::drawn`] takes.
+    /// Degrees 2 and 4 on dual input, made with [`Drawing::Now`]: the fused drawing points of
+    /// the step.
     drawing: Option<Fused>,
+    /// Degrees 2 and 4 on dual input, made with [`Drawing::Later`]: the tables the dual grid
+    /// of [`Windows::drawn`] reads.
+    flags: Option<Flags>,
 }
 
 /// The items the passes of a step still compute, in increasing order: the coarse faces whose
@@ -205,6 +208,20 @@ impl Share {
     }
 }
 
+/// What windows of degree 2 or 4 on dual input do about their step's drawing points
+/// ([`Fused::drawing`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Drawing {
+    /// The step is not drawn (or has no drawing points).
+    Skip,
+    /// Made with the windows ([`Windows::drawing`]): the adaptive levels, which draw every
+    /// level.
+    Now,
+    /// Made when a run first wants them ([`Windows::drawn`]): the windows keep the tables the
+    /// dual grid reads. A plan's last step, which the limits and the dual mesh read whole.
+    Later,
+}
+
 /// Whether step `j` of a run from the cage has primal input (per vertex): the cage's points are
 /// primal, and the steps leave dual data for even degrees.
 pub(crate) fn primal_input(degree: u32, j: usize) -> bool {
@@ -219,7 +236,7 @@ impl Windows {
         curves: &CurveNetwork,
         degree: u32,
         j: usize,
-        draw: bool,
+        draw: Drawing,
     ) -> Result<Option<Windows>> {
         Windows::build(coarse, fine, curves, degree, primal_input(degree, j), draw)
     }
@@ -227,15 +244,15 @@ impl Windows {
     /// The windows of a step of the averaging rules of `degree` from `coarse` to `fine` with
     /// the step's `curves`, for `primal` (per coarse vertex) or dual input; `None` when the
     /// kernel has nothing to do (a level with other faces than quads, a degree without a
-    /// kernel, or no regular child). With `draw`, windows of degree 2 or 4 on dual input
-    /// also hold the step's fused drawing points ([`Windows::drawing`], [`Windows::drawn`]).
+    /// kernel, or no regular child). Windows of degree 2 or 4 on dual input also hold the
+    /// step's fused drawing points, or what makes them later, as `draw` says.
     pub(crate) fn build(
         coarse: &Level,
         fine: &Level,
         curves: &CurveNetwork,
         degree: u32,
         primal: bool,
-        draw: bool,
+        draw: Drawing,
     ) -> Result<Option<Windows>> {
         let averages = degree - degree % 2;
         if !(MIN_AVERAGES..=MAX_AVERAGES).contains(&averages)
@@ -278,8 +295,8 @@ impl Windows {
             (3 | 5, true) => Fused::new(coarse, degree, &masks, flags.tables())?,
             _ => None,
         };
-        let drawing = match (degree, primal) {
-            (2 | 4, false) if draw => Fused::drawing(coarse, degree, &masks, flags.tables())?,
+        let drawing = match (degree, primal, draw) {
+            (2 | 4, false, Drawing::Now) => Fused::drawing(coarse, degree, &masks, flags.tables())?,
             _ => None,
         };
         // With fused points, the children that the other fine vertices read alone.
@@ -308,6 +325,10 @@ impl Windows {
             last_vertices: None,
             fused,
             drawing,
+            flags: match (degree, primal, draw) {
+                (2 | 4, false, Drawing::Later) => Some(flags),
+                _ => None,
+            },
         }))
     }
 
@@ -384,19 +405,23 @@ impl Windows {
             },
             fused,
             drawing: None,
+            flags: None,
         }))
     }
 
     /// The windows of the same step ending in its drawing points (one more dual -> primal
     /// average: the drawing mesh of an even degree), for windows of degree 2 or 4 on dual
-    /// input made to be drawn, which give up their drawing points to them: the fused drawing
-    /// points ([`Fused::drawing`]) where the kernel makes the four children around a point, the
-    /// kernel and the zone making only the children that the other points read. `None` for
-    /// other windows or when no point is fused. The step run with them
+    /// input made with [`Drawing::Later`]: the fused drawing points ([`Fused::drawing`], made
+    /// here from the kernel's masks) where the kernel makes the four children around a point,
+    /// the kernel and the zone making only the children that the other points read. `None`
+    /// for other windows or when no point is fused. The step run with them
     /// ([`super::LevelData::step`]) leaves primal data, each point with the bits of the drawing
     /// points of the whole step ([`super::LevelData::drawing_points`] with the coarse data).
-    pub(crate) fn drawn(&mut self, coarse: &Level, fine: &Level) -> Result<Option<Windows>> {
-        let Some(fused) = self.drawing.take() else {
+    pub(crate) fn drawn(&self, coarse: &Level, fine: &Level) -> Result<Option<Windows>> {
+        let Some(flags) = &self.flags else {
+            return Ok(None);
+        };
+        let Some(fused) = Fused::drawing(coarse, self.degree, &self.masks, flags.tables())? else {
             return Ok(None);
         };
         let read = faces_read(coarse, fine, fused.rest())?;
@@ -420,12 +445,12 @@ impl Windows {
             last_vertices: None,
             fused: Some(fused),
             drawing: None,
+            flags: None,
         }))
     }
 
-    /// The fused drawing points of windows of degree 2 or 4 on dual input made to be drawn
-    /// ([`Windows::build`]), until [`Windows::drawn`] takes them; `None` for other windows or
-    /// when no point is fused.
+    /// The fused drawing points of windows of degree 2 or 4 on dual input made with
+    /// [`Drawing::Now`]; `None` for other windows or when no point is fused.
     pub(super) fn drawing(&self) -> Option<&Fused> {
         self.drawing.as_ref()
     }
@@ -1063,6 +1088,7 @@ fn curve_parents(coarse: &Level, curves: &CurveNetwork) -> Result<[Vec<bool>; 3]
 /// `nf` after them, which stands for "no cell": a step across any of its sides lands on it
 /// again, it is never clean and its corners are at vertex 0 (the id a net holds where no cell
 /// is placed, which no child weighs), so placing a face's cells needs no test for a missing one.
+#[derive(Debug)]
 pub(super) struct Flags {
     /// Per vertex, whether it can be inside a grid (interior, manifold, of valence 4).
     grid_vertex: Vec<bool>,
@@ -1613,7 +1639,7 @@ impl Bits {
 
 #[cfg(test)]
 pub(super) mod tests {
-    use super::Windows;
+    use super::{Drawing, Windows};
     use crate::refinement::Refinement;
     use crate::step::LevelData;
     use crate::{Cage, Options, Rules};
@@ -1944,7 +1970,7 @@ pub(super) mod tests {
                             step.curves,
                             degree,
                             primal,
-                            false,
+                            Drawing::Skip,
                         )
                         .unwrap();
                         if !step.coarse.all_quads() {
@@ -2111,7 +2137,16 @@ pub(super) mod tests {
                         (0..outputs as u32).filter(|_| next() % 4 == 0).collect();
                     let own = step
                         .windows
-                        .map(|w| Windows::build(coarse, fine, step.curves, degree, w.primal, false))
+                        .map(|w| {
+                            Windows::build(
+                                coarse,
+                                fine,
+                                step.curves,
+                                degree,
+                                w.primal,
+                                Drawing::Skip,
+                            )
+                        })
                         .transpose()
                         .unwrap()
                         .flatten();
@@ -2163,10 +2198,15 @@ pub(super) mod tests {
             let step = refinement.step(j);
             for degree in 2..=9 {
                 for primal in [true, false] {
-                    let Some(w) =
-                        Windows::build(step.coarse, step.fine, step.curves, degree, primal, false)
-                            .unwrap()
-                    else {
+                    let Some(w) = Windows::build(
+                        step.coarse,
+                        step.fine,
+                        step.curves,
+                        degree,
+                        primal,
+                        Drawing::Skip,
+                    )
+                    .unwrap() else {
                         continue;
                     };
                     let x: Vec<[f32; 3]> = (0..w.reach)
@@ -2208,10 +2248,15 @@ pub(super) mod tests {
         for j in 0..refinement.curve_networks().len() {
             let step = refinement.step(j);
             for degree in [4, 5, 7, 9] {
-                let Some(w) =
-                    Windows::build(step.coarse, step.fine, step.curves, degree, true, false)
-                        .unwrap()
-                else {
+                let Some(w) = Windows::build(
+                    step.coarse,
+                    step.fine,
+                    step.curves,
+                    degree,
+                    true,
+                    Drawing::Skip,
+                )
+                .unwrap() else {
                     continue;
                 };
                 let (s, n) = (w.side, w.side * w.side);
@@ -2313,7 +2358,7 @@ pub(super) mod tests {
                     };
                     let refinement = Refinement::new(cage, &options).unwrap();
                     let n = refinement.curve_networks().len();
-                    let Some(drawn) = refinement.drawn_step() else {
+                    let Some(drawn) = refinement.drawn_step().unwrap() else {
                         // The first step reads primal data: no drawn windows (and the open
                         // grid's first steps have no point to fuse).
                         assert!(levels == 1 || i > 0, "degree {degree}: no drawn step");
@@ -2353,5 +2398,61 @@ pub(super) mod tests {
             }
         }
         assert!(drawn_steps >= 8, "{drawn_steps} drawn steps");
+    }
+
+    /// A plan's drawn last step is made by the first run that draws the primal mesh, not with
+    /// the plan: the limits' run (`run_parts`) reads the whole step and leaves it unmade, a
+    /// plan for the dual mesh never makes it, and the run that makes it after the limits gives
+    /// the bits of a run on a new plan.
+    #[test]
+    fn drawn_steps_are_made_when_first_drawn() {
+        use crate::evaluate::{run, run_parts};
+        use crate::options::OutputKind;
+        use crate::step::{Final, Scratch};
+        let (cage, points) = cube_grid(3);
+        let drawn = |scratch: &Scratch, refinement: &Refinement| match run(
+            refinement, scratch, &points, false,
+        )
+        .unwrap()
+        {
+            Final::Primal(points) => points,
+            Final::Dual { .. } => panic!("the drawing mesh is primal"),
+        };
+        for degree in [2, 4] {
+            let refinement = Refinement::new(&cage, &averaging(degree)).unwrap();
+            assert!(
+                !refinement.drawn_made(),
+                "degree {degree}: made with the plan"
+            );
+            let scratch = Scratch::default();
+            run_parts(&refinement, &scratch, &points).unwrap();
+            assert!(
+                !refinement.drawn_made(),
+                "degree {degree}: made by the limits"
+            );
+            let after_limits = drawn(&scratch, &refinement);
+            assert!(
+                refinement.drawn_made(),
+                "degree {degree}: not made when drawn"
+            );
+            let fresh = Refinement::new(&cage, &averaging(degree)).unwrap();
+            let first = drawn(&Scratch::default(), &fresh);
+            let bits = |p: &[[f64; 3]]| p.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&after_limits), bits(&first), "degree {degree}");
+            let options = Options {
+                output: OutputKind::Dual,
+                ..averaging(degree)
+            };
+            let dual = Refinement::new(&cage, &options).unwrap();
+            assert!(
+                dual.drawn_step().unwrap().is_none(),
+                "degree {degree}: dual drawn"
+            );
+            run(&dual, &Scratch::default(), &points, true).unwrap();
+            assert!(
+                !dual.drawn_made(),
+                "degree {degree}: made for the dual mesh"
+            );
+        }
     }
 }

@@ -274,7 +274,7 @@ mod tests {
             };
             for (cage, _) in [cube_grid(3), open_grid(7, 6, 10.0)] {
                 let refinement = Refinement::new(&cage, &options).unwrap();
-                let step = refinement.drawn_step().expect("a drawn last step");
+                let step = refinement.drawn_step().unwrap().expect("a drawn last step");
                 let fused = step.windows.and_then(|w| w.fused()).unwrap();
                 let flags = crate::step::regular::Flags::of(step.coarse, step.curves).unwrap();
                 for cycle in fused.cycles.chunks_exact(4).filter(|c| c[0] != c[1]) {
@@ -310,7 +310,7 @@ mod tests {
             };
             for (i, (cage, _)) in [cube_grid(3), open_grid(7, 6, 10.0)].iter().enumerate() {
                 let refinement = Refinement::new(cage, &options).unwrap();
-                let step = refinement.drawn_step().expect("a drawn last step");
+                let step = refinement.drawn_step().unwrap().expect("a drawn last step");
                 let fused = step.windows.and_then(|w| w.fused()).unwrap();
                 assert!(fused.dual() && fused.degree() == degree + 1);
                 let ids = ClosureIds::of(step.coarse)
