@@ -259,48 +259,9 @@ mod tests {
     use crate::step::regular::tests::{cube_grid, open_grid};
     use crate::{Options, Rules};
 
-    /// The dual nets of the vectors are the loop's, id for id, on the drawn steps of degrees 2
-    /// and 4 of a cube of grids and an open grid with a crease (boundaries: twins at the dead
-    /// face). Without AVX2 both are the loop's.
-    #[test]
-    fn dual_nets_in_vectors_are_the_loops() {
-        let mut nets = 0;
-        for degree in [2, 4] {
-            let options = Options {
-                degree,
-                levels: 3,
-                rules: Rules::Averaging,
-                ..Options::default()
-            };
-            for (cage, _) in [cube_grid(3), open_grid(7, 6, 10.0)] {
-                let refinement = Refinement::new(&cage, &options).unwrap();
-                let step = refinement.drawn_step().unwrap().expect("a drawn last step");
-                let fused = step.windows.and_then(|w| w.fused()).unwrap();
-                let flags = crate::step::regular::Flags::of(step.coarse, step.curves).unwrap();
-                for cycle in fused.cycles.chunks_exact(4).filter(|c| c[0] != c[1]) {
-                    let cycle: [u32; 4] = cycle.try_into().unwrap();
-                    let mut wide = [MaybeUninit::new(u32::MAX); NET];
-                    let mut scalar = [MaybeUninit::new(u32::MAX); NET];
-                    if !crate::step::wide::dual_net(flags.tables(), cycle, &mut wide) {
-                        dual_net(flags.tables(), cycle, &mut wide);
-                    }
-                    dual_net(flags.tables(), cycle, &mut scalar);
-                    // SAFETY: both were initialised above.
-                    let read = |n: [MaybeUninit<u32>; NET]| n.map(|x| unsafe { x.assume_init() });
-                    assert_eq!(read(wide), read(scalar), "degree {degree}, cycle {cycle:?}");
-                    nets += 1;
-                }
-            }
-        }
-        assert!(nets > 1000, "{nets} dual nets");
-    }
-
-    /// Every fine vertex of the drawn last step of degrees 2 and 4 ([`Fused::drawing`]) is
-    /// made once, by the coarse vertex that owns it or by the average; most of the cube's are
-    /// fused, and none where the children around it are not the tensor product's: curve
-    /// vertices (the open grid's boundary and crease) and old vertices of another valence.
-    #[test]
-    fn every_drawing_point_is_made_once() {
+    /// Calls `check(degree, i, step, fused)` for the drawn last step of degrees 2 and 4, three
+    /// levels, on a cube of grids (`i` = 0) and an open grid with a crease (`i` = 1).
+    fn each_drawn_step(mut check: impl FnMut(u32, usize, &crate::step::Step, &Fused)) {
         for degree in [2, 4] {
             let options = Options {
                 degree,
@@ -312,31 +273,67 @@ mod tests {
                 let refinement = Refinement::new(cage, &options).unwrap();
                 let step = refinement.drawn_step().unwrap().expect("a drawn last step");
                 let fused = step.windows.and_then(|w| w.fused()).unwrap();
-                assert!(fused.dual() && fused.degree() == degree + 1);
-                let ids = ClosureIds::of(step.coarse)
-                    .unwrap()
-                    .with_cycles(&fused.cycles)
-                    .unwrap();
-                let n = step.fine.num_vertices;
-                let made = times_made(fused, ids, n);
-                assert!(
-                    made.iter().all(|&m| m == 1),
-                    "degree {degree}, cage {i}: a vertex made twice or never"
-                );
-                if i == 0 {
-                    let rest = fused.rest.len();
-                    assert!(rest < n / 10, "degree {degree}: {rest} of {n} not fused");
-                }
-                let rest = |w: u32| fused.rest.binary_search(&w).is_ok();
-                for cv in step.curves.vertices() {
-                    assert!(rest(cv.vertex), "degree {degree}: curve vertex fused");
-                }
-                for v in 0..step.coarse.num_vertices {
-                    if step.coarse.corners_of_vertex(v).len() != 4 {
-                        assert!(rest(v as u32), "degree {degree}: vertex {v} fused");
-                    }
-                }
+                check(degree, i, &step, fused);
             }
         }
+    }
+
+    /// The dual nets of the vectors are the loop's, id for id, on the drawn steps of degrees 2
+    /// and 4 of a cube of grids and an open grid with a crease (boundaries: twins at the dead
+    /// face). Without AVX2 both are the loop's.
+    #[test]
+    fn dual_nets_in_vectors_are_the_loops() {
+        let mut nets = 0;
+        each_drawn_step(|degree, _, step, fused| {
+            let flags = crate::step::regular::Flags::of(step.coarse, step.curves).unwrap();
+            for cycle in fused.cycles.chunks_exact(4).filter(|c| c[0] != c[1]) {
+                let cycle: [u32; 4] = cycle.try_into().unwrap();
+                let mut wide = [MaybeUninit::new(u32::MAX); NET];
+                let mut scalar = [MaybeUninit::new(u32::MAX); NET];
+                if !crate::step::wide::dual_net(flags.tables(), cycle, &mut wide) {
+                    dual_net(flags.tables(), cycle, &mut wide);
+                }
+                dual_net(flags.tables(), cycle, &mut scalar);
+                // SAFETY: both were initialised above.
+                let read = |n: [MaybeUninit<u32>; NET]| n.map(|x| unsafe { x.assume_init() });
+                assert_eq!(read(wide), read(scalar), "degree {degree}, cycle {cycle:?}");
+                nets += 1;
+            }
+        });
+        assert!(nets > 1000, "{nets} dual nets");
+    }
+
+    /// Every fine vertex of the drawn last step of degrees 2 and 4 ([`Fused::drawing`]) is
+    /// made once, by the coarse vertex that owns it or by the average; most of the cube's are
+    /// fused, and none where the children around it are not the tensor product's: curve
+    /// vertices (the open grid's boundary and crease) and old vertices of another valence.
+    #[test]
+    fn every_drawing_point_is_made_once() {
+        each_drawn_step(|degree, i, step, fused| {
+            assert!(fused.dual() && fused.degree() == degree + 1);
+            let ids = ClosureIds::of(step.coarse)
+                .unwrap()
+                .with_cycles(&fused.cycles)
+                .unwrap();
+            let n = step.fine.num_vertices;
+            let made = times_made(fused, ids, n);
+            assert!(
+                made.iter().all(|&m| m == 1),
+                "degree {degree}, cage {i}: a vertex made twice or never"
+            );
+            if i == 0 {
+                let rest = fused.rest.len();
+                assert!(rest < n / 10, "degree {degree}: {rest} of {n} not fused");
+            }
+            let rest = |w: u32| fused.rest.binary_search(&w).is_ok();
+            for cv in step.curves.vertices() {
+                assert!(rest(cv.vertex), "degree {degree}: curve vertex fused");
+            }
+            for v in 0..step.coarse.num_vertices {
+                if step.coarse.corners_of_vertex(v).len() != 4 {
+                    assert!(rest(v as u32), "degree {degree}: vertex {v} fused");
+                }
+            }
+        });
     }
 }

@@ -736,20 +736,12 @@ impl<'a> ClosureIds<'a> {
     /// found as `sizes`: only the sizes are checked again (a level's tables do not change, and
     /// the windows that hold the points are made with their step's level).
     fn again(coarse: &'a Level, sizes: [usize; 3]) -> Result<Self> {
-        let (nv, ne, nf) = (coarse.num_vertices, coarse.num_edges(), coarse.num_faces());
-        let (corner_verts, corner_edges) = (&coarse.corner_verts[..], coarse.corner_edges());
-        if [nv, ne, nf] != sizes || corner_verts.len() != 4 * nf || corner_edges.len() != 4 * nf {
-            return Err(Error::Internal(
+        match ClosureIds::of(coarse)? {
+            ids if ids.sizes() == sizes => Ok(ids),
+            _ => Err(Error::Internal(
                 "fused points: made for another level".into(),
-            ));
+            )),
         }
-        Ok(ClosureIds {
-            corner_verts,
-            corner_edges,
-            cycles: &[],
-            nv,
-            ne,
-        })
     }
 
     /// The same tables naming the cells of the dual grid by `cycles` ([`Fused::cycles`]; none
