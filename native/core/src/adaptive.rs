@@ -1518,6 +1518,7 @@ impl PartStep {
             curves: &self.network,
             sharpness: None,
             windows: self.windows.as_ref(),
+            smooth_points: None,
         }
     }
 }

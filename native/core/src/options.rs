@@ -176,7 +176,8 @@ pub fn estimate(cage: &Cage, options: &Options) -> Result<Estimate> {
     // drawing points) and the fused drawing points: per coarse vertex (about one per face) a
     // net of 4 x 4 faces, its four corners and its points' bits; and the tables the whole
     // windows keep to make them (`Drawing::Later`: per face four twins and four vertices, a
-    // flag per face and per vertex).
+    // flag per face and per vertex). Classic Catmull-Clark keeps the fused points of degree
+    // 3 alone (`step::catmark::SmoothPoints`).
     let fused = 4.0 * 16.0 + 2.0 + 4.0 * 4.0;
     let drawn = matches!(options.degree, 2 | 4)
         && options.rules == Rules::Averaging
@@ -187,6 +188,7 @@ pub fn estimate(cage: &Cage, options: &Options) -> Result<Estimate> {
         4 if options.rules == Rules::Averaging => 4.0 * 16.0 + 2.0,
         5 if options.rules == Rules::Averaging => 4.0 * 16.0 + 2.0 + fused,
         6..=9 if options.rules == Rules::Averaging => 4.0 * 36.0 + 2.0,
+        3 if options.rules == Rules::Classic => fused,
         _ => 0.0,
     };
     bytes += level_bytes(v, e, c);

@@ -16,7 +16,7 @@ use crate::mesh::Cage;
 use crate::options::{estimate, Options, OutputKind};
 use crate::parallel::in_pool;
 use crate::scheme::Scheme;
-use crate::step::{Drawing, Step, Windows};
+use crate::step::{Drawing, SmoothPoints, Step, Windows};
 use crate::topology::{Level, NONE};
 
 /// The refined topology of a cage for one scheme; see the module documentation.
@@ -46,6 +46,9 @@ pub(crate) struct Refinement {
     /// level 3, one thread: the dual grid was 26.8M of the 103.0M of a new plan of averaging 4
     /// and its first evaluation; a new plan's first `limit_surface` 345.1M -> 312.8M).
     drawn: OnceLock<Option<Windows>>,
+    /// Classic Catmull-Clark: per step from a quad level, its smooth points by the fused sums
+    /// (`None` on other levels and where none is fused; empty for other rules).
+    smooth_points: Vec<Option<SmoothPoints>>,
 }
 
 impl Refinement {
@@ -149,6 +152,12 @@ impl Refinement {
                 .collect::<Result<Vec<_>>>()?,
             _ => Vec::new(),
         };
+        let smooth_points = match scheme {
+            Scheme::CatmullClark { .. } => (0..steps)
+                .map(|j| SmoothPoints::of(&levels[j], &sharpness[j]))
+                .collect::<Result<Vec<_>>>()?,
+            _ => Vec::new(),
+        };
         Ok(Refinement {
             options: *options,
             scheme,
@@ -162,6 +171,7 @@ impl Refinement {
             sharpness,
             windows,
             drawn: OnceLock::new(),
+            smooth_points,
         })
     }
 
@@ -271,6 +281,7 @@ impl Refinement {
             sharpness: (!self.sharpness.is_empty())
                 .then(|| (&self.sharpness[j], &self.sharpness[j + 1])),
             windows: self.windows.get(j).and_then(Option::as_ref),
+            smooth_points: self.smooth_points.get(j).and_then(Option::as_ref),
         }
     }
 

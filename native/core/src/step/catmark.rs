@@ -8,25 +8,27 @@
 //! numbers old vertices, then edge points, then face points), then the vertex and edge points
 //! read them from there: no copy, and no per-vertex branch on the section.
 //!
-//! On a quad level whose fine faces fit [`FINE_FACES_BYTES`] (every level after the first, up to
-//! level 4 of the 3,840-quad sphere in f32) the smooth points come from the averaging form of the
-//! same rules ([`bilinear_children`]): the fine faces' bilinear values first, four per coarse face,
-//! then each face point, smooth edge point and smooth valence-4 vertex point as the mean of its
-//! four fine faces; the classic masks only at the other vertices and edges. The results equal the
-//! masks' in exact arithmetic (within 1e-12 of the data's scale in f64, tested; the summation order
-//! differs) with fewer instructions: cached classic 3 on the callgrind driver's 3,840-quad sphere,
-//! one thread, with every quad level by fine faces, 7.10M / 29.47M / 118.9M -> 5.71M / 23.60M /
-//! 95.1M at levels 2 / 3 / 4 (2026-12-04). But the buffer of fine faces is four times the coarse
-//! level's faces and a cached plan keeps it: larger levels keep the masks (the constant's figures).
+//! On a quad level, a face point, the smooth edge point of an edge between two quads and the
+//! smooth vertex point of an interior vertex of valence 4 are the cubic B-spline's masks over
+//! the coarse vertices, the sums of the averaging rules' fused step of degree 3
+//! ([`super::fused`]): `(a + c + b + d) / 4`, `(6 (a + b) + S) / 16`, `(36 v + 6 E + D) / 64`.
+//! This step computes those points by those functions on every path ([`cubic_face`],
+//! [`cubic_edge`], [`cubic_vertex`]), so their bits are the same whichever path makes them; a
+//! plan makes them from each face's 4 x 4 net of coarse vertices ([`SmoothPoints`]: each point
+//! once, from the face that owns it), and the classic masks only at the other vertices and
+//! edges (creases, boundaries, other valences). The results equal the masks' in exact
+//! arithmetic (within 1e-12 of the data's scale in f64, tested; the summation order differs).
 
 use std::borrow::Cow;
 use std::mem::MaybeUninit;
 
-use super::{quad_edge_mean, quad_mean, vertex_corner_mean, CurveData, LevelData, Step, Tables};
-use crate::curves::LevelSharpness;
+use super::fused::{cubic_edge, cubic_face, cubic_vertex, Fused, Weights};
+use super::regular::{after, Flags};
+use super::{CurveData, LevelData, Step, Tables};
+use crate::curves::{CurveNetwork, LevelSharpness};
 use crate::error::{Error, Result};
 use crate::options::Creasing;
-use crate::parallel::{fill, fill_zip, hinted_or_abort};
+use crate::parallel::{fill, fill_zip, hinted_or_abort, scatter_uninit};
 use crate::scalar::{add, lerp, mad, scale, zero, Scalar, Value};
 use crate::scheme::catmark::{
     blended_edge_weights, fractional_weight, smooth_vertex_weights, VertexRule, CREASE_EDGE_WEIGHT,
@@ -40,11 +42,7 @@ impl<T: Scalar, const N: usize> LevelData<'_, T, N> {
     pub(super) fn catmark(&mut self, step: &Step, creasing: Creasing) -> Result<()> {
         debug_assert!(self.primal, "Catmull-Clark data is primal");
         let mut out = self.fresh();
-        // The dual buffer is free while the data is primal: it holds the fine faces' values of
-        // a small quad level ([`step_into`]), and stays there for the next step.
-        let mut fine_faces = self.take_faces();
-        step_into(step, creasing, &self.vertices, &mut out, &mut fine_faces)?;
-        self.faces = Cow::Owned(fine_faces);
+        step_into(step, creasing, &self.vertices, &mut out)?;
         if let Cow::Owned(old) = std::mem::replace(&mut self.vertices, Cow::Owned(out)) {
             self.spare = old;
         }
@@ -53,45 +51,69 @@ impl<T: Scalar, const N: usize> LevelData<'_, T, N> {
     }
 }
 
+/// A classic step's points that a quad level makes by the fused sums of degree 3 (module
+/// documentation): every face point, the edge points of its smooth edges between two quads,
+/// the vertex points of its smooth vertices inside a grid. Topology and sharpness only: a plan
+/// makes them once per step ([`crate::refinement::Refinement`]).
+///
+/// Measured (2026-12-07, callgrind driver, 3,840-quad sphere, one thread), against the masks
+/// with the smooth points of small quad levels as means of bilinear fine faces (the path
+/// before): a cached evaluation of classic 3 at levels 2 / 3 / 4 5.69M / 23.35M / 93.95M ->
+/// 2.22M / 8.86M / 35.38M instructions, cached UVs of classic 3 at level 3 38.74M -> 21.52M;
+/// a new plan and its evaluation 12.70M / 38.13M / 139.74M -> 15.29M / 49.17M / 181.05M (the
+/// owners' serial pass, about 160 instructions a coarse face, the nets and the twin table).
+/// Results of f64 data moved by at most 3.3e-16 of the largest coordinate (the sums' order).
+#[derive(Debug)]
+pub(crate) struct SmoothPoints(Fused);
+
+impl SmoothPoints {
+    /// The smooth points of the step from `coarse` with the sharpness and rules `this` of
+    /// that level; `None` unless the level is of quads (and has a point to fuse).
+    pub(crate) fn of(coarse: &Level, this: &LevelSharpness) -> Result<Option<SmoothPoints>> {
+        if !coarse.all_quads() || coarse.num_faces() == 0 {
+            return Ok(None);
+        }
+        // The walk's tables without curves: the classic rules read the sharpness instead.
+        let flags = Flags::of(coarse, &CurveNetwork::default())?;
+        let fused = Fused::classic(
+            coarse,
+            flags.tables(),
+            |v| this.rule(v).is_smooth(),
+            |e| this.edge(e) <= 0.0,
+        )?;
+        Ok(fused.map(SmoothPoints))
+    }
+
+    /// The bytes of the points' tables (tests: what the estimate counts).
+    #[cfg(test)]
+    pub(crate) fn bytes(&self) -> usize {
+        let fused = &self.0;
+        4 * fused.nets().len() + 2 * fused.owned().len() + 4 * fused.rest().len()
+    }
+}
+
 /// One step of `values` (per vertex of `step.coarse`) into `out` (its previous contents are
-/// dropped; its allocation is reused when large enough). `fine_faces` is a buffer for the fine
-/// faces' values on a quad level ([`bilinear_children`]; its contents are dropped too). A step
-/// without the levels' sharpness tables (which `Refinement` builds for these rules) is an
-/// internal error.
+/// dropped; its allocation is reused when large enough), the smooth points by the step's
+/// [`SmoothPoints`] when it has them. A step without the levels' sharpness tables (which
+/// `Refinement` builds for these rules) is an internal error.
 pub(crate) fn step_into<T: Scalar, const N: usize>(
     step: &Step,
     creasing: Creasing,
     values: &[Value<T, N>],
     out: &mut Vec<Value<T, N>>,
-    fine_faces: &mut Vec<Value<T, N>>,
 ) -> Result<()> {
-    let coarse = step.coarse;
-    let buffer = 4 * coarse.num_faces() * std::mem::size_of::<Value<T, N>>();
-    let by_fine_faces = buffer <= FINE_FACES_BYTES && coarse.all_quads();
-    step_by(step, creasing, values, out, fine_faces, by_fine_faces)
+    step_by(step, creasing, values, out, true)
 }
 
-/// Largest buffer of fine faces' values (bytes) for which a quad level takes its smooth points
-/// from the fine faces (module documentation): the buffer is four times the coarse level's face
-/// count and a cached plan keeps it, so the bound is also what the path may add to a plan's
-/// memory. Measured 2026-12-04 23:20 UTC (cached classic 3 on the 3,840-quad sphere, f32 points,
-/// interleaved wall times of the callgrind driver, medians of 5-9 rounds, load 1.2-1.4) against
-/// the bound of 1 MiB before: cached level 3 19 % / 13 % faster on one / two threads (2.9 MiB of
-/// fine faces), level 4 22 % / 27 % (11.8 MiB); a new plan's first evaluation 11 % slower at
-/// level 3 (the new buffer's first touch; 10 % fewer instructions), 8 % faster at level 4. The
-/// same comparison at 16:00 had found level 3 equal on one thread and level 4 15 % slower; what
-/// changed between the two was not isolated (README, History).
-const FINE_FACES_BYTES: usize = 1 << 24;
-
-/// [`step_into`], the smooth points from the fine faces when `by_fine_faces` (a level of quads
-/// only), else by the masks over the coarse level (any level; the tests compare the two).
+/// [`step_into`], the smooth points by the step's [`SmoothPoints`] when `fused` and the step
+/// has them, else each by its own rule over the coarse level (the same bits: the tests compare
+/// the two).
 pub(crate) fn step_by<T: Scalar, const N: usize>(
     step: &Step,
     creasing: Creasing,
     values: &[Value<T, N>],
     out: &mut Vec<Value<T, N>>,
-    fine_faces: &mut Vec<Value<T, N>>,
-    by_fine_faces: bool,
+    fused: bool,
 ) -> Result<()> {
     let (coarse, fine) = (step.coarse, step.fine);
     let (this, child) = step.sharpness.ok_or_else(|| {
@@ -103,70 +125,273 @@ pub(crate) fn step_by<T: Scalar, const N: usize>(
     if out.capacity() < n {
         *out = hinted_or_abort(n);
     }
-    let (head, faces) = out.spare_capacity_mut()[..n].split_at_mut(nv + ne);
-    let (old, edges) = head.split_at_mut(nv);
     // The tables looked up once, not per vertex (see [`Tables`]).
     let t = Tables::of(coarse);
-    if by_fine_faces {
-        if !t.quads {
-            return Err(Error::Internal(
-                "Catmull-Clark by fine faces on a level that is not all quads".into(),
-            ));
-        }
-        let fine = bilinear_children(&t, values, fine_faces);
-        let quarter = T::from_f64(0.25);
-        fill_zip(faces, fine, |_, q| quad_mean(q, quarter));
-        // SAFETY: `fill_zip` wrote every item of `faces` (a panic would have unwound past
-        // here), and `MaybeUninit<V>` has the layout of `V`.
-        let faces = unsafe { assume_init(faces) };
-        let flat = fine.as_flattened();
-        vertex_and_edge_points(
-            &t,
-            (this, child, creasing),
-            values,
-            faces,
-            old,
-            edges,
-            #[inline(always)]
-            |v| match t.corners_of_vertex(v).len() {
-                4 => vertex_corner_mean(&t, flat, v),
-                _ => smooth_vertex(&t, v, values, faces),
-            },
-            #[inline(always)]
-            |_, &corners| quad_edge_mean(fine, corners),
-        );
-    } else {
-        fill(faces, |f| {
-            if t.quads {
-                // The additions of the general case below, in the same order.
-                let [a, b, c, d] = t.at_corners(values, f);
-                return scale(add(add(add(a, b), c), d), T::from_f64(0.25));
+    let w = Weights::new(T::from_f64);
+    let rules = Rules {
+        t: &t,
+        this,
+        child,
+        creasing,
+        w,
+    };
+    match step.smooth_points.filter(|_| fused) {
+        Some(SmoothPoints(points)) => {
+            // Every face point is fused (a quad level), so the rest is old vertices and edges.
+            let every_face = points.whole()
+                && n == nv + ne + coarse.num_faces()
+                && points.rest().last().is_none_or(|&w| (w as usize) < nv + ne);
+            if !every_face {
+                return Err(Error::Internal(
+                    "Catmull-Clark: fused points without every face point".into(),
+                ));
             }
-            let corners = coarse.face_corners(f);
-            let w = T::from_f64(1.0 / corners.len() as f64);
-            let sum = corners.fold(zero(), |s, c| {
-                add(s, values[coarse.corner_verts[c] as usize])
-            });
-            scale(sum, w)
-        });
-        // SAFETY: as above.
-        let faces = unsafe { assume_init(faces) };
-        vertex_and_edge_points(
-            &t,
-            (this, child, creasing),
-            values,
-            faces,
-            old,
-            edges,
-            #[inline(always)]
-            |v| smooth_vertex(&t, v, values, faces),
-            #[inline(always)]
-            |e, _| smooth_edge(&t, e, values, faces),
-        );
+            let out = &mut out.spare_capacity_mut()[..n];
+            points.apply(values, coarse, out)?;
+            let (head, faces) = out.split_at_mut(nv + ne);
+            // SAFETY: `Fused::apply` wrote every point some face owns, and each face owns its
+            // own point: `whole` says that the owned points and the rest are every fine vertex
+            // (the level's `n`), and the rest holds no face point (both checked above).
+            let faces = unsafe { assume_init(faces) };
+            scatter_uninit(head, points.rest(), |w| match w < nv {
+                true => [rules.vertex_point(w, values, faces)],
+                false => [rules.edge_point(w - nv, values, faces)],
+            })?;
+        }
+        None => {
+            let (head, faces) = out.spare_capacity_mut()[..n].split_at_mut(nv + ne);
+            let (old, edges) = head.split_at_mut(nv);
+            fill(faces, |f| rules.face_point(f, values));
+            // SAFETY: `fill` wrote every item of `faces` (a panic would have unwound past
+            // here), and `MaybeUninit<V>` has the layout of `V`.
+            let faces = unsafe { assume_init(faces) };
+            rules.vertex_and_edge_points(values, faces, old, edges);
+        }
     }
     // SAFETY: the three sections, written completely above, are the first `n` items.
     unsafe { out.set_len(n) };
     Ok(())
+}
+
+/// What the classic rules read besides the data: the coarse level's tables, the sharpness and
+/// rules of both levels, the creasing method, and the weights of the fused sums.
+#[derive(Clone, Copy)]
+struct Rules<'a, T: Scalar> {
+    t: &'a Tables<'a>,
+    this: &'a LevelSharpness,
+    child: &'a LevelSharpness,
+    creasing: Creasing,
+    w: Weights<T>,
+}
+
+impl<T: Scalar> Rules<'_, T> {
+    /// The face point of face `f`: the mean of its corners (a quad's by [`cubic_face`]).
+    #[inline(always)]
+    fn face_point<const N: usize>(&self, f: usize, values: &[Value<T, N>]) -> Value<T, N> {
+        let t = self.t;
+        if t.quads {
+            let corners = t.at_corners(values, f);
+            return cubic_face(|k| corners[k as usize], &[0, 1, 2, 3], self.w);
+        }
+        let corners = t.face_corners(f);
+        let w = T::from_f64(1.0 / corners.len() as f64);
+        let sum = corners.fold(zero(), |s, c| add(s, values[t.corner_verts[c] as usize]));
+        scale(sum, w)
+    }
+
+    /// The old vertices' and the edge points of a step (`old` and `edges`) from the coarse
+    /// `values` and the new face points `faces`.
+    #[inline(always)]
+    fn vertex_and_edge_points<const N: usize>(
+        &self,
+        values: &[Value<T, N>],
+        faces: &[Value<T, N>],
+        old: &mut [MaybeUninit<Value<T, N>>],
+        edges: &mut [MaybeUninit<Value<T, N>>],
+    ) {
+        let (t, this, nv) = (self.t, self.this, old.len());
+        // The old vertices and edges walk a table of their own only to go through `fill_zip`:
+        // with the plain `fill` LLVM stopped inlining the smooth closures (cached classic 3: +10
+        // %), as in the averaging step's `gather_primal`.
+        if this.is_smooth() {
+            fill_zip(old, &t.vertex_offsets[..nv], |v, _| {
+                self.smooth_vertex(v, values, faces)
+            });
+        } else {
+            // Most vertices of a level with curves are smooth (a face-varying mesh has
+            // boundaries everywhere its seams run): their mask inline, the rule machinery for
+            // the rest.
+            fill(old, |v| self.vertex_point(v, values, faces));
+        }
+        if this.has_sharp_edges() {
+            fill(edges, |e| self.edge_point(e, values, faces));
+        } else {
+            fill_zip(edges, t.edge_corners, |e, &corners| {
+                self.smooth_edge(e, corners, values, faces)
+            });
+        }
+    }
+
+    /// The vertex point of old vertex `v` (OpenSubdiv's `ComputeVertexVertexMask` with the
+    /// parent and child rules known).
+    #[inline(always)]
+    fn vertex_point<const N: usize>(
+        &self,
+        v: usize,
+        values: &[Value<T, N>],
+        faces: &[Value<T, N>],
+    ) -> Value<T, N> {
+        let (coarse, this, child) = (self.t.level, self.this, self.child);
+        let parent_rule = this.rule(v);
+        if parent_rule.is_smooth() {
+            return self.smooth_vertex(v, values, faces);
+        }
+        let parent_mask = match parent_rule {
+            VertexRule::Crease => crease_vertex(coarse, v, values, |e| this.edge(e as usize)),
+            _ => values[v],
+        };
+        let child_rule = child.rule(v);
+        if child_rule == parent_rule {
+            return parent_mask;
+        }
+        let child_mask = match child_rule {
+            VertexRule::Smooth | VertexRule::Dart => self.smooth_vertex(v, values, faces),
+            VertexRule::Crease => crease_vertex(coarse, v, values, |e| {
+                child.edge(coarse.child_half(e, v as u32) as usize)
+            }),
+            VertexRule::Corner => values[v],
+        };
+        let p = this.with_edge_sharpness(coarse, v, Some(child), |pe, ce| {
+            fractional_weight(this.vertex(v), child.vertex(v), pe, ce, self.creasing)
+        });
+        lerp(parent_mask, child_mask, p as f64)
+    }
+
+    /// The smooth vertex mask `(k-2)/k v + 1/k^2 sum e_i + 1/k^2 sum f_i` (interior vertex of
+    /// `k` faces; `e_i` the edge neighbours, `f_i` the face points); inside a grid of quads,
+    /// [`cubic_vertex`] over its neighbours.
+    #[inline(always)]
+    fn smooth_vertex<const N: usize>(
+        &self,
+        v: usize,
+        values: &[Value<T, N>],
+        faces: &[Value<T, N>],
+    ) -> Value<T, N> {
+        let t = self.t;
+        let corners = t.corners_of_vertex(v);
+        if let Some(fan) = self.grid_fan(v, corners) {
+            let at = |c: u32| values[t.corner_verts[c as usize] as usize];
+            let [e0, e1, e2, e3] = fan.map(|c| at(after(c, 1)));
+            let [d0, d1, d2, d3] = fan.map(|c| at(after(c, 2)));
+            // Opposite neighbours in pairs: the fan's corners 0 and 2, 1 and 3.
+            let points = [values[v], e0, e2, e1, e3, d0, d2, d1, d3];
+            return cubic_vertex(|i| points[i as usize], &[0, 1, 2, 3, 4, 5, 6, 7, 8], self.w);
+        }
+        let mut sum = zero();
+        for &c in corners {
+            let c = c as usize;
+            let neighbour = values[t.corner_verts[t.next(c)] as usize];
+            sum = add(sum, add(neighbour, faces[t.face_of(c)]));
+        }
+        let (vertex, ring) = smooth_vertex_weights(corners.len());
+        mad(
+            scale(values[v], T::from_f64(vertex)),
+            T::from_f64(ring),
+            sum,
+        )
+    }
+
+    /// The four `corners` of vertex `v` of a quad level in their order around it (each across
+    /// the outgoing edge of the one before) when `v` is inside a grid: interior, manifold, of
+    /// valence 4 (what the fused sums' walk takes, [`Flags`]); `None` otherwise.
+    #[inline(always)]
+    fn grid_fan(&self, v: usize, corners: &[u32]) -> Option<[u32; 4]> {
+        let t = self.t;
+        let coarse = t.level;
+        if !t.quads || corners.len() != 4 {
+            return None;
+        }
+        let non_manifold = coarse.is_non_manifold();
+        if non_manifold && coarse.is_non_manifold_vertex(v) {
+            return None;
+        }
+        let mut fan = [corners[0]; 4];
+        for i in 1..=4 {
+            let c = fan[i - 1];
+            let e = t.corner_edges[c as usize] as usize;
+            let [a, b] = t.edge_corners[e];
+            if a == NONE || b == NONE || (non_manifold && coarse.is_non_manifold_edge(e)) {
+                return None;
+            }
+            let twin = if a == c { b } else { a };
+            // The twin is at the edge's other end; the corner after it is at `v` again.
+            let next = after(twin, 1);
+            match i {
+                4 if next != fan[0] => return None,
+                4 => {}
+                _ => fan[i] = next,
+            }
+        }
+        let distinct = fan[0] != fan[1] && fan[0] != fan[2] && fan[0] != fan[3];
+        (distinct && fan[1] != fan[2] && fan[1] != fan[3] && fan[2] != fan[3]).then_some(fan)
+    }
+
+    /// The edge point of edge `e`: smooth (interior and of sharpness 0: [`Rules::smooth_edge`])
+    /// or by [`edge_point_of_sharp`].
+    #[inline(always)]
+    fn edge_point<const N: usize>(
+        &self,
+        e: usize,
+        values: &[Value<T, N>],
+        faces: &[Value<T, N>],
+    ) -> Value<T, N> {
+        let corners = self.t.edge_corners[e];
+        if self.this.edge(e) <= 0.0 && corners[1] != NONE {
+            self.smooth_edge(e, corners, values, faces)
+        } else {
+            let nv = self.t.level.num_vertices;
+            edge_point_of_sharp(
+                self.t.level,
+                self.this,
+                self.child,
+                e,
+                nv + e,
+                values,
+                faces,
+            )
+        }
+    }
+
+    /// The smooth edge point `1/4 (a + b + f_0 + f_1)` of an interior edge `e` of two faces
+    /// with `corners`, by the mask; between two quads, by [`cubic_edge`].
+    #[inline(always)]
+    fn smooth_edge<const N: usize>(
+        &self,
+        e: usize,
+        corners: [u32; 2],
+        values: &[Value<T, N>],
+        faces: &[Value<T, N>],
+    ) -> Value<T, N> {
+        let t = self.t;
+        let [c0, c1] = corners;
+        debug_assert!(c1 != NONE, "a smooth edge is interior");
+        if t.quads {
+            let at = |c: u32| values[t.corner_verts[c as usize] as usize];
+            // The ends, then the other two corners of each quad.
+            let [a, b, c, d] = [c0, after(c0, 1), after(c0, 2), after(c0, 3)].map(at);
+            let points = [a, b, c, d, at(after(c1, 2)), at(after(c1, 3))];
+            return cubic_edge(|i| points[i as usize], &[0, 1, 2, 3, 4, 5], self.w);
+        }
+        let [a, b] = t.edge_verts[e];
+        // The operations of `edge_point_of_sharp` at sharpness 0 (bitwise equal).
+        let (ends, face_total) = SMOOTH_EDGE_WEIGHTS;
+        let f = add(faces[t.face_of(c0 as usize)], faces[t.face_of(c1 as usize)]);
+        mad(
+            scale(f, T::from_f64(face_total / 2.0)),
+            T::from_f64(ends),
+            add(values[a as usize], values[b as usize]),
+        )
+    }
 }
 
 /// `items`, every one of which has been written, as initialised values.
@@ -176,155 +401,6 @@ pub(crate) fn step_by<T: Scalar, const N: usize>(
 unsafe fn assume_init<V>(items: &mut [MaybeUninit<V>]) -> &[V] {
     // SAFETY: the caller's promise, and `MaybeUninit<V>` has the layout of `V`.
     unsafe { &*(items as *const [MaybeUninit<V>] as *const [V]) }
-}
-
-/// The old vertices' and the edge points of a step (`old` and `edges`) from the coarse
-/// `values` and the new face points `faces`: smooth vertices and edges by `smooth_vertex_at`
-/// and `smooth_edge_at` (the smooth masks; an edge's with its two corners), the others by the rules
-/// of `sharpness` (this level's, the child's, and the creasing method).
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn vertex_and_edge_points<T: Scalar, const N: usize>(
-    t: &Tables,
-    sharpness: (&LevelSharpness, &LevelSharpness, Creasing),
-    values: &[Value<T, N>],
-    faces: &[Value<T, N>],
-    old: &mut [MaybeUninit<Value<T, N>>],
-    edges: &mut [MaybeUninit<Value<T, N>>],
-    smooth_vertex_at: impl Fn(usize) -> Value<T, N> + Sync + Send,
-    smooth_edge_at: impl Fn(usize, &[u32; 2]) -> Value<T, N> + Sync + Send,
-) {
-    let (this, child, creasing) = sharpness;
-    let (coarse, nv) = (t.level, old.len());
-    // The old vertices and edges walk a table of their own only to go through `fill_zip`: with
-    // the plain `fill` LLVM stopped inlining the smooth closures (cached classic 3: +10 %
-    // instructions), as in the averaging step's `gather_primal`.
-    if this.is_smooth() {
-        fill_zip(old, &t.vertex_offsets[..nv], |v, _| smooth_vertex_at(v));
-    } else {
-        // Most vertices of a level with curves are smooth (a face-varying mesh has boundaries
-        // everywhere its seams run): their mask inline, the rule machinery for the rest.
-        fill(old, |v| {
-            if this.rule(v).is_smooth() {
-                smooth_vertex_at(v)
-            } else {
-                vertex_point(t, this, child, creasing, v, values, faces)
-            }
-        });
-    }
-    if this.has_sharp_edges() {
-        // Likewise for edges: the smooth edge point is `edge_point` at sharpness 0.
-        fill_zip(edges, t.edge_corners, |e, corners| {
-            if this.edge(e) <= 0.0 && corners[1] != NONE {
-                smooth_edge_at(e, corners)
-            } else {
-                edge_point(coarse, this, child, e, nv + e, values, faces)
-            }
-        });
-    } else {
-        fill_zip(edges, t.edge_corners, smooth_edge_at);
-    }
-}
-
-/// The values of a quad level's fine faces in the averaging form of Catmull-Clark (DESIGN.md §1;
-/// the paper's degree 3: replication, then one centroid average): each takes the bilinear value
-/// at its centre, `(9 p_k + 3 p_(k+1) + 3 p_(k-1) + p_(k+2)) / 16` over its parent's corners
-/// `p`, four per coarse face (face `4 f + k` of the fine level is corner `k` of face `f`), in
-/// `buffer` (its contents are dropped).
-///
-/// The mean of a fine vertex's fine faces is then Catmull-Clark's face point, its smooth edge
-/// point (an edge of two quads) and its smooth vertex point at valence 4, in exact arithmetic;
-/// at other valences the two differ, and those vertices keep the classic mask. Four gathers of
-/// a coarse face's corners make its four fine faces, and the edge and face points read those in
-/// place: fewer scattered reads than the masks over the coarse level (module documentation).
-fn bilinear_children<'b, T: Scalar, const N: usize>(
-    t: &Tables,
-    values: &[Value<T, N>],
-    buffer: &'b mut Vec<Value<T, N>>,
-) -> &'b [[Value<T, N>; 4]] {
-    let (quads, _) = t.corner_verts.as_chunks::<4>();
-    let n = 4 * quads.len();
-    buffer.clear();
-    if buffer.capacity() < n {
-        *buffer = hinted_or_abort(n);
-    }
-    let (groups, _) = buffer.spare_capacity_mut()[..n].as_chunks_mut::<4>();
-    // SAFETY: `[MaybeUninit<V>; 4]` has the layout of `MaybeUninit<[V; 4]>`.
-    let groups: &mut [MaybeUninit<[Value<T, N>; 4]>] =
-        unsafe { std::slice::from_raw_parts_mut(groups.as_mut_ptr().cast(), groups.len()) };
-    let (half, eighth, sixteenth) = (T::from_f64(0.5), T::from_f64(0.125), T::from_f64(0.0625));
-    fill_zip(groups, quads, |_, q| {
-        let p: [Value<T, N>; 4] = std::array::from_fn(|k| values[q[k] as usize]);
-        let centre = scale(add(add(p[0], p[1]), add(p[2], p[3])), sixteenth);
-        std::array::from_fn(|k| {
-            let sides = add(p[(k + 1) & 3], p[(k + 3) & 3]);
-            mad(mad(centre, half, p[k]), eighth, sides)
-        })
-    });
-    // SAFETY: `fill_zip` wrote every group (a panic would have unwound past here).
-    unsafe { buffer.set_len(n) };
-    buffer.as_chunks::<4>().0
-}
-
-/// The vertex point of old vertex `v` (OpenSubdiv's `ComputeVertexVertexMask` with the parent
-/// and child rules known).
-fn vertex_point<T: Scalar, const N: usize>(
-    t: &Tables,
-    this: &LevelSharpness,
-    child: &LevelSharpness,
-    creasing: Creasing,
-    v: usize,
-    values: &[Value<T, N>],
-    faces: &[Value<T, N>],
-) -> Value<T, N> {
-    let coarse = t.level;
-    let parent_rule = this.rule(v);
-    if parent_rule.is_smooth() {
-        return smooth_vertex(t, v, values, faces);
-    }
-    let parent_mask = match parent_rule {
-        VertexRule::Crease => crease_vertex(coarse, v, values, |e| this.edge(e as usize)),
-        _ => values[v],
-    };
-    let child_rule = child.rule(v);
-    if child_rule == parent_rule {
-        return parent_mask;
-    }
-    let child_mask = match child_rule {
-        VertexRule::Smooth | VertexRule::Dart => smooth_vertex(t, v, values, faces),
-        VertexRule::Crease => crease_vertex(coarse, v, values, |e| {
-            child.edge(coarse.child_half(e, v as u32) as usize)
-        }),
-        VertexRule::Corner => values[v],
-    };
-    let p = this.with_edge_sharpness(coarse, v, Some(child), |pe, ce| {
-        fractional_weight(this.vertex(v), child.vertex(v), pe, ce, creasing)
-    });
-    lerp(parent_mask, child_mask, p as f64)
-}
-
-/// The smooth vertex mask `(k-2)/k v + 1/k^2 sum e_i + 1/k^2 sum f_i` (interior vertex of `k`
-/// faces; `e_i` the edge neighbours, `f_i` the face points).
-#[inline(always)]
-fn smooth_vertex<T: Scalar, const N: usize>(
-    t: &Tables,
-    v: usize,
-    values: &[Value<T, N>],
-    faces: &[Value<T, N>],
-) -> Value<T, N> {
-    let corners = t.corners_of_vertex(v);
-    let mut sum = zero();
-    for &c in corners {
-        let c = c as usize;
-        let neighbour = values[t.corner_verts[t.next(c)] as usize];
-        sum = add(sum, add(neighbour, faces[t.face_of(c)]));
-    }
-    let (vertex, ring) = smooth_vertex_weights(corners.len());
-    mad(
-        scale(values[v], T::from_f64(vertex)),
-        T::from_f64(ring),
-        sum,
-    )
 }
 
 /// The crease vertex mask `3/4 v + 1/8 (a + b)`, `a` and `b` the other ends of the first two
@@ -345,33 +421,11 @@ fn crease_vertex<T: Scalar, const N: usize>(
     )
 }
 
-/// The smooth edge point `1/4 (a + b + f_0 + f_1)` of an interior edge `e` of two faces, by the
-/// mask (on a level that takes the fine faces, [`bilinear_children`] make it instead).
-#[inline(always)]
-fn smooth_edge<T: Scalar, const N: usize>(
-    t: &Tables,
-    e: usize,
-    values: &[Value<T, N>],
-    faces: &[Value<T, N>],
-) -> Value<T, N> {
-    let [a, b] = t.edge_verts[e];
-    let [c0, c1] = t.edge_corners[e];
-    debug_assert!(c1 != NONE, "a smooth level has no boundary edge");
-    // The operations of `edge_point` at sharpness 0 (bitwise equal).
-    let (ends, face_total) = SMOOTH_EDGE_WEIGHTS;
-    let f = add(faces[t.face_of(c0 as usize)], faces[t.face_of(c1 as usize)]);
-    mad(
-        scale(f, T::from_f64(face_total / 2.0)),
-        T::from_f64(ends),
-        add(values[a as usize], values[b as usize]),
-    )
-}
-
 /// The edge point of edge `e` (fine vertex `w`): smooth `1/4 (a + b + f_0 + f_1)`, crease
 /// midpoint, or for a semi-sharp edge whose child is no crease the blend with weight `s`
 /// (OpenSubdiv's `ComputeEdgeVertexMask`).
 #[inline]
-fn edge_point<T: Scalar, const N: usize>(
+fn edge_point_of_sharp<T: Scalar, const N: usize>(
     coarse: &Level,
     this: &LevelSharpness,
     child: &LevelSharpness,

@@ -8,7 +8,8 @@
 //! A step of the averaging rules is a replication followed by n centroid averages alternating
 //! dual -> primal and primal -> dual (DESIGN.md §1), with the 1-D scheme run in lockstep on the
 //! step's [`CurveNetwork`] (§2); classic Doo-Sabin adds its original weights
-//! ([`doo_sabin`]), classic Catmull-Clark is one pass of OpenSubdiv's masks ([`catmark`]).
+//! ([`doo_sabin`]), classic Catmull-Clark is one pass of OpenSubdiv's masks ([`catmark`]),
+//! whose smooth points on a quad level are the fused sums of degree 3 ([`fused`]).
 //! On a quad level (from 2 averages on), the fine faces whose support is a grid come from the
 //! tensor B-spline of the whole step ([`regular`]: the regular windows), and the passes run only
 //! over the zone around the others; at degrees 3 and 5 the fine vertices of a grid come straight
@@ -39,6 +40,7 @@ mod fused;
 mod regular;
 mod wide;
 
+pub(crate) use catmark::SmoothPoints;
 pub(crate) use regular::{primal_input, Drawing, Windows};
 
 use std::any::Any;
@@ -79,6 +81,9 @@ pub(crate) struct Step<'a> {
     /// kernel child). Windows made for the other kind of data (primal or dual) are made again
     /// for the data at hand.
     pub windows: Option<&'a Windows>,
+    /// Classic Catmull-Clark on a quad level: its smooth points by the fused sums, made with
+    /// its topology and sharpness (`None`: every point by its rule).
+    pub smooth_points: Option<&'a catmark::SmoothPoints>,
 }
 
 /// The tables of a coarse level that a pass reads, looked up once per pass: the accessors of
@@ -92,6 +97,7 @@ pub(super) struct Tables<'a> {
     corner_verts: &'a [u32],
     edge_verts: &'a [[u32; 2]],
     edge_corners: &'a [[u32; 2]],
+    corner_edges: &'a [u32],
     vertex_offsets: &'a [u32],
     vertex_corners: &'a [u32],
 }
@@ -109,6 +115,7 @@ impl<'a> Tables<'a> {
             corner_verts: &level.corner_verts,
             edge_verts: level.edge_verts(),
             edge_corners: level.edge_corners(),
+            corner_edges: level.corner_edges(),
             vertex_offsets,
             vertex_corners,
         }

@@ -595,9 +595,8 @@ fn step_into_reuses_a_dirty_buffer_and_matches_step() {
         for j in 0..2 {
             let step = plan.refinement().step(j);
             let mut expected = Vec::new();
-            let mut fine_faces = vec![[f64::NAN; 3]; 3];
-            step_into(&step, creasing, &values, &mut expected, &mut Vec::new()).unwrap();
-            step_into(&step, creasing, &values, &mut buffer, &mut fine_faces).unwrap();
+            step_into(&step, creasing, &values, &mut expected).unwrap();
+            step_into(&step, creasing, &values, &mut buffer).unwrap();
             assert_eq!(buffer.len(), levels[j + 1].num_vertices);
             let bits = |v: &[P]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&buffer), bits(&expected));
@@ -607,11 +606,13 @@ fn step_into_reuses_a_dirty_buffer_and_matches_step() {
 }
 
 #[test]
-fn quad_levels_by_fine_faces_equal_the_masks() {
-    // The smooth points of a quad level as means of bilinear fine faces equal the classic masks
-    // to rounding, wherever the rules are smooth, creased, semi-sharp, blended or at corners;
-    // at irregular valences (the bipyramid's apexes and its triangles' children) the masks run
-    // on both sides.
+fn fused_smooth_points_are_the_rules_bit_for_bit() {
+    // A plan's smooth points of a quad level by the fused sums (each from the net of the face
+    // that owns it) equal, bit for bit, every point by its rule over the coarse level, wherever
+    // the rules are smooth, creased, semi-sharp, blended or at corners; and each smooth point
+    // of a quad level equals the classic mask written from its definition (face points the
+    // centroids) to rounding. At irregular valences (the bipyramid's apexes and its triangles'
+    // children) and on the triangles both sides take the masks.
     let (bi, bi_points) = bipyramid(5);
     let creased = torus(4, 5)
         .with_creases(&[(0, 1, 2.5), (1, 2, 10.0), (6, 7, 0.5)])
@@ -628,7 +629,8 @@ fn quad_levels_by_fine_faces_equal_the_masks() {
         (open.clone(), open_points.clone(), Boundary::EdgeOnly),
         (open, open_points, Boundary::EdgeAndCorner),
     ];
-    let mut compared = 0;
+    let bits = |v: &[P]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let (mut fused_steps, mut checked) = (0, 0);
     for (cage, points, boundary) in cases {
         for creasing in [Creasing::Uniform, Creasing::Chaikin] {
             let options = Options {
@@ -640,25 +642,96 @@ fn quad_levels_by_fine_faces_equal_the_masks() {
             let mut values: Vec<P> = pts(&points);
             for j in 0..3 {
                 let step = plan.refinement().step(j);
-                let (mut masks, mut faces) = (Vec::new(), Vec::new());
-                step_by(&step, creasing, &values, &mut masks, &mut faces, false).unwrap();
+                let (mut by_rules, mut fused) = (Vec::new(), Vec::new());
+                step_by(&step, creasing, &values, &mut by_rules, false).unwrap();
+                step_by(&step, creasing, &values, &mut fused, true).unwrap();
+                assert_eq!(bits(&fused), bits(&by_rules), "step {j}");
+                assert_eq!(step.smooth_points.is_some(), step.coarse.all_quads());
+                fused_steps += step.smooth_points.is_some() as usize;
                 if step.coarse.all_quads() {
-                    let mut by_faces = Vec::new();
-                    step_by(&step, creasing, &values, &mut by_faces, &mut faces, true).unwrap();
-                    assert_eq!(by_faces.len(), masks.len());
-                    let scale = masks.iter().flatten().fold(1.0f64, |m, x| m.max(x.abs()));
-                    for (a, b) in by_faces.iter().zip(&masks) {
-                        assert!((0..3).all(|k| (a[k] - b[k]).abs() <= 1e-12 * scale));
-                    }
-                    compared += 1;
-                } else {
-                    let err = step_by(&step, creasing, &values, &mut Vec::new(), &mut faces, true);
-                    assert!(matches!(err, Err(crate::Error::Internal(_))));
+                    checked += smooth_points_are_the_masks(&plan, j, &values, &fused);
                 }
-                values = masks;
+                values = fused;
             }
         }
     }
     // Levels 1 and 2 of every case, and the torus's and grids' cages.
-    assert_eq!(compared, 2 * (4 * 2 + 3));
+    assert_eq!(fused_steps, 2 * (4 * 2 + 3));
+    assert!(checked > 1000, "{checked} smooth points checked");
+}
+
+/// Checks each smooth point of step `j` of `plan` (a quad level: every face point, the edge
+/// points of interior edges of sharpness 0, the vertex points of smooth vertices of valence 4)
+/// in `fine` against Catmull-Clark's masks from their definitions over `coarse` (within 1e-12
+/// of the data's scale); returns how many were checked.
+fn smooth_points_are_the_masks(plan: &Plan, j: usize, coarse: &[P], fine: &[P]) -> usize {
+    let level = &plan.levels()[j];
+    let sharpness = plan.refinement().sharpness(j).unwrap();
+    let (nv, ne) = (level.num_vertices, level.num_edges());
+    let scale = fine.iter().flatten().fold(1.0f64, |m, x| m.max(x.abs()));
+    let centroid = |f: usize| {
+        let corners: Vec<(f64, P)> = level
+            .face_corners(f)
+            .map(|c| (0.25, coarse[level.corner_verts[c] as usize]))
+            .collect();
+        comb(&corners)
+    };
+    let near = |a: P, b: P| (0..3).all(|k| (a[k] - b[k]).abs() <= 1e-12 * scale);
+    let mut checked = 0;
+    for f in 0..level.num_faces() {
+        assert!(near(fine[nv + ne + f], centroid(f)), "face {f}");
+        checked += 1;
+    }
+    for (e, &[c0, c1]) in level.edge_corners().iter().enumerate() {
+        if sharpness.edge(e) > 0.0 || c1 == u32::MAX {
+            continue;
+        }
+        let [a, b] = level.edge_verts()[e].map(|v| coarse[v as usize]);
+        let [f0, f1] = [c0, c1].map(|c| centroid(level.face_of(c as usize)));
+        let mask = comb(&[(0.25, a), (0.25, b), (0.25, f0), (0.25, f1)]);
+        assert!(near(fine[nv + e], mask), "edge {e}");
+        checked += 1;
+    }
+    for v in 0..nv {
+        let corners = level.corners_of_vertex(v);
+        if !sharpness.rule(v).is_smooth() || corners.len() != 4 {
+            continue;
+        }
+        // (k - 2) / k v + 1 / k^2 (sum of edge neighbours + sum of face points), k = 4.
+        let mut terms = vec![(0.5, coarse[v])];
+        for &c in corners {
+            let neighbour = level.corner_verts[level.next(c as usize)] as usize;
+            terms.push((1.0 / 16.0, coarse[neighbour]));
+            terms.push((1.0 / 16.0, centroid(level.face_of(c as usize))));
+        }
+        assert!(near(fine[v], comb(&terms)), "vertex {v}");
+        checked += 1;
+    }
+    checked
+}
+
+#[test]
+fn the_estimate_counts_the_smooth_points() {
+    // The memory estimate of a classic plan counts the smooth points' tables of every step
+    // from a quad level (the torus's cage and every later level).
+    let cage = torus(6, 8);
+    for levels in [1, 2, 3] {
+        let options = classic(3, levels);
+        let plan = Plan::new(&cage, &options).unwrap();
+        let tables: usize = (0..levels as usize)
+            .filter_map(|j| plan.refinement().step(j).smooth_points)
+            .map(|points| points.bytes())
+            .sum();
+        assert!(tables > 0);
+        let bilinear = Options {
+            degree: 1,
+            ..options
+        };
+        let more = crate::estimate(&cage, &options).unwrap().bytes
+            - crate::estimate(&cage, &bilinear).unwrap().bytes;
+        assert!(
+            more >= tables as u64,
+            "{levels} levels: {more} bytes estimated for {tables}"
+        );
+    }
 }

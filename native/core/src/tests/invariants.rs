@@ -47,7 +47,6 @@ fn a_catmull_clark_step_without_sharpness_tables_is_an_internal_error() {
         &step,
         Creasing::Uniform,
         &values,
-        &mut out,
-        &mut Vec::new()
+        &mut out
     )));
 }

@@ -1,6 +1,7 @@
 //! The whole step of degree 3 or 5 where the mesh is a grid, primal in and primal out: the fine
-//! vertices straight from the coarse ones, with no children in between; and the same sums for
-//! the drawing points of a step of degree 2 or 4 (dual in, primal out).
+//! vertices straight from the coarse ones, with no children in between; the same sums for the
+//! drawing points of a step of degree 2 or 4 (dual in, primal out); and degree 3's for the
+//! smooth points of a classic Catmull-Clark step on a quad level ([`Fused::classic`]).
 //!
 //! A step of odd degree n is replication and n averages; on primal input the regular windows
 //! ([`super::regular`]) make the children (n - 1 averages: at degree 3 `(9, 3, 3, 1) / 16` of
@@ -329,31 +330,31 @@ pub(super) fn closure_points<S: Sums, const DEGREE: u32, const DUAL: bool>(
     w: Weights<S::Weight>,
     mut write: impl FnMut(u16, S),
 ) {
-    let pair = |a: u8, b: u8| p[a as usize].plus(p[b as usize]);
+    let at = |i: u8| p[i as usize];
+    let pair = |a: u8, b: u8| at(a).plus(at(b));
     let layout = &LAYOUTS[DUAL as usize];
     for (k, t) in layout.old.iter().enumerate() {
         if owned & (1 << k) != 0 {
-            let edges = pair(t[1], t[2]).plus(pair(t[3], t[4]));
-            let diagonals = pair(t[5], t[6]).plus(pair(t[7], t[8]));
             let value = match DEGREE {
-                3 => (p[t[0] as usize].times(w.w36))
-                    .plus(edges.times(w.w6))
-                    .plus(diagonals)
-                    .times(w.w64),
-                _ => (p[t[0] as usize].times(w.w100))
-                    .plus(edges.times(w.w30))
-                    .plus(diagonals.times(w.w9))
-                    .times(w.w256),
+                3 => cubic_vertex(at, t, w),
+                _ => {
+                    let edges = pair(t[1], t[2]).plus(pair(t[3], t[4]));
+                    let diagonals = pair(t[5], t[6]).plus(pair(t[7], t[8]));
+                    (at(t[0]).times(w.w100))
+                        .plus(edges.times(w.w30))
+                        .plus(diagonals.times(w.w9))
+                        .times(w.w256)
+                }
             };
             write(1 << k, value);
         }
     }
     for (k, t) in layout.edge.iter().enumerate() {
         if owned & (EDGE_BIT << k) != 0 {
-            let sides = pair(t[2], t[3]).plus(pair(t[4], t[5]));
             let value = match DEGREE {
-                3 => (pair(t[0], t[1]).times(w.w6)).plus(sides).times(w.w16),
+                3 => cubic_edge(at, t, w),
                 _ => {
+                    let sides = pair(t[2], t[3]).plus(pair(t[4], t[5]));
                     let o = &layout.edge_outer[k];
                     let outer_sides = pair(o[2], o[3]).plus(pair(o[4], o[5]));
                     let ends = (pair(t[0], t[1]).times(w.w150)).plus(sides.times(w.w45));
@@ -365,11 +366,12 @@ pub(super) fn closure_points<S: Sums, const DEGREE: u32, const DUAL: bool>(
         }
     }
     if owned & FACE_BIT != 0 {
-        let [c0, c1, c2, c3] = layout.old.map(|t| t[0]);
-        let corners = pair(c0, c2).plus(pair(c1, c3));
+        let corners = layout.old.map(|t| t[0]);
         let value = match DEGREE {
-            3 => corners.times(w.w4),
+            3 => cubic_face(at, &corners, w),
             _ => {
+                let [c0, c1, c2, c3] = corners;
+                let corners = pair(c0, c2).plus(pair(c1, c3));
                 let [a, b, c, d, e, f, g, h] = layout.ring;
                 let ring = (pair(a, b).plus(pair(c, d))).plus(pair(e, f).plus(pair(g, h)));
                 let [i, j, k, l] = layout.far;
@@ -382,6 +384,41 @@ pub(super) fn closure_points<S: Sums, const DEGREE: u32, const DUAL: bool>(
         };
         write(FACE_BIT, value);
     }
+}
+
+/// Degree 3's old vertex `(36 v + 6 E + D) / 64` from the points `p(t[i])`: `t[0]` the vertex,
+/// `t[1..5]` its four edge neighbours as the two pairs opposite through it, `t[5..9]` its
+/// diagonal ones likewise. The cubic B-spline's mask, which is also classic Catmull-Clark's
+/// smooth vertex point at valence 4 among quads ([`super::catmark`] makes it with this
+/// function where no face owns it): one order of additions for every path and frame (each
+/// pair, and the two pairs, commute), so the point's bits are the same on all.
+#[inline(always)]
+pub(super) fn cubic_vertex<S: Sums>(p: impl Fn(u8) -> S, t: &[u8; 9], w: Weights<S::Weight>) -> S {
+    let pair = |a: u8, b: u8| p(a).plus(p(b));
+    let edges = pair(t[1], t[2]).plus(pair(t[3], t[4]));
+    let diagonals = pair(t[5], t[6]).plus(pair(t[7], t[8]));
+    (p(t[0]).times(w.w36))
+        .plus(edges.times(w.w6))
+        .plus(diagonals)
+        .times(w.w64)
+}
+
+/// Degree 3's edge point `(6 A + S) / 16` from the points `p(t[i])`: `t[0..2]` the edge's
+/// ends, `t[2..4]` and `t[4..6]` the other two corners of each of its quads. The B-spline's
+/// mask and classic Catmull-Clark's smooth edge point between two quads, as [`cubic_vertex`].
+#[inline(always)]
+pub(super) fn cubic_edge<S: Sums>(p: impl Fn(u8) -> S, t: &[u8; 6], w: Weights<S::Weight>) -> S {
+    let pair = |a: u8, b: u8| p(a).plus(p(b));
+    let sides = pair(t[2], t[3]).plus(pair(t[4], t[5]));
+    (pair(t[0], t[1]).times(w.w6)).plus(sides).times(w.w16)
+}
+
+/// Degree 3's face point of a quad, the mean of its corners `p(t[k])` in order around it: every
+/// scheme's face point of a quad at degree 3, as [`cubic_vertex`].
+#[inline(always)]
+pub(super) fn cubic_face<S: Sums>(p: impl Fn(u8) -> S, t: &[u8; 4], w: Weights<S::Weight>) -> S {
+    let pair = |a: u8, b: u8| p(a).plus(p(b));
+    pair(t[0], t[2]).plus(pair(t[1], t[3])).times(w.w4)
 }
 
 impl Fused {
@@ -398,7 +435,7 @@ impl Fused {
         corners: CornerTables,
     ) -> Result<Option<Fused>> {
         let ids = ClosureIds::of(coarse)?;
-        let [nv, ne, nf] = ids.sizes();
+        let [_, _, nf] = ids.sizes();
         if masks.len() != nf || !matches!(degree, 3 | 5) {
             return Err(Error::Internal(
                 "fused points: masks not the level's, or no sums for the degree".into(),
@@ -410,7 +447,51 @@ impl Fused {
             degree != 3
                 || (0..nf).all(|f| masks[f] == if corners.clean(4 * f as u32) { 0xf } else { 0 })
         );
-        let owners = Owners::of(coarse, ids, masks, corners)?;
+        // Whether the kernel makes the child at corner `c` (below `4 nf`).
+        let child = |c: u32| masks[(c >> 2) as usize] & (1 << (c & 3)) != 0;
+        let faces = memory::collect(masks.iter().map(|&m| match m {
+            0xf => FACE_BIT,
+            _ => 0,
+        }))?;
+        let owners = Owners::of(coarse, ids, corners, faces, child, |_| true, |_| true)?;
+        Fused::of_owners(ids, owners, corners, degree)
+    }
+
+    /// The fused points of a classic Catmull-Clark step from the quad level `coarse`, with its
+    /// corner tables as for [`Fused::new`]: every face point, the edge point of every edge
+    /// between two quads for which `smooth_edge` holds and the vertex point of every vertex
+    /// inside a grid for which `smooth_vertex` holds, by degree 3's sums, which are the classic
+    /// masks of these points ([`super::catmark`]); `None` for a level without faces.
+    pub(super) fn classic(
+        coarse: &Level,
+        corners: CornerTables,
+        smooth_vertex: impl Fn(usize) -> bool,
+        smooth_edge: impl Fn(usize) -> bool,
+    ) -> Result<Option<Fused>> {
+        let ids = ClosureIds::of(coarse)?;
+        // No children: every face's point is its corners' mean, so each face owns its own.
+        let faces = memory::filled(ids.sizes()[2], FACE_BIT)?;
+        let owners = Owners::of(
+            coarse,
+            ids,
+            corners,
+            faces,
+            |_| true,
+            smooth_vertex,
+            smooth_edge,
+        )?;
+        Fused::of_owners(ids, owners, corners, 3)
+    }
+
+    /// The points of `owners` with the nets of the level's faces; `None` when no point is
+    /// fused.
+    fn of_owners(
+        ids: ClosureIds,
+        owners: Owners,
+        corners: CornerTables,
+        degree: u32,
+    ) -> Result<Option<Fused>> {
+        let [nv, ne, nf] = ids.sizes();
         if owners.rest.len() == nv + ne + nf {
             return Ok(None);
         }
@@ -628,25 +709,36 @@ struct Owners {
 }
 
 impl Owners {
-    /// The owners on `coarse` (its closure ids `ids`, the kernel's children `masks`, its corner
-    /// tables as the walk reads them): a fine vertex is fused when the kernel makes the four
-    /// children around it (an old vertex one that can be inside a grid, an edge one with two
-    /// faces), and it is written by its face point's face, by the face of the smaller of its
-    /// edge's two corners, or by the face of its vertex's first corner.
+    /// The owners on `coarse` (its closure ids `ids`, its corner tables as the walk reads
+    /// them, `child(c)` whether the kernel makes the child at corner `c`): a fine vertex is
+    /// fused when the kernel makes the four children around it (an old vertex one that can be
+    /// inside a grid, an edge one with two faces), and it is written by the face of the
+    /// smaller of its edge's two corners or by the face of its vertex's first corner; a face
+    /// point by its face when `faces` (per face, [`FACE_BIT`] or 0) says so.
+    ///
+    /// Only the old vertices `v` and edges `e` for which `vertex_ok(v)` and `edge_ok(e)` hold
+    /// are fused (every one for the averaging rules; the smooth ones for classic
+    /// Catmull-Clark).
     ///
     /// Point by point, so that each gets one owner by construction; each owner's bit is
     /// checked to name its point again ([`ClosureIds::fine_vertex`]), which is what lets the
     /// sums write unchecked and in parallel.
-    fn of(coarse: &Level, ids: ClosureIds, masks: &[u8], corners: CornerTables) -> Result<Owners> {
+    fn of(
+        coarse: &Level,
+        ids: ClosureIds,
+        corners: CornerTables,
+        faces: Vec<u16>,
+        child: impl Fn(u32) -> bool,
+        vertex_ok: impl Fn(usize) -> bool,
+        edge_ok: impl Fn(usize) -> bool,
+    ) -> Result<Owners> {
         let [nv, ne, nf] = ids.sizes();
         let dead = 4 * nf as u32;
         let broken = || Error::Internal("fused points: a level's tables out of range".into());
-        // Whether the kernel makes the child at corner `c` (below `dead`).
-        let child = |c: u32| masks[(c >> 2) as usize] & (1 << (c & 3)) != 0;
-        let mut owned = memory::collect(masks.iter().map(|&m| match m {
-            0xf => FACE_BIT,
-            _ => 0,
-        }))?;
+        if faces.len() != nf {
+            return Err(broken());
+        }
+        let mut owned = faces;
         let mut rest: Vec<u32> = Vec::new();
         let own = |owned: &mut [u16], corner: u32, bit: u16, point: usize| {
             let (f, bit) = ((corner >> 2) as usize, bit << (corner & 3));
@@ -667,7 +759,7 @@ impl Owners {
             if around.iter().any(|&c| c >= dead) {
                 return Err(broken());
             }
-            match corners.grid(v as u32) && around.iter().all(|&c| child(c)) {
+            match corners.grid(v as u32) && around.iter().all(|&c| child(c)) && vertex_ok(v) {
                 true => own(&mut owned, around[0], 1, v)?,
                 false => leave(&mut rest, v)?,
             }
@@ -681,6 +773,7 @@ impl Owners {
             // The four children at the edge's midpoint: at its corners in either face.
             let fused = c != NONE
                 && twin < dead
+                && edge_ok(e)
                 && [c, after(c, 1), twin, after(twin, 1)]
                     .iter()
                     .all(|&c| child(c));
