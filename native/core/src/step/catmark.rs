@@ -281,10 +281,20 @@ impl<T: Scalar> Rules<'_, T> {
         let corners = t.corners_of_vertex(v);
         if let Some(fan) = self.grid_fan(v, corners) {
             let at = |c: u32| values[t.corner_verts[c as usize] as usize];
-            let [e0, e1, e2, e3] = fan.map(|c| at(after(c, 1)));
-            let [d0, d1, d2, d3] = fan.map(|c| at(after(c, 2)));
+            let edge = |k: usize| at(after(fan[k], 1));
+            let diagonal = |k: usize| at(after(fan[k], 2));
             // Opposite neighbours in pairs: the fan's corners 0 and 2, 1 and 3.
-            let points = [values[v], e0, e2, e1, e3, d0, d2, d1, d3];
+            let points = [
+                values[v],
+                edge(0),
+                edge(2),
+                edge(1),
+                edge(3),
+                diagonal(0),
+                diagonal(2),
+                diagonal(1),
+                diagonal(3),
+            ];
             return cubic_vertex(|i| points[i as usize], &[0, 1, 2, 3, 4, 5, 6, 7, 8], self.w);
         }
         let mut sum = zero();
@@ -378,8 +388,14 @@ impl<T: Scalar> Rules<'_, T> {
         if t.quads {
             let at = |c: u32| values[t.corner_verts[c as usize] as usize];
             // The ends, then the other two corners of each quad.
-            let [a, b, c, d] = [c0, after(c0, 1), after(c0, 2), after(c0, 3)].map(at);
-            let points = [a, b, c, d, at(after(c1, 2)), at(after(c1, 3))];
+            let points = [
+                at(c0),
+                at(after(c0, 1)),
+                at(after(c0, 2)),
+                at(after(c0, 3)),
+                at(after(c1, 2)),
+                at(after(c1, 3)),
+            ];
             return cubic_edge(|i| points[i as usize], &[0, 1, 2, 3, 4, 5], self.w);
         }
         let [a, b] = t.edge_verts[e];
