@@ -461,7 +461,8 @@ impl Fused {
     /// corner tables as for [`Fused::new`]: every face point, the edge point of every edge
     /// between two quads for which `smooth_edge` holds and the vertex point of every vertex
     /// inside a grid for which `smooth_vertex` holds, by degree 3's sums, which are the classic
-    /// masks of these points ([`super::catmark`]); `None` for a level without faces.
+    /// masks of these points ([`super::catmark`]); `None` when no point is fused (a level
+    /// without faces: every face point is).
     pub(super) fn classic(
         coarse: &Level,
         corners: CornerTables,
