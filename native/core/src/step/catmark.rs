@@ -59,8 +59,8 @@ impl<T: Scalar, const N: usize> LevelData<'_, T, N> {
 /// Measured (2026-12-07, callgrind driver, 3,840-quad sphere, one thread), against the masks
 /// with the smooth points of small quad levels as means of bilinear fine faces (the path
 /// before): a cached evaluation of classic 3 at levels 2 / 3 / 4 5.69M / 23.35M / 93.95M ->
-/// 2.22M / 8.86M / 35.38M instructions, cached UVs of classic 3 at level 3 38.74M -> 21.52M;
-/// a new plan and its evaluation 12.70M / 38.13M / 139.74M -> 15.29M / 49.17M / 181.05M (the
+/// 2.22M / 8.86M / 35.38M instructions, cached UVs of classic 3 at level 3 38.74M -> 21.29M;
+/// a new plan and its evaluation 12.70M / 38.13M / 139.74M -> 15.29M / 49.22M / 181.05M (the
 /// owners' serial pass, about 160 instructions a coarse face, the nets and the twin table).
 /// Results of f64 data moved by at most 3.3e-16 of the largest coordinate (the sums' order).
 #[derive(Debug)]
