@@ -270,7 +270,8 @@ enum Unclean {
 /// are the cage vertices tagged semi-sharp (sorted). A target vertex that is not clean makes
 /// the result `None`, or a [`LimitMask::Local`] stencil (listed in `local`) as `unclean` says.
 /// With `tile_depth` (every vertex of `last` a target, its faces blocks of the descendants of
-/// the faces `tile_depth` levels above), the regular vertices go to limit tiles of that depth.
+/// the faces of the level given, that many levels above), the regular vertices go to limit
+/// tiles of that depth.
 fn build_stencils(
     last: &Level,
     curves: &CurveNetwork,
@@ -278,7 +279,7 @@ fn build_stencils(
     targets: &Targets,
     semi_corners: &[u32],
     unclean: Unclean,
-    tile_depth: Option<u32>,
+    tile_depth: Option<(u32, &Level)>,
 ) -> Result<Option<Stencils>> {
     let primal = degree % 2 == 1;
     let n = neighbourhood_size(degree);
@@ -399,8 +400,8 @@ fn build_stencils(
     // Stamps per task, shared by the tiles' walks and the stencils' (see [`Pooled`]).
     let pool = Mutex::new(Vec::new());
     let tiles = match (&walk, tile_depth) {
-        (Some(walk), Some(depth)) => {
-            Tiles::build(last, &walk.twins, &walk.marks, degree, depth, &pool)?
+        (Some(walk), Some((depth, above))) => {
+            Tiles::build(last, above, &walk.twins, &walk.marks, degree, depth, &pool)?
         }
         _ => None,
     };
@@ -1029,7 +1030,8 @@ fn build(refinement: &Refinement, local: Option<usize>, tiled: bool) -> Result<S
                 let above = &all_levels[(levels - t) as usize];
                 above.all_quads()
             })
-            .filter(|_| tiled);
+            .filter(|_| tiled)
+            .map(|t| (t, &all_levels[(levels - t) as usize]));
         let built = build_stencils(
             last,
             curves,
@@ -2597,6 +2599,89 @@ mod tests {
             engaged >= 6,
             "the sphere was tiled at level 3 for {engaged} degrees of 8"
         );
+    }
+
+    /// A torus of `n x m` quads (every vertex regular; small ones wrap around within a tile's
+    /// window).
+    fn torus(n: usize, m: usize) -> (Cage, Vec<f64>) {
+        let id = |i: usize, j: usize| ((j % m) * n + i % n) as i64;
+        let mut faces = Vec::new();
+        for j in 0..m {
+            for i in 0..n {
+                faces.extend([id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)]);
+            }
+        }
+        let points = (0..n * m)
+            .flat_map(|k| {
+                let (u, v) = (k % n, k / n);
+                let (a, b) = (
+                    std::f64::consts::TAU * u as f64 / n as f64,
+                    std::f64::consts::TAU * v as f64 / m as f64,
+                );
+                [
+                    (2.0 + b.cos()) * a.cos(),
+                    (2.0 + b.cos()) * a.sin(),
+                    b.sin(),
+                ]
+            })
+            .collect();
+        let cage = Cage::from_indices(n * m, &vec![4; n * m], &faces).unwrap();
+        (cage, points)
+    }
+
+    #[test]
+    fn fast_walks_are_the_walks() {
+        // The tiles' cells from the faces above them are the walk's on their level: on the
+        // sphere (irregular vertices), open and creased grids (boundaries, curves), the cube
+        // (no grid above) and small tori (blocks that wrap around; the 2 x 5 one has doubled
+        // edges, non-manifold).
+        let (sphere, sphere_points) = ico_quads(2);
+        let (grid, grid_points) = grid(6);
+        let crease = grid
+            .clone()
+            .with_creases(&[(8, 15, f32::INFINITY), (15, 22, f32::INFINITY)])
+            .unwrap();
+        let cases = [
+            ("sphere", sphere, sphere_points),
+            ("grid", grid, grid_points.clone()),
+            ("creased grid", crease, grid_points),
+            ("cube", cube().0, cube().1),
+            ("torus 3 x 3", torus(3, 3).0, torus(3, 3).1),
+            ("torus 2 x 5", torus(2, 5).0, torus(2, 5).1),
+        ];
+        let mut from_above = HashMap::new();
+        for_each_refinement(&cases, 1..=3, |refinement, _, case| {
+            let levels = refinement.try_levels().unwrap();
+            let (last, l) = (refinement.last_level(), levels.len() - 1);
+            let depth = (l as u32).min(tiles::MAX_DEPTH);
+            let above = &levels[l - depth as usize];
+            let curves = refinement.last_network("test").unwrap();
+            let marks: Vec<u32> = (0..last.num_vertices)
+                .map(|w| {
+                    let regular = last.corners_of_vertex(w).len() == 4
+                        && curves.vertex_index(w as u32).is_none();
+                    if regular {
+                        0
+                    } else {
+                        Stamps::IRREGULAR
+                    }
+                })
+                .collect();
+            let twins = last.twin_corners().unwrap();
+            let degree = refinement.options().degree;
+            let (fast, all) = tiles::walks_agree(last, above, &twins, &marks, degree, depth);
+            let name = case.split(',').next().unwrap().to_string();
+            let counts = from_above.entry(name).or_insert((0, 0));
+            *counts = (counts.0 + fast, counts.1 + all);
+        });
+        // A third of the small sphere's tiles take their cells from above (half of them at
+        // most levels), all of the 3 x 3 torus', none of the cube's (every face has a corner of
+        // valence 3) nor of the 2 x 5 torus' (its doubled edges are non-manifold).
+        for (case, share) in [("sphere", 3), ("torus 3 x 3", 10), ("grid", 1)] {
+            let (fast, all) = from_above[case];
+            assert!(10 * fast >= share * all, "{case}: {fast} of {all}");
+        }
+        assert_eq!(from_above["cube"].0 + from_above["torus 2 x 5"].0, 0);
     }
 
     /// The local extension gives the limits of the whole plan extended (the stencils of the

@@ -109,9 +109,12 @@ impl Tiles {
     /// the level `depth` above it) for the limit of `degree`: `twins` are the level's
     /// [`Level::twin_corners`], `marks` per vertex 0 when regular (valence 4, interior, on no
     /// curve). `None` when no vertex is computed by a tile. The walks take their [`Stamps`]
-    /// over `marks` from `pool` (the stencils' build then finds them there).
+    /// over `marks` from `pool` (the stencils' build then finds them there). `above` is the
+    /// level `depth` levels above (the tiles' faces descend from its faces): most tiles' cells
+    /// follow from its faces ([`Above`]).
     pub(super) fn build(
         level: &Level,
+        above: &Level,
         twins: &[u32],
         marks: &[u32],
         degree: u32,
@@ -133,7 +136,7 @@ impl Tiles {
         let data_side = side + width - 1;
         let faces = level.num_faces();
         let count = faces >> (2 * depth);
-        if count << (2 * depth) != faces {
+        if count << (2 * depth) != faces || above.num_faces() != count || !above.all_quads() {
             return Err(Error::Internal(
                 "limit tiles: the level's faces are not blocks of one face's descendants".into(),
             ));
@@ -146,6 +149,10 @@ impl Tiles {
             rings,
             primal,
             data_side,
+            above: match depth {
+                0 => None,
+                _ => Some(Above::new(above, depth, rings)?),
+            },
         };
         // Claims in two passes, each in tile order (the result does not depend on the thread
         // count): first the outputs off a tile's far column and row, then the far ones that no
@@ -888,9 +895,260 @@ struct Geometry<'a> {
     rings: usize,
     primal: bool,
     data_side: usize,
+    /// The level the tiles' faces descend from, for the walks through it ([`Above`]).
+    above: Option<Above<'a>>,
+}
+
+/// The quad level `depth` levels above the tiles' level (the faces the tiles descend from):
+/// where the block of its faces around a tile's face is a grid of regular vertices, the tile's
+/// cells follow from that block by the children's numbering, without a step of the walk on the
+/// tiles' level (the same cells: test `fast_walks_are_the_walks`).
+struct Above<'a> {
+    /// Its [`Level::twin_corners`].
+    twins: Vec<u32>,
+    /// Its corners' vertices (ids the tiles' level keeps: `marks` applies to them).
+    verts: &'a [u32],
+    /// Its faces around the tile's face on each side: enough to hold the tile's cells.
+    rings: usize,
+    /// The window's cells along a side in runs, one per face of the block they are in: the
+    /// face's place in the block, the run's first cell in the window, its first cell in the
+    /// face, and its length (the same runs for rows and columns).
+    runs: Vec<(usize, usize, usize, usize)>,
+    /// Per corner `j` of a face at the lower left of its cell, then per cell `(x, y)` of the
+    /// face's `2^depth x 2^depth` descendants (row after row), the cell's descendant index
+    /// (`0 .. 4^depth`) times 4 plus its corner at the cell's lower left.
+    descent: Vec<u32>,
+}
+
+/// For the tests: per tile of `level` (as [`Tiles::build`]'s), asserts that the walk whose
+/// cells come from `above` finds what the walk on `level` finds, and, where its cells came from
+/// `above`, the same cells. The tiles whose cells came from `above`, and all tiles.
+#[cfg(test)]
+pub(super) fn walks_agree(
+    level: &Level,
+    above: &Level,
+    twins: &[u32],
+    marks: &[u32],
+    degree: u32,
+    depth: u32,
+) -> (usize, usize) {
+    let rings = neighbourhood_size(degree);
+    let t = 1usize << depth;
+    let width = knot_mask(degree, cardinal_bspline).len();
+    let slow = Geometry {
+        level,
+        twins,
+        marks,
+        t,
+        rings,
+        primal: degree % 2 == 1,
+        data_side: t + width,
+        above: None,
+    };
+    let fast = Geometry {
+        above: Some(Above::new(above, depth, rings).unwrap()),
+        ..slow
+    };
+    let mut stamps = Stamps::new(marks).unwrap();
+    let (tiles, side) = (level.num_faces() >> (2 * depth), t + 2 * rings + 2);
+    let mut from_above = 0;
+    for g in 0..tiles {
+        let anchor = g << (2 * depth);
+        let mut cells = [NONE; MAX_CELLS * MAX_CELLS];
+        if fast.cells_from_above(anchor, &mut cells) {
+            from_above += 1;
+            let mut walked = [NONE; MAX_CELLS * MAX_CELLS];
+            walk_cells(twins, 4 * anchor as u32, side, rings + 1, &mut walked);
+            assert_eq!(cells, walked, "tile {g}: cells");
+        }
+        let (a, b) = (
+            fast.walk(anchor, &mut stamps),
+            slow.walk(anchor, &mut stamps),
+        );
+        assert_eq!(
+            (a.ids, a.valid, a.outputs),
+            (b.ids, b.valid, b.outputs),
+            "tile {g}"
+        );
+    }
+    (from_above, tiles)
+}
+
+/// The largest side of the block of faces above a tile (`2 Above::rings + 1`: at depth 1 and
+/// degree 9, 3 faces on each side).
+const MAX_BLOCK: usize = 7;
+
+impl<'a> Above<'a> {
+    /// The walks through `level` (all quads, `depth` levels above the tiles' level, at least
+    /// one) for masks of `rings` rings.
+    fn new(level: &'a Level, depth: u32, rings: usize) -> Result<Above<'a>> {
+        let s = 1usize << depth;
+        let mut descent = Vec::with_capacity(4 * s * s);
+        for j in 0..4u32 {
+            for y in 0..s {
+                for x in 0..s {
+                    // A face whose corner `i` is at position `i + r` of its cell (positions
+                    // counterclockwise from the lower left); its child `k` is at its corner
+                    // `k`, and the child's corner `i` at the position `k + r + i` of its own
+                    // quarter: a child's rotation is its quarter's position.
+                    let (mut r, mut index) = ((4 - j) & 3, 0u32);
+                    for bit in (0..depth).rev() {
+                        let position = match ((x >> bit) & 1, (y >> bit) & 1) {
+                            (0, 0) => 0,
+                            (1, 0) => 1,
+                            (1, 1) => 2,
+                            _ => 3,
+                        };
+                        index = 4 * index + ((position + 4 - r) & 3);
+                        r = position;
+                    }
+                    descent.push(4 * index + ((4 - r) & 3));
+                }
+            }
+        }
+        // The window's cell `a` is at `a - n - 1` on the tiles' level (`n` rings), in the
+        // block's face `(a - n - 1).div_euclid(s) + r`: within the block when `r s >= n + 1`.
+        let n = rings;
+        let r = (n + 1).div_ceil(s);
+        if 2 * r + 1 > MAX_BLOCK {
+            return Err(Error::Internal(
+                "limit tiles: a block past its bounds".into(),
+            ));
+        }
+        let mut runs: Vec<(usize, usize, usize, usize)> = Vec::new();
+        for a in 0..s + 2 * n + 2 {
+            let x = a as isize - n as isize - 1;
+            let (face, at) = (
+                x.div_euclid(s as isize) + r as isize,
+                x.rem_euclid(s as isize),
+            );
+            match runs.last_mut() {
+                Some(run) if run.0 == face as usize => run.3 += 1,
+                _ => runs.push((face as usize, a, at as usize, 1)),
+            }
+        }
+        Ok(Above {
+            twins: level.twin_corners()?,
+            verts: &level.corner_verts,
+            rings: r,
+            runs,
+            descent,
+        })
+    }
+}
+
+/// From a cell's corner at its lower left, that of the cell on its right across the twin
+/// corners `twins`.
+#[inline(always)]
+fn right(twins: &[u32], c: u32) -> Option<u32> {
+    Some(quad_next(twin(twins, quad_next(c as usize) as u32)? as usize) as u32)
+}
+
+/// The twin corner of `c`, if it has one.
+#[inline(always)]
+fn twin(twins: &[u32], c: u32) -> Option<u32> {
+    let o = *twins.get(c as usize)?;
+    (o != NONE).then_some(o)
+}
+
+/// The cells of a `side x side` square of quads (`cells[b * side + a]`, each its corner at the
+/// lower left, `NONE` where the walk did not reach) walked from `first` at `(origin, origin)`:
+/// along its row both ways, then up and down each column.
+fn walk_cells(twins: &[u32], first: u32, side: usize, origin: usize, cells: &mut [u32]) {
+    let left = |c: u32| Some(quad_prev(twin(twins, quad_prev(c as usize) as u32)? as usize) as u32);
+    let up = |c: u32| twin(twins, c ^ 2);
+    let down = |c: u32| Some(twin(twins, c)? ^ 2);
+    // From `from`, `step` as far as it goes, each cell reached written at the next place
+    // (generic, not `dyn`: the steps inline into the walk).
+    fn follow(
+        cells: &mut [u32],
+        from: u32,
+        step: impl Fn(u32) -> Option<u32>,
+        places: impl Iterator<Item = usize>,
+    ) {
+        let mut c = from;
+        for at in places {
+            let Some(next) = step(c) else { break };
+            c = next;
+            cells[at] = c;
+        }
+    }
+    let cell = |a: usize, b: usize| b * side + a;
+    cells[cell(origin, origin)] = first;
+    let row = (origin + 1..side).map(|a| cell(a, origin));
+    follow(cells, first, |c| right(twins, c), row);
+    follow(
+        cells,
+        first,
+        left,
+        (0..origin).rev().map(|a| cell(a, origin)),
+    );
+    for a in 0..side {
+        let base = cells[cell(a, origin)];
+        if base != NONE {
+            follow(cells, base, up, (origin + 1..side).map(|b| cell(a, b)));
+            follow(cells, base, down, (0..origin).rev().map(|b| cell(a, b)));
+        }
+    }
 }
 
 impl Geometry<'_> {
+    /// The cells of the window of the tile whose first face is `anchor` (see
+    /// [`Geometry::walk`]) from the block of faces around the face above it, if that block is
+    /// a grid of regular vertices (each vertex inside it regular, its four cells meeting as a
+    /// grid's): then the walk on the tiles' level finds the same cells, and every vertex
+    /// inside the block meets its cells as a grid's.
+    fn cells_from_above(&self, anchor: usize, cells: &mut [u32]) -> bool {
+        let Some(above) = &self.above else {
+            return false;
+        };
+        let (s, n) = (self.t, self.rings);
+        let depth = s.trailing_zeros();
+        let (r, twins) = (above.rings, &above.twins[..]);
+        let bs = 2 * r + 1;
+        let mut block = [NONE; MAX_BLOCK * MAX_BLOCK];
+        let block = &mut block[..bs * bs];
+        walk_cells(twins, 4 * (anchor >> (2 * depth)) as u32, bs, r, block);
+        if block.contains(&NONE) {
+            return false;
+        }
+        for q in 1..bs {
+            for p in 1..bs {
+                let [below_left, below, left_of, own] = [
+                    block[(q - 1) * bs + p - 1],
+                    block[(q - 1) * bs + p],
+                    block[q * bs + p - 1],
+                    block[q * bs + p],
+                ];
+                let v = above.verts.get(own as usize).copied().unwrap_or(NONE);
+                let regular = self.marks.get(v as usize) == Some(&0)
+                    && right(twins, below_left) == Some(below)
+                    && right(twins, left_of) == Some(own);
+                if !regular {
+                    return false;
+                }
+            }
+        }
+        // The window's cells, a rectangle per face of the block: the face's first descendant
+        // plus the descent of each cell (rows of consecutive items).
+        let (side, shift) = (s + 2 * n + 2, 2 * depth as usize + 2);
+        for &(q, b0, y0, rows) in &above.runs {
+            for &(p, a0, x0, columns) in &above.runs {
+                let c = block[q * bs + p] as usize;
+                let first = ((c >> 2) << shift) as u32;
+                let descent = &above.descent[(c & 3) * s * s..][..s * s];
+                for y in 0..rows {
+                    let to = &mut cells[(b0 + y) * side + a0..][..columns];
+                    let from = &descent[(y0 + y) * s + x0..][..columns];
+                    for (cell, &own) in to.iter_mut().zip(from) {
+                        *cell = first + own;
+                    }
+                }
+            }
+        }
+        true
+    }
+
     /// The walk of the tile whose first face is `anchor`: the cells of its window from the
     /// anchor's corner 0 (cell `(0, 0)`), along row 0 both ways, then up and down each column.
     /// A vertex is good when it is regular and its four cells meet around it as a grid's do;
@@ -898,138 +1156,101 @@ impl Geometry<'_> {
     /// vertices of the window are all different.
     fn walk(&self, anchor: usize, stamps: &mut Stamps) -> Walked {
         let (t, n, d) = (self.t, self.rings, self.data_side);
-        let twin = |c: u32| -> Option<u32> {
-            let o = *self.twins.get(c as usize)?;
-            (o != NONE).then_some(o)
-        };
-        // From a cell's corner 0 (its lower left) to that of the next cell in each direction.
-        let right = |c: u32| Some(quad_next(twin(quad_next(c as usize) as u32)? as usize) as u32);
-        let left = |c: u32| Some(quad_prev(twin(quad_prev(c as usize) as u32)? as usize) as u32);
-        let up = |c: u32| twin(c ^ 2);
-        let down = |c: u32| Some(twin(c)? ^ 2);
-        // Cells (a, b) for a, b in -n-1 ..= t+n, stored at (a + n + 1, b + n + 1).
+        // Cells (a, b) for a, b in -n-1 ..= t+n, stored at (b + n + 1) side + a + n + 1.
         let side = t + 2 * n + 2;
-        let origin = n + 1;
         let mut cells = [NONE; MAX_CELLS * MAX_CELLS];
-        let cell = |a: usize, b: usize| b * side + a;
-        // From `from`, `step` as far as it goes, each cell reached written at the next place
-        // (generic, not `dyn`: the steps inline into the walk).
-        fn follow(
-            cells: &mut [u32],
-            from: u32,
-            step: impl Fn(u32) -> Option<u32>,
-            places: impl Iterator<Item = usize>,
-        ) {
-            let mut c = from;
-            for at in places {
-                let Some(next) = step(c) else { break };
-                c = next;
-                cells[at] = c;
-            }
-        }
-        let first = 4 * anchor as u32;
-        cells[cell(origin, origin)] = first;
-        follow(
-            &mut cells,
-            first,
-            right,
-            (origin + 1..side).map(|a| cell(a, origin)),
-        );
-        follow(
-            &mut cells,
-            first,
-            left,
-            (0..origin).rev().map(|a| cell(a, origin)),
-        );
-        for a in 0..side {
-            let base = cells[cell(a, origin)];
-            if base != NONE {
-                follow(&mut cells, base, up, (origin + 1..side).map(|b| cell(a, b)));
-                follow(
-                    &mut cells,
-                    base,
-                    down,
-                    (0..origin).rev().map(|b| cell(a, b)),
-                );
-            }
+        // From the faces above when they are a grid: then every vertex inside meets its cells
+        // as a grid's, and no step is checked.
+        let grid = self.cells_from_above(anchor, &mut cells);
+        if !grid {
+            walk_cells(self.twins, 4 * anchor as u32, side, n + 1, &mut cells);
         }
         // Vertices (i, j) for i, j in -n ..= t+n, at (i + n, j + n): the corner 0 of cell
         // (i, j), good when the cells to its left, below and diagonally meet it as a grid's.
-        let verts = &self.level.corner_verts;
+        // Walked a row of cells and the row above at a time (no index checked per vertex).
+        let (verts, marks, twins) = (&self.level.corner_verts, self.marks, self.twins);
         let vside = t + 2 * n + 1;
         let mut good = [false; MAX_DATA * MAX_DATA];
-        let mut ids = [0u32; MAX_DATA * MAX_DATA];
         let mut vertex = [NONE; MAX_DATA * MAX_DATA];
-        for j in 0..vside {
-            for i in 0..vside {
-                let (a, b) = (i + 1, j + 1);
-                let [below_left, below, left_of, own] = [
-                    cells[cell(a - 1, b - 1)],
-                    cells[cell(a, b - 1)],
-                    cells[cell(a - 1, b)],
-                    cells[cell(a, b)],
-                ];
-                if [below_left, below, left_of, own].contains(&NONE) {
+        let rows = cells[..side * side].chunks_exact(side);
+        let pairs = rows.clone().zip(rows.skip(1));
+        let vertex_rows = vertex
+            .chunks_exact_mut(vside)
+            .zip(good.chunks_exact_mut(vside));
+        let mut all_good = true;
+        for ((vertex, good), (lower, upper)) in vertex_rows.zip(pairs) {
+            let corners = lower.windows(2).zip(upper.windows(2));
+            for ((v, g), (lower, upper)) in vertex.iter_mut().zip(good.iter_mut()).zip(corners) {
+                let [below_left, below, left_of, own] = [lower[0], lower[1], upper[0], upper[1]];
+                // From above, every cell is there and meets its neighbours as a grid's.
+                if !grid && [below_left, below, left_of, own].contains(&NONE) {
+                    all_good = false;
                     continue;
                 }
-                let v = verts[own as usize];
-                vertex[j * vside + i] = v;
-                good[j * vside + i] = self.marks[v as usize] == 0
-                    && right(below_left) == Some(below)
-                    && right(left_of) == Some(own);
+                *v = verts[own as usize];
+                *g = marks[*v as usize] == 0
+                    && (grid
+                        || right(twins, below_left) == Some(below)
+                            && right(twins, left_of) == Some(own));
+                all_good &= *g;
             }
         }
         // All good vertices different (the window is a disc), else no output: good vertices
         // are regular, so a stamp refused is one met before (a sort of the window's vertices
         // cost 5 % of a first limit call at degree 3).
         stamps.start();
-        let count = good[..vside * vside].iter().filter(|&&g| g).count();
-        let distinct = (0..vside * vside)
-            .filter(|&x| good[x])
-            .all(|x| stamps.insert(vertex[x]));
+        let window = vertex[..vside * vside].iter().zip(&good[..vside * vside]);
+        let distinct = window.filter(|(_, &g)| g).all(|(&v, _)| stamps.insert(v));
+        let out_side = t + 1;
+        let mut outputs = [NONE; MAX_SIDE * MAX_SIDE];
+        for (j, row) in outputs
+            .chunks_exact_mut(out_side)
+            .take(out_side)
+            .enumerate()
+        {
+            row.copy_from_slice(&vertex[(j + n) * vside + n..][..out_side]);
+        }
         // Bad vertices counted over each box of N rings by prefix sums (most windows have none:
         // then every output is valid).
-        let all_good = count == vside * vside;
-        let ps = vside + 1;
-        let mut bad = [0u16; (MAX_DATA + 1) * (MAX_DATA + 1)];
-        if !all_good {
-            for j in 0..vside {
-                for i in 0..vside {
-                    bad[(j + 1) * ps + i + 1] = bad[j * ps + i + 1] + bad[(j + 1) * ps + i]
-                        - bad[j * ps + i]
-                        + u16::from(!good[j * vside + i]);
+        let valid = match (distinct, all_good) {
+            (false, _) => 0,
+            (true, true) => (1u128 << (out_side * out_side)) - 1,
+            (true, false) => {
+                let ps = vside + 1;
+                let mut bad = [0u16; (MAX_DATA + 1) * (MAX_DATA + 1)];
+                for j in 0..vside {
+                    for i in 0..vside {
+                        bad[(j + 1) * ps + i + 1] = bad[j * ps + i + 1] + bad[(j + 1) * ps + i]
+                            - bad[j * ps + i]
+                            + u16::from(!good[j * vside + i]);
+                    }
                 }
-            }
-        }
-        let mut valid = 0u128;
-        let mut outputs = [NONE; MAX_SIDE * MAX_SIDE];
-        let out_side = t + 1;
-        for j in 0..out_side {
-            for i in 0..out_side {
-                // The box of output (i, j) is vertices i ..= i + 2n (shifted by n).
-                let (x0, y0, x1, y1) = (i, j, i + 2 * n + 1, j + 2 * n + 1);
-                let clean = all_good
-                    || bad[y1 * ps + x1] + bad[y0 * ps + x0]
-                        == bad[y0 * ps + x1] + bad[y1 * ps + x0];
-                let v = vertex[(j + n) * vside + i + n];
-                outputs[j * out_side + i] = v;
-                if distinct && clean {
-                    valid |= 1 << (j * out_side + i);
+                let mut valid = 0u128;
+                for j in 0..out_side {
+                    for i in 0..out_side {
+                        // The box of output (i, j) is vertices i ..= i + 2n (shifted by n).
+                        let (x0, y0, x1, y1) = (i, j, i + 2 * n + 1, j + 2 * n + 1);
+                        if bad[y1 * ps + x1] + bad[y0 * ps + x0]
+                            == bad[y0 * ps + x1] + bad[y1 * ps + x0]
+                        {
+                            valid |= 1 << (j * out_side + i);
+                        }
+                    }
                 }
+                valid
             }
-        }
+        };
         // The data the outputs read: vertices -n ..= t+n (odd degrees) or the faces of cells
-        // -n ..= t+n-1 (even).
-        for y in 0..d {
-            for x in 0..d {
-                let id = match self.primal {
-                    true => vertex[y * vside + x],
-                    false => match cells[cell(x + 1, y + 1)] {
-                        NONE => NONE,
-                        c => c >> 2,
-                    },
-                };
-                ids[y * d + x] = if id == NONE { 0 } else { id };
+        // -n ..= t+n-1 (even); 0 where there is none.
+        let mut ids = [0u32; MAX_DATA * MAX_DATA];
+        for (y, row) in ids.chunks_exact_mut(d).take(d).enumerate() {
+            let from = match self.primal {
+                true => &vertex[y * vside..][..d],
+                false => &cells[(y + 1) * side + 1..][..d],
+            };
+            let shift = if self.primal { 0 } else { 2 };
+            for (id, &x) in row.iter_mut().zip(from) {
+                *id = if x == NONE { 0 } else { x >> shift };
             }
         }
         Walked {
