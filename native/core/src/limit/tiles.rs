@@ -93,17 +93,6 @@ pub(super) struct Tiles {
     vertices_end: usize,
 }
 
-/// What the walk of one tile found.
-struct Walked {
-    /// The data ids of its window (see [`Tiles::ids`]).
-    ids: [u32; MAX_DATA * MAX_DATA],
-    /// Output vertices whose neighbourhood the window holds as a clean grid (bits as
-    /// [`Tiles::owned`]).
-    valid: u128,
-    /// Level vertex of each output position.
-    outputs: [u32; MAX_SIDE * MAX_SIDE],
-}
-
 impl Tiles {
     /// The tiles of `level` (a quad level whose faces `g 4^depth ..` descend from one face of
     /// the level `depth` above it) for the limit of `degree`: `twins` are the level's
@@ -162,46 +151,63 @@ impl Tiles {
         let (window, outputs_per_tile) = (data_side * data_side, side * side);
         let mut claimed = memory::filled(level.num_vertices, false)?;
         // Per tile that may own an output: its window's ids, its outputs' level vertices, what
-        // it owns, and its valid far outputs.
+        // it owns, and its valid far outputs. Each block of tiles is walked into the tail of
+        // the first two, then the tiles that own nothing and hold no far output are dropped.
         let mut ids: Vec<u32> = Vec::new();
         let mut outputs: Vec<u32> = Vec::new();
         let mut owned: Vec<u128> = Vec::new();
         let mut far_valid: Vec<u128> = Vec::new();
-        // The walks of a block (1.5 KB each, 6 MB for a whole block) in a buffer allocated
-        // fallibly once: collected into a new vector, a block's walks were the allocation that
-        // aborted a deep limit under a tight address space.
-        let mut walks: Vec<Result<Walked>> = memory::with_capacity(count.min(BLOCK))?;
+        // A block's valid outputs in a buffer allocated fallibly once (collected into a new
+        // vector, a block's walks were the allocation that aborted a deep limit under a tight
+        // address space).
+        let mut valid: Vec<Result<u128>> = memory::with_capacity(count.min(BLOCK))?;
         for start in (0..count).step_by(BLOCK) {
             let end = (start + BLOCK).min(count);
-            (start..end)
-                .into_par_iter()
-                .with_min_len(16)
-                .map_init(
-                    || Pooled::take(pool, marks),
-                    |stamps, g| {
-                        let stamps = stamps.stamps.as_mut().map_err(|e| e.clone())?;
-                        Ok(geometry.walk(g << (2 * depth), stamps))
-                    },
-                )
-                .collect_into_vec(&mut walks);
+            let (walked, kept) = (end - start, owned.len());
             // Room for every tile of the block at once (per tile, the checks of `grow` were 2 %
             // of a first limit call at degree 3, level 2).
-            let walked = walks.len();
             memory::grow(&mut ids, walked * window)?;
             memory::grow(&mut outputs, walked * outputs_per_tile)?;
             memory::grow(&mut owned, walked)?;
             memory::grow(&mut far_valid, walked)?;
-            for w in &walks {
-                let w = w.as_ref().map_err(|e| e.clone())?;
-                let mine = claim(w.valid & !far, &w.outputs, &mut claimed)?;
-                if mine == 0 && w.valid & far == 0 {
+            ids.resize(ids.len() + walked * window, 0);
+            outputs.resize(outputs.len() + walked * outputs_per_tile, NONE);
+            let tails = (ids[kept * window..].par_chunks_mut(window))
+                .zip(outputs[kept * outputs_per_tile..].par_chunks_mut(outputs_per_tile));
+            (start..end)
+                .into_par_iter()
+                .zip(tails)
+                .with_min_len(16)
+                .map_init(
+                    || Pooled::take(pool, marks),
+                    |stamps, (g, (ids, outputs))| {
+                        let stamps = stamps.stamps.as_mut().map_err(|e| e.clone())?;
+                        Ok(geometry.walk(g << (2 * depth), stamps, ids, outputs))
+                    },
+                )
+                .collect_into_vec(&mut valid);
+            let mut to = kept;
+            for (k, bits) in valid.iter().enumerate() {
+                let bits = *bits.as_ref().map_err(|e| e.clone())?;
+                let from = kept + k;
+                let tile_outputs = &outputs[from * outputs_per_tile..][..outputs_per_tile];
+                let mine = claim(bits & !far, tile_outputs, &mut claimed)?;
+                if mine == 0 && bits & far == 0 {
                     continue;
                 }
-                ids.extend_from_slice(&w.ids[..window]);
-                outputs.extend_from_slice(&w.outputs[..outputs_per_tile]);
+                if to != from {
+                    ids.copy_within(from * window..(from + 1) * window, to * window);
+                    outputs.copy_within(
+                        from * outputs_per_tile..(from + 1) * outputs_per_tile,
+                        to * outputs_per_tile,
+                    );
+                }
                 owned.push(mine);
-                far_valid.push(w.valid & far);
+                far_valid.push(bits & far);
+                to += 1;
             }
+            ids.truncate(to * window);
+            outputs.truncate(to * outputs_per_tile);
         }
         for ((mine, &bits), outputs) in owned
             .iter_mut()
@@ -961,15 +967,14 @@ pub(super) fn walks_agree(
             walk_cells(twins, 4 * anchor as u32, side, rings + 1, &mut walked);
             assert_eq!(cells, walked, "tile {g}: cells");
         }
-        let (a, b) = (
-            fast.walk(anchor, &mut stamps),
-            slow.walk(anchor, &mut stamps),
-        );
-        assert_eq!(
-            (a.ids, a.valid, a.outputs),
-            (b.ids, b.valid, b.outputs),
-            "tile {g}"
-        );
+        let walk = |geometry: &Geometry, stamps: &mut Stamps| {
+            let (d, out_side) = (geometry.data_side, t + 1);
+            let (mut ids, mut outputs) = (vec![0; d * d], vec![NONE; out_side * out_side]);
+            let valid = geometry.walk(anchor, stamps, &mut ids, &mut outputs);
+            (ids, valid, outputs)
+        };
+        let (a, b) = (walk(&fast, &mut stamps), walk(&slow, &mut stamps));
+        assert_eq!(a, b, "tile {g}");
     }
     (from_above, tiles)
 }
@@ -1153,8 +1158,17 @@ impl Geometry<'_> {
     /// anchor's corner 0 (cell `(0, 0)`), along row 0 both ways, then up and down each column.
     /// A vertex is good when it is regular and its four cells meet around it as a grid's do;
     /// an output vertex is valid when every vertex within `N` rings of it is good and the good
-    /// vertices of the window are all different.
-    fn walk(&self, anchor: usize, stamps: &mut Stamps) -> Walked {
+    /// vertices of the window are all different. Writes the window's data ids (`ids`, its
+    /// `data_side^2` items row after row, 0 where no output reads one) and each output's level
+    /// vertex (`outputs`, `(t + 1)^2`); returns the valid outputs (bit `(t + 1) j + i` for the
+    /// output at column `i`, row `j`).
+    fn walk(
+        &self,
+        anchor: usize,
+        stamps: &mut Stamps,
+        ids: &mut [u32],
+        outputs: &mut [u32],
+    ) -> u128 {
         let (t, n, d) = (self.t, self.rings, self.data_side);
         // Cells (a, b) for a, b in -n-1 ..= t+n, stored at (b + n + 1) side + a + n + 1.
         let side = t + 2 * n + 2;
@@ -1202,7 +1216,6 @@ impl Geometry<'_> {
         let window = vertex[..vside * vside].iter().zip(&good[..vside * vside]);
         let distinct = window.filter(|(_, &g)| g).all(|(&v, _)| stamps.insert(v));
         let out_side = t + 1;
-        let mut outputs = [NONE; MAX_SIDE * MAX_SIDE];
         for (j, row) in outputs
             .chunks_exact_mut(out_side)
             .take(out_side)
@@ -1242,7 +1255,6 @@ impl Geometry<'_> {
         };
         // The data the outputs read: vertices -n ..= t+n (odd degrees) or the faces of cells
         // -n ..= t+n-1 (even); 0 where there is none.
-        let mut ids = [0u32; MAX_DATA * MAX_DATA];
         for (y, row) in ids.chunks_exact_mut(d).take(d).enumerate() {
             let from = match self.primal {
                 true => &vertex[y * vside..][..d],
@@ -1253,10 +1265,6 @@ impl Geometry<'_> {
                 *id = if x == NONE { 0 } else { x >> shift };
             }
         }
-        Walked {
-            ids,
-            valid,
-            outputs,
-        }
+        valid
     }
 }
