@@ -16,7 +16,10 @@
 //! [`MAX_DEPTH`]: its descendants are the level's faces `g 4^t .. (g + 1) 4^t` (a face's
 //! children are numbered by its corners), and the first of them has its corner 0 at the face's
 //! corner 0, along the face's first edge, so the tile's frame is the face's. Its window, `N`
-//! rings more on every side, is walked once per plan over the level's twin corners. A vertex is
+//! rings more on every side, is found once per plan: where the faces of the level above around
+//! the tile's face are a grid of regular vertices (most of a mesh), its cells follow from them by
+//! the children's numbering ([`Above`]); elsewhere the window is walked over the level's twin
+//! corners (the same cells where both apply: test `fast_walks_are_the_walks`). A vertex is
 //! taken by a tile whose walk holds its whole neighbourhood as a grid of regular vertices
 //! (valence 4, interior, on no curve; all different): exactly the vertices whose stencils would
 //! be the valence-4 masks, less those that no tile holds so (near an irregular vertex, the walk
