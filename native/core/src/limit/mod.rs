@@ -2529,20 +2529,26 @@ mod tests {
     /// The limit tiles give the stencils' limits (other sums of the same masks: equal to
     /// rounding) and take most vertices; on a mesh with boundaries, creases and irregular
     /// vertices, at every degree and tile depth.
-    #[test]
-    fn tiles_match_the_stencils() {
-        let (sphere, sphere_points) = ico_quads(3);
+    /// The cages of the tiles' tests: the sphere of `ico_quads(n)` (irregular vertices), open
+    /// and creased grids (boundaries, curves) and the cube (no grid anywhere).
+    fn tile_cases(n: usize) -> Vec<(&'static str, Cage, Vec<f64>)> {
+        let (sphere, sphere_points) = ico_quads(n);
         let (grid, grid_points) = grid(6);
         let crease = grid
             .clone()
             .with_creases(&[(8, 15, f32::INFINITY), (15, 22, f32::INFINITY)])
             .unwrap();
-        let cases = [
+        vec![
             ("sphere", sphere, sphere_points),
             ("grid", grid, grid_points.clone()),
             ("creased grid", crease, grid_points),
             ("cube", cube().0, cube().1),
-        ];
+        ]
+    }
+
+    #[test]
+    fn tiles_match_the_stencils() {
+        let cases = tile_cases(3);
         let mut engaged = 0;
         for_each_refinement(&cases, 1..=3, |refinement, points, case| {
             let with = |tiled: bool, cache: &LimitCache| {
@@ -2635,20 +2641,11 @@ mod tests {
         // sphere (irregular vertices), open and creased grids (boundaries, curves), the cube
         // (no grid above) and small tori (blocks that wrap around; the 2 x 5 one has doubled
         // edges, non-manifold).
-        let (sphere, sphere_points) = ico_quads(2);
-        let (grid, grid_points) = grid(6);
-        let crease = grid
-            .clone()
-            .with_creases(&[(8, 15, f32::INFINITY), (15, 22, f32::INFINITY)])
-            .unwrap();
-        let cases = [
-            ("sphere", sphere, sphere_points),
-            ("grid", grid, grid_points.clone()),
-            ("creased grid", crease, grid_points),
-            ("cube", cube().0, cube().1),
-            ("torus 3 x 3", torus(3, 3).0, torus(3, 3).1),
-            ("torus 2 x 5", torus(2, 5).0, torus(2, 5).1),
-        ];
+        let mut cases = tile_cases(2);
+        for (name, (n, m)) in [("torus 3 x 3", (3, 3)), ("torus 2 x 5", (2, 5))] {
+            let (cage, points) = torus(n, m);
+            cases.push((name, cage, points));
+        }
         let mut from_above = HashMap::new();
         for_each_refinement(&cases, 1..=3, |refinement, _, case| {
             let levels = refinement.try_levels().unwrap();
