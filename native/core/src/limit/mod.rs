@@ -386,12 +386,7 @@ fn build_stencils(
         true => Some(QuadWalk {
             level: last,
             twins: last.twin_corners()?,
-            marks: gather_hinted(last.num_vertices, |w| {
-                match last.corners_of_vertex(w).len() == 4 && curve_of(w).is_none() {
-                    true => 0,
-                    false => Stamps::IRREGULAR,
-                }
-            })?,
+            marks: regular_marks(last, curves)?,
             n,
             primal,
         }),
@@ -885,6 +880,20 @@ impl Stamps {
     }
 }
 
+/// Per vertex of `level`, 0 when it is regular (valence 4, interior, on none of `curves`), else
+/// [`Stamps::IRREGULAR`]: the marks of the stencils' and the tiles' walks.
+fn regular_marks(level: &Level, curves: &CurveNetwork) -> Result<Vec<u32>> {
+    gather_hinted(level.num_vertices, |w| {
+        let regular =
+            level.corners_of_vertex(w).len() == 4 && curves.vertex_index(w as u32).is_none();
+        if regular {
+            0
+        } else {
+            Stamps::IRREGULAR
+        }
+    })
+}
+
 /// Stamps taken from a pool for one parallel task, put back when it ends.
 struct Pooled<'a> {
     stamps: Result<Stamps>,
@@ -1026,12 +1035,9 @@ fn build(refinement: &Refinement, local: Option<usize>, tiled: bool) -> Result<S
         // Tiles over the faces of the highest quad level at most MAX_DEPTH levels above.
         let depth = (0..=levels.min(tiles::MAX_DEPTH))
             .rev()
-            .find(|&t| {
-                let above = &all_levels[(levels - t) as usize];
-                above.all_quads()
-            })
-            .filter(|_| tiled)
-            .map(|t| (t, &all_levels[(levels - t) as usize]));
+            .map(|t| (t, &all_levels[(levels - t) as usize]))
+            .find(|(_, above)| above.all_quads())
+            .filter(|_| tiled);
         let built = build_stencils(
             last,
             curves,
@@ -2526,9 +2532,6 @@ mod tests {
         }
     }
 
-    /// The limit tiles give the stencils' limits (other sums of the same masks: equal to
-    /// rounding) and take most vertices; on a mesh with boundaries, creases and irregular
-    /// vertices, at every degree and tile depth.
     /// The cages of the tiles' tests: the sphere of `ico_quads(n)` (irregular vertices), open
     /// and creased grids (boundaries, curves) and the cube (no grid anywhere).
     fn tile_cases(n: usize) -> Vec<(&'static str, Cage, Vec<f64>)> {
@@ -2546,6 +2549,9 @@ mod tests {
         ]
     }
 
+    /// The limit tiles give the stencils' limits (other sums of the same masks: equal to
+    /// rounding) and take most vertices; on a mesh with boundaries, creases and irregular
+    /// vertices, at every degree and tile depth.
     #[test]
     fn tiles_match_the_stencils() {
         let cases = tile_cases(3);
@@ -2653,17 +2659,7 @@ mod tests {
             let depth = (l as u32).min(tiles::MAX_DEPTH);
             let above = &levels[l - depth as usize];
             let curves = refinement.last_network("test").unwrap();
-            let marks: Vec<u32> = (0..last.num_vertices)
-                .map(|w| {
-                    let regular = last.corners_of_vertex(w).len() == 4
-                        && curves.vertex_index(w as u32).is_none();
-                    if regular {
-                        0
-                    } else {
-                        Stamps::IRREGULAR
-                    }
-                })
-                .collect();
+            let marks = regular_marks(last, curves).unwrap();
             let twins = last.twin_corners().unwrap();
             let degree = refinement.options().degree;
             let (fast, all) = tiles::walks_agree(last, above, &twins, &marks, degree, depth);

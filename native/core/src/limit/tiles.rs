@@ -116,16 +116,10 @@ impl Tiles {
         if depth > MAX_DEPTH || !level.is_quads() || !(2..=9).contains(&degree) {
             return Ok(None);
         }
-        let rings = neighbourhood_size(degree);
-        let primal = degree % 2 == 1;
-        let t = 1usize << depth;
-        let side = t + 1;
         // The slope's sign is the same for both tangents, so the normal does not see it.
         let value = knot_mask(degree, cardinal_bspline);
         let slope = knot_mask(degree, cardinal_bspline_derivative);
         let width = value.len();
-        // An output column's items start at its own column: the window reaches `width - 1` more.
-        let data_side = side + width - 1;
         let faces = level.num_faces();
         let count = faces >> (2 * depth);
         if count << (2 * depth) != faces || above.num_faces() != count || !above.all_quads() {
@@ -133,19 +127,8 @@ impl Tiles {
                 "limit tiles: the level's faces are not blocks of one face's descendants".into(),
             ));
         }
-        let geometry = Geometry {
-            level,
-            twins,
-            marks,
-            t,
-            rings,
-            primal,
-            data_side,
-            above: match depth {
-                0 => None,
-                _ => Some(Above::new(above, depth, rings)?),
-            },
-        };
+        let geometry = Geometry::new(level, above, twins, marks, degree, depth)?;
+        let (side, data_side) = (geometry.t + 1, geometry.data_side);
         // Claims in two passes, each in tile order (the result does not depend on the thread
         // count): first the outputs off a tile's far column and row, then the far ones that no
         // tile took. A far output of one tile is most often a near one of the next, so most
@@ -941,23 +924,12 @@ pub(super) fn walks_agree(
     degree: u32,
     depth: u32,
 ) -> (usize, usize) {
-    let rings = neighbourhood_size(degree);
-    let t = 1usize << depth;
-    let width = knot_mask(degree, cardinal_bspline).len();
+    let fast = Geometry::new(level, above, twins, marks, degree, depth).unwrap();
     let slow = Geometry {
-        level,
-        twins,
-        marks,
-        t,
-        rings,
-        primal: degree % 2 == 1,
-        data_side: t + width,
         above: None,
+        ..fast
     };
-    let fast = Geometry {
-        above: Some(Above::new(above, depth, rings).unwrap()),
-        ..slow
-    };
+    let (t, rings) = (fast.t, fast.rings);
     let mut stamps = Stamps::new(marks).unwrap();
     let (tiles, side) = (level.num_faces() >> (2 * depth), t + 2 * rings + 2);
     let mut from_above = 0;
@@ -1100,7 +1072,36 @@ fn walk_cells(twins: &[u32], first: u32, side: usize, origin: usize, cells: &mut
     }
 }
 
-impl Geometry<'_> {
+impl<'a> Geometry<'a> {
+    /// What the walks of [`Tiles::build`]'s tiles read (its arguments).
+    fn new(
+        level: &'a Level,
+        above: &'a Level,
+        twins: &'a [u32],
+        marks: &'a [u32],
+        degree: u32,
+        depth: u32,
+    ) -> Result<Geometry<'a>> {
+        let rings = neighbourhood_size(degree);
+        let t = 1usize << depth;
+        // An output column's items start at its own column: the window reaches `width - 1`
+        // more than the `t + 1` outputs.
+        let width = knot_mask(degree, cardinal_bspline).len();
+        Ok(Geometry {
+            level,
+            twins,
+            marks,
+            t,
+            rings,
+            primal: degree % 2 == 1,
+            data_side: t + width,
+            above: match depth {
+                0 => None,
+                _ => Some(Above::new(above, depth, rings)?),
+            },
+        })
+    }
+
     /// The cells of the window of the tile whose first face is `anchor` (see
     /// [`Geometry::walk`]) from the block of faces around the face above it, if that block is
     /// a grid of regular vertices (each vertex inside it regular, its four cells meeting as a
