@@ -369,34 +369,6 @@ impl Level {
         }
     }
 
-    /// Whether the vertex -> corner table lists every corner exactly once, at its own vertex:
-    /// then a pass over the vertices writes each corner once (the limit's normals per corner
-    /// are written so, into memory not initialised before). Each listed corner is checked to
-    /// be at its vertex and each list to be increasing, so a corner is listed once at most; the
-    /// lists' total length is the number of corners.
-    pub(crate) fn vertex_corners_partition(&self) -> bool {
-        let (offsets, corners) = self.vertex_corner_table();
-        let n = self.corner_verts.len();
-        let shape = offsets.len() == self.num_vertices + 1
-            && offsets.first() == Some(&0)
-            && offsets
-                .last()
-                .is_some_and(|&end| end as usize == corners.len())
-            && corners.len() == n
-            && offsets.windows(2).all(|w| w[0] <= w[1]);
-        shape
-            && (0..self.num_vertices)
-                .into_par_iter()
-                .with_min_len(1 << 12)
-                .all(|v| {
-                    let at = &corners[offsets[v] as usize..offsets[v + 1] as usize];
-                    at.windows(2).all(|w| w[0] < w[1])
-                        && at
-                            .iter()
-                            .all(|&c| self.corner_verts.get(c as usize) == Some(&(v as u32)))
-                })
-    }
-
     /// True if edge `e` has a single face.
     #[inline]
     pub fn is_boundary_edge(&self, e: usize) -> bool {

@@ -100,7 +100,6 @@
 
 use std::borrow::Cow;
 use std::collections::HashMap;
-use std::mem::MaybeUninit;
 use std::sync::{Arc, Mutex, OnceLock};
 
 use glam::DVec3;
@@ -223,11 +222,6 @@ pub(crate) struct Stencils {
     /// [`normals_split`]'s answer, made on its first call (the stencils' alone: an update of
     /// the add-on asks it every frame).
     normals_split: OnceLock<bool>,
-    /// Whether the last level's vertex -> corner table lists each corner once
-    /// ([`Level::vertex_corners_partition`]), checked on the first limit with normals per
-    /// corner: then the tiles write their vertices' corners and the other stencils theirs,
-    /// every corner once, with no gather of the vertices' normals.
-    corners_partition: OnceLock<bool>,
 }
 
 impl Stencils {
@@ -705,7 +699,6 @@ fn build_stencils(
         fan_vertex,
         fan_items,
         normals_split: OnceLock::new(),
-        corners_partition: OnceLock::new(),
     }))
 }
 
@@ -1574,27 +1567,7 @@ impl Limit<'_> {
                 let st = stencils(r, self.cache)?;
                 let (data, curve) = self.limit_data(&st, &compact)?;
                 let kept = &self.cache.1;
-                // Normals per corner: the tiles write their vertices' corners in place.
-                let last = r.last_level();
-                let mut corner_normals = match domain == Some(NormalDomain::Corner)
-                    && st.tiles.is_some()
-                    && *st
-                        .corners_partition
-                        .get_or_init(|| last.vertex_corners_partition())
-                {
-                    true => Some(with_capacity_hinted::<[T; 3]>(last.num_corners())?),
-                    false => None,
-                };
-                let corner_slots = match corner_normals.as_mut() {
-                    Some(v) => Some(
-                        (v.spare_capacity_mut().get_mut(..last.num_corners())).ok_or_else(
-                            || Error::Internal("limit: the corners' normals without room".into()),
-                        )?,
-                    ),
-                    None => None,
-                };
-                let (positions, vertex_normals) =
-                    stencil_values(&st, &data, normals, corner_slots, kept)?;
+                let (positions, vertex_normals) = stencil_values(&st, &data, normals, kept)?;
                 // The local extension's stages, each past the one before.
                 let chain: Vec<_> = st
                     .locals()
@@ -1614,7 +1587,7 @@ impl Limit<'_> {
                     normals: vertex_normals,
                 }];
                 for ((local, _), data) in chain.into_iter().zip(ldata) {
-                    let (positions, normals) = stencil_values(local, &data, normals, None, kept)?;
+                    let (positions, normals) = stencil_values(local, &data, normals, kept)?;
                     stages.push(StencilValues {
                         stencils: local,
                         data,
@@ -1631,7 +1604,7 @@ impl Limit<'_> {
                     }
                 }
                 let normals = (domain)
-                    .map(|domain| self.stencil_normals(&mut stages, domain, corner_normals))
+                    .map(|domain| self.stencil_normals(&mut stages, domain))
                     .transpose()?;
                 let own = stages.swap_remove(0);
                 // The level's data goes back to the buffers of the run that made it, the
@@ -1718,14 +1691,11 @@ impl Limit<'_> {
     /// Unit normals per corner or per vertex of the last level from the values of the
     /// stencils' `stages` (the plan's, then the local extension's; see [`surface`]): each
     /// vertex's from the stage that has its stencil. Per vertex, the plan's stage gives its
-    /// array of normals up (it is the output). Per corner, `tiled` is the output when the
-    /// plan's tiles wrote their vertices' corners into it (its room: one item per corner of
-    /// the last level, see [`stencil_values`]); the other corners are written here.
+    /// array of normals up (it is the output).
     fn stencil_normals<T: Scalar, const N: usize>(
         &self,
         stages: &mut [StencilValues<T, N>],
         domain: NormalDomain,
-        tiled: Option<Vec<[T; 3]>>,
     ) -> Result<Vec<T>> {
         let fans = (stages.iter())
             .map(|s| fan_normals(s.stencils, &s.data, &s.positions))
@@ -1751,48 +1721,6 @@ impl Limit<'_> {
             for (v, n) in put_right {
                 out[v as usize] = n;
             }
-            return Ok(out.into_flattened());
-        }
-        if let Some(mut out) = tiled {
-            // The tiles wrote their vertices' corners; the corners of every other vertex take
-            // its stencil's normal, and those of the local extension and of the fans are then
-            // put right.
-            let n = corners.len();
-            let (offsets, at_vertex) = last.vertex_corner_table();
-            let own = &stages[0].normals;
-            let slots = out.spare_capacity_mut();
-            if slots.len() < n
-                || own.len() != last.num_vertices
-                || st.corners_partition.get() != Some(&true)
-            {
-                return Err(Error::Internal(
-                    "limit: the corners' normals without room".into(),
-                ));
-            }
-            let to = Disjoint::new(&mut slots[..n]);
-            st.untiled.par_chunks(CHUNK).for_each(|vertices| {
-                for &v in vertices {
-                    let v = v as usize;
-                    for &c in &at_vertex[offsets[v] as usize..offsets[v + 1] as usize] {
-                        // SAFETY: `c` is a corner of the level, at vertex `v` alone (the table
-                        // lists each corner once: `corners_partition`), and `v` is in one chunk
-                        // once (the untiled list is strictly increasing, checked by
-                        // `stencil_values`).
-                        unsafe { to.write(c as usize, own[v]) };
-                    }
-                }
-            });
-            for &v in elsewhere {
-                for &c in last.corners_of_vertex(v as usize) {
-                    // SAFETY: as above; no other write is in flight.
-                    unsafe { to.write(c as usize, resolved(c as usize)) };
-                }
-            }
-            // SAFETY: every corner is at one vertex, tiled or not (`stencil_values`' own
-            // argument for its positions): the tiles wrote the corners of theirs (the same
-            // table's lists, `Tiles::write` returned `Ok` only after writing each of its
-            // vertices), the loop above those of the others.
-            unsafe { out.set_len(n) };
             return Ok(out.into_flattened());
         }
         // Most corners take the plan's own stencil's normal at their vertex (a gather by the
@@ -1838,14 +1766,11 @@ type PositionsNormals<T, const N: usize> = (Vec<[T; N]>, Vec<[T; 3]>);
 /// Limit positions of every stencil of `st` from `data` (zero for [`LimitMask::Local`]) and,
 /// with `normals`, the unit normals at its interior vertices in `T` (zero elsewhere; empty
 /// without): the tiles write theirs in place, then every other stencil makes its position and
-/// tangents in one walk over its data. The normals' array comes from `kept`. With
-/// `corner_normals` (per corner of the level, with `normals`), the tiles also write their
-/// vertices' normals at the vertices' corners.
+/// tangents in one walk over its data. The normals' array comes from `kept`.
 fn stencil_values<T: Scalar, const N: usize>(
     st: &Stencils,
     data: &[[T; N]],
     normals: bool,
-    corner_normals: Option<&mut [MaybeUninit<[T; 3]>]>,
     kept: &Scratch,
 ) -> Result<PositionsNormals<T, N>> {
     let n = st.masks_of.len();
@@ -1869,7 +1794,7 @@ fn stencil_values<T: Scalar, const N: usize>(
         false => None,
     };
     if let Some(tiles) = &st.tiles {
-        tiles.write(data, p, q.as_deref_mut(), corner_normals)?;
+        tiles.write(data, p, q.as_deref_mut())?;
     }
     let at = |x: &[f64; N]| rounded::<T>([x[0], x[1], x[2]]);
     let none = [T::default(); 3];
@@ -2280,6 +2205,7 @@ fn combine_joint<T: Scalar, const N: usize>(
 mod tests {
     use super::*;
     use crate::mesh::Cage;
+    use std::mem::MaybeUninit;
 
     /// [`surface`] with normals per corner, on scratch buffers of its own.
     fn corner_surface<T: Scalar>(
@@ -2687,41 +2613,6 @@ mod tests {
         );
     }
 
-    /// The normals per corner that the tiles write in place (with the other stencils' corners
-    /// written after them) are bitwise those gathered from the vertices' normals, in `f64` and
-    /// `f32`, wherever there are tiles.
-    #[test]
-    fn corner_normals_in_place_are_the_gathered_ones() {
-        let cases = tile_cases(3);
-        let mut in_place = 0;
-        for_each_refinement(&cases, 1..=3, |refinement, points, case| {
-            let single: Vec<f32> = points.iter().map(|&x| x as f32).collect();
-            let with = |gathered: bool| {
-                let cache = LimitCache::default();
-                let st = build(refinement, Some(LOCAL_SHARE), true).unwrap();
-                if gathered {
-                    st.corners_partition.set(false).unwrap();
-                }
-                let tiled = st.tiles.is_some();
-                *cache.0.lock().unwrap() = Some(Arc::new(st));
-                let bits = |x: Vec<f64>| x.into_iter().map(f64::to_bits).collect::<Vec<_>>();
-                let (_, n) = corner_surface(refinement, &cache, points);
-                let (_, n32) = corner_surface(refinement, &cache, &single);
-                (
-                    bits(n),
-                    bits(n32.into_iter().map(f64::from).collect()),
-                    tiled,
-                )
-            };
-            let (n, n32, tiled) = with(false);
-            let (m, m32, _) = with(true);
-            assert!(n == m, "{case}: f64 normals per corner");
-            assert!(n32 == m32, "{case}: f32 normals per corner");
-            in_place += usize::from(tiled);
-        });
-        assert!(in_place >= 20, "normals written in place {in_place} times");
-    }
-
     /// A torus of `n x m` quads (every vertex regular; small ones wrap around within a tile's
     /// window).
     fn torus(n: usize, m: usize) -> (Cage, Vec<f64>) {
@@ -2889,24 +2780,14 @@ mod tests {
             };
             compared += 1;
             let n = refinement.last_level().num_vertices;
-            let corners = refinement.last_level().num_corners();
-            fn same<T: Scalar>(
-                tiles: &Tiles,
-                data: &[[T; 3]],
-                normals: bool,
-                n: usize,
-                corners: usize,
-            ) -> bool {
+            fn same<T: Scalar>(tiles: &Tiles, data: &[[T; 3]], normals: bool, n: usize) -> bool {
                 let run = |wide: bool| {
                     // Initialised arrays: the items no tile writes stay zero in both runs.
                     let zero = MaybeUninit::new([T::default(); 3]);
-                    let (mut p, mut q, mut r) = (vec![zero; n], vec![zero; n], vec![zero; corners]);
-                    let (q_out, r_out) = match normals {
-                        true => (Some(&mut q[..]), Some(&mut r[..])),
-                        false => (None, None),
-                    };
-                    tiles.write_on(data, &mut p, q_out, r_out, wide).unwrap();
-                    (p.iter().chain(&q).chain(&r))
+                    let (mut p, mut q) = (vec![zero; n], vec![zero; n]);
+                    let q_out = normals.then_some(&mut q[..]);
+                    tiles.write_on(data, &mut p, q_out, wide).unwrap();
+                    (p.iter().chain(&q))
                         // SAFETY: every item was initialised above.
                         .flat_map(|x| unsafe { x.assume_init() })
                         .map(|v| v.to_f64().to_bits())
@@ -2919,14 +2800,8 @@ mod tests {
             let compact32 = refinement.compact(single.as_chunks::<3>().0);
             let (data32, _) = limit.limit_data(&st, &compact32).unwrap();
             for normals in [false, true] {
-                assert!(
-                    same(tiles, &data, normals, n, corners),
-                    "degree {degree} f64"
-                );
-                assert!(
-                    same(tiles, &data32, normals, n, corners),
-                    "degree {degree} f32"
-                );
+                assert!(same(tiles, &data, normals, n), "degree {degree} f64");
+                assert!(same(tiles, &data32, normals, n), "degree {degree} f32");
             }
         }
         assert!(compared >= 6, "tiles at {compared} degrees of 8");
@@ -2963,7 +2838,7 @@ mod tests {
             for (x, positions, normals) in cases {
                 let mut p = vec![MaybeUninit::new([0.0f32; 3]); positions];
                 let mut q = normals.map(|m| vec![MaybeUninit::new([0.0f32; 3]); m]);
-                let result = tiles.write_on(x, &mut p, q.as_deref_mut(), None, wide);
+                let result = tiles.write_on(x, &mut p, q.as_deref_mut(), wide);
                 assert!(
                     matches!(result, Err(Error::Internal(_))),
                     "wide {wide}, data {}, outputs {positions} / {normals:?}: {result:?}",

@@ -94,11 +94,6 @@ pub(super) struct Tiles {
     vertices: Vec<u32>,
     /// One more than the largest of `vertices`.
     vertices_end: usize,
-    /// Per slot, the four face corners of its vertex (the tiles write a vertex's normal at its
-    /// corners when the output is per corner: no gather of the vertices' normals after).
-    corners: Vec<[u32; 4]>,
-    /// One more than the largest of `corners`.
-    corners_end: usize,
 }
 
 impl Tiles {
@@ -236,22 +231,6 @@ impl Tiles {
         }
         let ids_end = ids.iter().max().map_or(0, |&id| id as usize + 1);
         let vertices_end = vertices.iter().max().map_or(0, |&v| v as usize + 1);
-        // A tiled vertex is regular: interior, of valence 4, so at four face corners.
-        let (corner_offsets, vertex_corners) = level.vertex_corner_table();
-        let corners = memory::collect(vertices.iter().map(|&v| {
-            (corner_offsets.get(v as usize..v as usize + 2))
-                .and_then(|at| vertex_corners.get(at[0] as usize..at[1] as usize))
-                .and_then(|four| <[u32; 4]>::try_from(four).ok())
-        }))?;
-        let corners: Vec<[u32; 4]> =
-            corners.into_iter().collect::<Option<_>>().ok_or_else(|| {
-                Error::Internal("limit tiles: a tiled vertex not at four corners".into())
-            })?;
-        let corners_end = corners
-            .iter()
-            .flatten()
-            .max()
-            .map_or(0, |&c| c as usize + 1);
         Ok(Some(Tiles {
             side,
             data_side,
@@ -264,8 +243,6 @@ impl Tiles {
             offsets,
             vertices,
             vertices_end,
-            corners,
-            corners_end,
         }))
     }
 
@@ -293,18 +270,15 @@ impl Tiles {
 
     /// Writes at each vertex a tile computes its limit position from `data` (the level's
     /// data: per vertex for odd degrees, per face for even ones) into `positions` and, when
-    /// given, its unit normal into `normals` (both per level vertex) and into
-    /// `corner_normals` at each of its face corners (per corner of the level; only with
-    /// `normals`): the tangents are rounded to `T` before their cross product, as the
-    /// stencils' are. No other item is written.
+    /// given, its unit normal into `normals` (both per level vertex): the tangents are rounded
+    /// to `T` before their cross product, as the stencils' are. No other item is written.
     pub(super) fn write<T: Scalar, const N: usize>(
         &self,
         data: &[[T; N]],
         positions: &mut [MaybeUninit<[T; N]>],
         normals: Option<&mut [MaybeUninit<[T; 3]>]>,
-        corner_normals: Option<&mut [MaybeUninit<[T; 3]>]>,
     ) -> Result<()> {
-        self.write_on(data, positions, normals, corner_normals, wide_vectors())
+        self.write_on(data, positions, normals, wide_vectors())
     }
 
     /// [`Tiles::write`], in four-lane vectors when `wide` (the processor must have AVX2).
@@ -313,18 +287,11 @@ impl Tiles {
         data: &[[T; N]],
         positions: &mut [MaybeUninit<[T; N]>],
         normals: Option<&mut [MaybeUninit<[T; 3]>]>,
-        corner_normals: Option<&mut [MaybeUninit<[T; 3]>]>,
         wide: bool,
     ) -> Result<()> {
-        if normals.is_none() && corner_normals.is_some() {
-            return Err(Error::Internal(
-                "limit tiles: normals at corners without normals".into(),
-            ));
-        }
         let out = Out {
             positions: Disjoint::new(positions),
             normals: normals.map(Disjoint::new),
-            corners: corner_normals.map(Disjoint::new),
         };
         // Output columns are filtered four at a time, in as many vectors as the columns a tile
         // owns need, so that the tiles of levels 1 and 2 (side 3 and 5) do not filter the nine
@@ -392,10 +359,6 @@ impl Tiles {
                 .normals
                 .as_ref()
                 .is_some_and(|n| self.vertices_end > n.len())
-            || out
-                .corners
-                .as_ref()
-                .is_some_and(|c| self.corners_end > c.len())
         {
             return Err(Error::Internal(
                 "limit tiles: a vertex past the output".into(),
@@ -479,12 +442,10 @@ fn claim(bits: u128, outputs: &[u32], claimed: &mut [bool]) -> Result<u128> {
 }
 
 /// Where the tiles write, per level vertex: the limit position and, when asked for, the unit
-/// normal, also at the vertex's face corners when asked for. Each vertex is in one tile's
-/// slots at most, and each corner at one vertex, so no two tiles write one item.
+/// normal. Each vertex is in one tile's slots at most, so no two tiles write one item.
 pub(super) struct Out<'a, T, const N: usize> {
     positions: Disjoint<'a, [T; N]>,
     normals: Option<Disjoint<'a, [T; 3]>>,
-    corners: Option<Disjoint<'a, [T; 3]>>,
 }
 
 /// Whether the processor has AVX2 (four-lane `f64` vectors) for the kernel: the same products
@@ -716,14 +677,8 @@ impl<const K: usize> Kernel<'_, K> {
         let (d, side) = (self.tiles.data_side, self.tiles.side);
         let normals = out.normals.as_ref();
         let offsets = &self.tiles.offsets;
-        let slots = (offsets.get(tile..tile + 2)).map(|o| o[0] as usize..o[1] as usize);
-        let (vertices, corners) = slots
-            .and_then(|s| {
-                Some((
-                    self.tiles.vertices.get(s.clone())?,
-                    self.tiles.corners.get(s)?,
-                ))
-            })
+        let vertices = (offsets.get(tile..tile + 2))
+            .and_then(|o| self.tiles.vertices.get(o[0] as usize..o[1] as usize))
             .ok_or_else(|| Error::Internal("limit tiles: a tile past its slots".into()))?;
         let ids = &self.tiles.ids[tile * d * d..(tile + 1) * d * d];
         let (half, odd) = (K / 2, K % 2 == 1);
@@ -739,25 +694,6 @@ impl<const K: usize> Kernel<'_, K> {
             let mine = ((owned >> (j * side)) & row_bits) as u32;
             if mine == 0 {
                 continue;
-            }
-            #[cfg(target_arch = "x86_64")]
-            if WIDE && N == 3 {
-                let slots = (vertices.get(n..).zip(corners.get(n..)))
-                    .ok_or_else(|| Error::Internal("limit tiles: a tile past its slots".into()))?;
-                // SAFETY: `WIDE` is set by `tiles_avx2` alone, on a processor with AVX2; the
-                // slots' vertices and corners are below `vertices_end` and `corners_end`,
-                // checked against the outputs by `write_with`, and this tile's alone (see the
-                // writes below).
-                let written = unsafe {
-                    match normals.is_some() {
-                        true => self.row_avx2::<T, N, V, true>(j, mine, rows, slots, out),
-                        false => self.row_avx2::<T, N, V, false>(j, mine, rows, slots, out),
-                    }
-                };
-                if let Some(written) = written {
-                    n += written?;
-                    continue;
-                }
             }
             // The three column sums of output row j, all columns at once.
             let mut position = [[[0.0f64; 4]; V]; N];
@@ -810,15 +746,10 @@ impl<const K: usize> Kernel<'_, K> {
                         std::array::from_fn(|c| T::from_f64(position[c].as_flattened()[i])),
                     );
                     if let (Some(to), Some(normal)) = (normals, &normal) {
-                        let normal =
-                            std::array::from_fn(|c| T::from_f64(normal[c].as_flattened()[i]));
-                        to.write(v, normal);
-                        // SAFETY: as above, for the vertex's corners against `corners_end`.
-                        if let Some(at_corners) = &out.corners {
-                            for &c in &corners[n] {
-                                at_corners.write(c as usize, normal);
-                            }
-                        }
+                        to.write(
+                            v,
+                            std::array::from_fn(|c| T::from_f64(normal[c].as_flattened()[i])),
+                        );
                     }
                 }
                 n += 1;
@@ -830,165 +761,6 @@ impl<const K: usize> Kernel<'_, K> {
                 "limit tiles: fewer vertices than slots".into(),
             )),
         }
-    }
-}
-
-impl<const K: usize> Kernel<'_, K> {
-    /// Output row `j` of a tile as [`Kernel::tile`]'s loop makes it (the same sums, the same
-    /// normals, lane by lane), in AVX2 and without its arrays: per four output columns, the
-    /// nine sums, the normals and the conversion to `T` stay in registers, the four columns
-    /// are turned into four `[x, y, z]` items and each vertex the tile owns (`mine`, its
-    /// vertices and corners from the first of `slots` in bit order) is written by one masked
-    /// store per item, its normal also at its corners when the output asks for them. The
-    /// number of slots written; `None`, with nothing written, unless the values are three
-    /// channels of `f32` or `f64`; normals are written when `BOTH`.
-    ///
-    /// # Safety
-    /// The processor must have AVX2; every slot's vertex and corners are below the lengths of
-    /// the outputs and written by this call alone.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn row_avx2<T: Scalar, const N: usize, const V: usize, const BOTH: bool>(
-        &self,
-        j: usize,
-        mine: u32,
-        rows: &Rows<N>,
-        (vertices, corners): (&[u32], &[[u32; 4]]),
-        out: &Out<T, N>,
-    ) -> Option<Result<usize>> {
-        use std::any::TypeId;
-        use std::arch::x86_64::*;
-        let single = TypeId::of::<T>() == TypeId::of::<f32>();
-        let double = TypeId::of::<T>() == TypeId::of::<f64>();
-        let normals = out.normals.as_ref();
-        if N != 3 || !(single || double) || BOTH != normals.is_some() {
-            return None;
-        }
-        let (half, odd) = (K / 2, K % 2 == 1);
-        let value: [__m256d; K] = std::array::from_fn(|k| _mm256_set1_pd(self.value[k]));
-        let slope: [__m256d; K] = std::array::from_fn(|k| _mm256_set1_pd(self.slope[k]));
-        let load = |lanes: &Lanes| {
-            // SAFETY: four `f64`s, read unaligned.
-            unsafe { _mm256_loadu_pd(lanes.as_ptr()) }
-        };
-        // `T::from_f64(x).to_f64()`, as the stencils round their tangents.
-        let round = |v: __m256d| match single {
-            true => _mm256_cvtps_pd(_mm256_cvtpd_ps(v)),
-            false => v,
-        };
-        // The four columns of three channels as four items `[x, y, z, _]` of `T` (the fourth
-        // lane is never stored), in the low half of each register for `f32`.
-        let items = |[x, y, z]: [__m256d; 3]| -> [__m256d; 4] {
-            if single {
-                let (x, y, z) = (_mm256_cvtpd_ps(x), _mm256_cvtpd_ps(y), _mm256_cvtpd_ps(z));
-                let (xy01, xy23) = (_mm_unpacklo_ps(x, y), _mm_unpackhi_ps(x, y));
-                [
-                    _mm_shuffle_ps::<0x04>(xy01, z),
-                    _mm_shuffle_ps::<0x5E>(xy01, z),
-                    _mm_shuffle_ps::<0xA4>(xy23, z),
-                    _mm_shuffle_ps::<0xFE>(xy23, z),
-                ]
-                .map(|c| _mm256_castps_pd(_mm256_castps128_ps256(c)))
-            } else {
-                let (xy02, xy13) = (_mm256_unpacklo_pd(x, y), _mm256_unpackhi_pd(x, y));
-                let z1133 = _mm256_unpackhi_pd(z, z);
-                [
-                    _mm256_permute2f128_pd::<0x20>(xy02, z),
-                    _mm256_permute2f128_pd::<0x20>(xy13, z1133),
-                    _mm256_permute2f128_pd::<0x31>(xy02, z),
-                    _mm256_permute2f128_pd::<0x31>(xy13, z1133),
-                ]
-            }
-        };
-        // SAFETY (both closures): the slot is below both outputs' lengths and this call's
-        // alone (the caller's promise); the mask writes the item's three channels alone.
-        let store = |to: *mut [T; 3], item: __m256d| unsafe {
-            match single {
-                true => _mm_maskstore_ps(
-                    to.cast(),
-                    _mm_setr_epi32(-1, -1, -1, 0),
-                    _mm256_castps256_ps128(_mm256_castpd_ps(item)),
-                ),
-                false => _mm256_maskstore_pd(to.cast(), _mm256_setr_epi64x(-1, -1, -1, 0), item),
-            }
-        };
-        let (zero, infinity) = (_mm256_setzero_pd(), _mm256_set1_pd(f64::INFINITY));
-        let mut slots = vertices.iter().zip(corners);
-        let mut written = 0;
-        for u in 0..V {
-            let mut group = (mine >> (4 * u)) & 15;
-            if group == 0 {
-                continue;
-            }
-            let (mut position, mut along_i, mut along_j) = ([zero; 3], [zero; 3], [zero; 3]);
-            for c in 0..3 {
-                let (bv, bs) = (&rows.by_value[c], &rows.by_slope[c]);
-                let (p_sum, i_sum, j_sum) = (&mut position[c], &mut along_i[c], &mut along_j[c]);
-                for r in 0..half {
-                    let (a, b) = (j + r, j + K - 1 - r);
-                    let (p, q) = (load(&bv[a][u]), load(&bv[b][u]));
-                    *p_sum = _mm256_add_pd(*p_sum, _mm256_mul_pd(value[r], _mm256_add_pd(p, q)));
-                    if BOTH {
-                        let (s, t) = (load(&bs[a][u]), load(&bs[b][u]));
-                        *i_sum =
-                            _mm256_add_pd(*i_sum, _mm256_mul_pd(value[r], _mm256_add_pd(s, t)));
-                        *j_sum =
-                            _mm256_add_pd(*j_sum, _mm256_mul_pd(slope[r], _mm256_sub_pd(p, q)));
-                    }
-                }
-                if odd {
-                    let m = j + half;
-                    *p_sum = _mm256_add_pd(*p_sum, _mm256_mul_pd(value[half], load(&bv[m][u])));
-                    if BOTH {
-                        *i_sum = _mm256_add_pd(*i_sum, _mm256_mul_pd(value[half], load(&bs[m][u])));
-                    }
-                }
-            }
-            let positions = items(position);
-            // [`unit_normals`]' operations in its order.
-            let normal_items = BOTH.then(|| {
-                let [ax, ay, az] = along_i.map(round);
-                let [bx, by, bz] = along_j.map(round);
-                let x = _mm256_sub_pd(_mm256_mul_pd(ay, bz), _mm256_mul_pd(by, az));
-                let y = _mm256_sub_pd(_mm256_mul_pd(az, bx), _mm256_mul_pd(bz, ax));
-                let z = _mm256_sub_pd(_mm256_mul_pd(ax, by), _mm256_mul_pd(bx, ay));
-                let square = _mm256_add_pd(
-                    _mm256_add_pd(_mm256_mul_pd(x, x), _mm256_mul_pd(y, y)),
-                    _mm256_mul_pd(z, z),
-                );
-                let rcp = _mm256_div_pd(_mm256_set1_pd(1.0), _mm256_sqrt_pd(square));
-                // Positive and finite: the bits `1..=f64::MAX.to_bits()` of `unit_normals`.
-                let keep = _mm256_and_pd(
-                    _mm256_cmp_pd::<_CMP_GT_OQ>(rcp, zero),
-                    _mm256_cmp_pd::<_CMP_LT_OQ>(rcp, infinity),
-                );
-                items([x, y, z].map(|v| _mm256_and_pd(_mm256_mul_pd(v, rcp), keep)))
-            });
-            while group != 0 {
-                let l = group.trailing_zeros() as usize;
-                group &= group - 1;
-                let Some((&v, at_corners)) = slots.next() else {
-                    return Some(Err(Error::Internal(
-                        "limit tiles: more vertices than slots".into(),
-                    )));
-                };
-                let v = v as usize;
-                // SAFETY: the caller's promise for `v` and its corners.
-                unsafe {
-                    store(out.positions.slot(v).cast(), positions[l]);
-                    if let (Some(to), Some(normal)) = (normals, &normal_items) {
-                        store(to.slot(v), normal[l]);
-                        if let Some(to) = &out.corners {
-                            for &c in at_corners {
-                                store(to.slot(c as usize), normal[l]);
-                            }
-                        }
-                    }
-                }
-                written += 1;
-            }
-        }
-        Some(Ok(written))
     }
 }
 

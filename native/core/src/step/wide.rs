@@ -1,7 +1,8 @@
 //! The dual -> primal average of a quad level ([`super::LevelData::gather_primal`]) in vectors:
-//! a value of up to four channels in one register (`f32` in SSE, `f64` in AVX), read and
-//! written by masked loads and stores of exactly its channels. Each sum is the portable loop's,
-//! in the same order, lane by lane, so the values are bitwise the same.
+//! a value of up to four channels in one register (`f32` in SSE, `f64` in AVX), read by masked
+//! loads and written by plain stores ([`crate::scalar::lanes`]) of exactly its channels. Each
+//! sum is the portable loop's, in the same order, lane by lane, so the values are bitwise the
+//! same.
 //!
 //! Why by hand: LLVM builds a three-channel value from a two-lane load and a scalar one, so a
 //! point costs two of each operation, and it keeps a bounds check per read. The portable loop
@@ -201,7 +202,7 @@ mod avx2 {
 
     use super::PrimalSections;
     use crate::parallel::{Disjoint, CHUNK};
-    use crate::scalar::{reciprocal, Scalar};
+    use crate::scalar::{lanes, reciprocal, Scalar};
     use crate::step::fused::{closure_points, ClosureIds, Fused, Sums, Weights, NET};
     use crate::step::Tables;
     use crate::topology::NONE;
@@ -262,8 +263,8 @@ mod avx2 {
         }
         #[inline(always)]
         unsafe fn store<const N: usize>(at: *mut [f32; N], v: __m128) {
-            // SAFETY: the caller's promise; the mask writes lanes `0..N` alone.
-            unsafe { _mm_maskstore_ps(at.cast(), mask32::<N>(), v) }
+            // SAFETY: the caller's promise: `N` writable values.
+            unsafe { lanes::store_f32::<N>(at.cast(), v) }
         }
         #[inline(always)]
         unsafe fn plus(a: __m128, b: __m128) -> __m128 {
@@ -288,8 +289,8 @@ mod avx2 {
         }
         #[inline(always)]
         unsafe fn store<const N: usize>(at: *mut [f64; N], v: __m256d) {
-            // SAFETY: the caller's promise; the mask writes lanes `0..N` alone.
-            unsafe { _mm256_maskstore_pd(at.cast(), mask64::<N>(), v) }
+            // SAFETY: the caller's promise: `N` writable values.
+            unsafe { lanes::store_f64::<N>(at.cast(), v) }
         }
         #[inline(always)]
         unsafe fn plus(a: __m256d, b: __m256d) -> __m256d {
@@ -740,6 +741,7 @@ mod tests {
             same_as_portable::<f32, 2>(&cage);
             same_as_portable::<f32, 3>(&cage);
             same_as_portable::<f32, 4>(&cage);
+            same_as_portable::<f64, 1>(&cage);
             same_as_portable::<f64, 2>(&cage);
             same_as_portable::<f64, 3>(&cage);
             same_as_portable::<f64, 4>(&cage);
